@@ -1,0 +1,149 @@
+//! The CLI's commands as library functions that return serialisable records, so the binary
+//! only parses arguments and prints, and tests can call the same code.
+
+use crate::config::Config;
+use crate::decode::{decode, CaptureFormat, DecodeLimits};
+use crate::measure::averaging::{average, AverageOptions, CaptureStats};
+use crate::measure::colour::{xyz_to_lab, Lab, Xyz};
+use serde::Serialize;
+use std::path::Path;
+
+/// One line of `goniowatch average --json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AverageRecord {
+    pub file: String,
+    #[serde(flatten)]
+    pub outcome: AverageOutcome,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum AverageOutcome {
+    Ok(Box<AverageOk>),
+    Err { error: String },
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AverageOk {
+    pub format: CaptureFormat,
+    pub width: usize,
+    pub height: usize,
+    pub mean_rgb: [f64; 3],
+    pub xyz: Xyz,
+    /// L*a*b* under the configured white; absent when the white needs a reference capture.
+    pub lab: Option<Lab>,
+    pub pixels: u64,
+    pub nonfinite: u64,
+    pub negative: u64,
+    pub clipped: u64,
+    pub dark: u64,
+    pub max_value: f64,
+}
+
+/// Read, decode and average one file. Every failure becomes an `Err` outcome with a message.
+pub fn average_file(path: &Path, cfg: &Config, opts: &AverageOptions) -> AverageRecord {
+    let file = path.display().to_string();
+    let outcome = match average_file_inner(path, cfg, opts) {
+        Ok(ok) => AverageOutcome::Ok(Box::new(ok)),
+        Err(e) => AverageOutcome::Err {
+            error: format!("{e:#}"),
+        },
+    };
+    AverageRecord { file, outcome }
+}
+
+fn average_file_inner(path: &Path, cfg: &Config, opts: &AverageOptions) -> anyhow::Result<AverageOk> {
+    use anyhow::Context;
+    let bytes = std::fs::read(path).context("cannot read file")?;
+    let img = decode(&bytes, &DecodeLimits::default())?;
+    let s: CaptureStats = average(&img.view(), opts)?;
+    let xyz = cfg.xyz_of(s.mean_rgb);
+    let lab = cfg.colour.white.resolve(None).ok().map(|w| xyz_to_lab(xyz, w));
+    Ok(AverageOk {
+        format: img.format,
+        width: img.width,
+        height: img.height,
+        mean_rgb: s.mean_rgb,
+        xyz,
+        lab,
+        pixels: s.pixels,
+        nonfinite: s.nonfinite,
+        negative: s.negative,
+        clipped: s.clipped,
+        dark: s.dark,
+        max_value: s.max_value,
+    })
+}
+
+/// A plan entry that the rig takes at a substitute pose.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SubstituteRecord {
+    pub index: usize,
+    pub light: usize,
+    pub camera: usize,
+    pub theta_i_planned_deg: f64,
+    pub theta_i_used_deg: f64,
+}
+
+/// The output of `goniowatch plan --json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlanSummary {
+    pub directions: usize,
+    pub captures: usize,
+    pub reciprocal_pairs: usize,
+    pub self_pairs: usize,
+    pub isotropy_classes: usize,
+    pub occlusion_substitutes: usize,
+    pub order: crate::measure::plan::AcquisitionOrder,
+    pub min_separation_deg: f64,
+    /// Rows of the paper's Table 1: (θ, Δφ, directions at that θ).
+    pub table1: Vec<(f64, f64, usize)>,
+    pub substitutes: Vec<SubstituteRecord>,
+    /// Plan entries the rig cannot take at all (no substitute); empty on a sane rig.
+    pub unreachable: Vec<(usize, String)>,
+}
+
+pub fn plan_summary(cfg: &Config) -> Result<PlanSummary, crate::config::ConfigError> {
+    let plan = cfg.plan()?;
+    let rig = cfg.rig()?;
+    let dirs = plan.directions();
+    let mut substitutes = Vec::new();
+    let mut unreachable = Vec::new();
+    for i in 0..plan.capture_count() {
+        let e = plan.entry(i)?;
+        match rig.plan_pose(dirs[e.light].spherical(), dirs[e.camera].spherical()) {
+            Ok(p) => {
+                if let Some((planned, used)) = p.substitute {
+                    substitutes.push(SubstituteRecord {
+                        index: i,
+                        light: e.light,
+                        camera: e.camera,
+                        theta_i_planned_deg: planned,
+                        theta_i_used_deg: used,
+                    });
+                }
+            }
+            Err(err) => unreachable.push((i, err.to_string())),
+        }
+    }
+    let table1 = cfg
+        .plan
+        .thetas_deg
+        .iter()
+        .zip(&cfg.plan.delta_phi_deg)
+        .map(|(&t, &d)| (t, d, dirs.iter().filter(|x| x.theta_deg == t).count()))
+        .collect();
+    Ok(PlanSummary {
+        directions: plan.direction_count(),
+        captures: plan.capture_count(),
+        reciprocal_pairs: plan.reciprocal_pairs().len(),
+        self_pairs: plan.self_pairs().len(),
+        isotropy_classes: plan.isotropy_classes().len(),
+        occlusion_substitutes: substitutes.len(),
+        order: plan.order(),
+        min_separation_deg: cfg.rig.min_separation_deg,
+        table1,
+        substitutes,
+        unreachable,
+    })
+}
