@@ -198,8 +198,7 @@ fn accumulate_row(row: &[f32], clip: f32, dark: f32, acc: &mut RowAcc) {
     let mut mx = acc.max;
     for px in row.chunks_exact(3) {
         let (r, g, b) = (px[0], px[1], px[2]);
-        // (x − x) is 0 for finite x and NaN for NaN/±Inf: one test covers all three channels
-        let finite = (r - r) + (g - g) + (b - b) == 0.0;
+        let finite = r.is_finite() & g.is_finite() & b.is_finite();
         if finite {
             s[0] += r as f64;
             s[1] += g as f64;

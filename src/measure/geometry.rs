@@ -172,20 +172,30 @@ pub fn sphere_to_square(d: &Vec3) -> (f64, f64) {
     disc_to_square(x / rho * ra, y / rho * ra)
 }
 
-/// The rotation that takes the north pole (0, 0, 1) to `target` by the shortest arc. The
-/// construction (Rodrigues with 1/(1 + cos)) is exact at the north pole and smooth near it; near
-/// the south pole, where the shortest arc is undefined, it turns about the x axis instead.
+/// The rotation that takes the north pole (0, 0, 1) to `target`.
+///
+/// For targets in the upper hemisphere (z ≥ 0, where every mirror direction lies) this is the
+/// shortest-arc rotation, Rodrigues' formula with 1/(1 + cos) ∈ [½, 1]: exact at the north pole
+/// and smooth over the whole upper hemisphere. For z < 0 it is the shortest-arc rotation to −t
+/// composed with a half turn about x, so 1/(1 + cos) never exceeds 1 and the result stays
+/// orthonormal to rounding even at and next to the south pole.
 pub fn rotation_pole_to(target: &Vec3) -> Matrix3<f64> {
     let t = target.normalize();
-    let c = t.z; // cos of the angle between z and t
-    if c < -1.0 + 1e-12 {
-        // antipode: a half turn about x
-        return Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
+    if t.z >= 0.0 {
+        shortest_arc_from_pole(&t)
+    } else {
+        let half_turn_x = Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
+        shortest_arc_from_pole(&(-t)) * half_turn_x
     }
-    // k = z × t = (−t.y, t.x, 0)
+}
+
+/// Shortest-arc rotation z → t for a unit t with t.z ≥ 0.
+fn shortest_arc_from_pole(t: &Vec3) -> Matrix3<f64> {
+    let c = t.z;
+    // k = z × t = (−t.y, t.x, 0); R = I + [k]× + [k]×² / (1 + c)
     let (kx, ky) = (-t.y, t.x);
-    let kx_m = Matrix3::new(0.0, 0.0, ky, 0.0, 0.0, -kx, -ky, kx, 0.0);
-    Matrix3::identity() + kx_m + kx_m * kx_m / (1.0 + c)
+    let k = Matrix3::new(0.0, 0.0, ky, 0.0, 0.0, -kx, -ky, kx, 0.0);
+    Matrix3::identity() + k + k * k / (1.0 + c)
 }
 
 /// The paper's resampling parameterisation for one incoming direction: (x, y) ∈ [0,1]² where

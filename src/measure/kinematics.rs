@@ -66,10 +66,10 @@ impl Default for AxisCalibration {
 }
 
 impl AxisCalibration {
-    fn to_ideal(&self, reading: f64) -> f64 {
+    fn to_ideal(self, reading: f64) -> f64 {
         (reading - self.offset_deg) * self.sign
     }
-    fn to_reading(&self, ideal: f64) -> f64 {
+    fn to_reading(self, ideal: f64) -> f64 {
         ideal * self.sign + self.offset_deg
     }
 }
@@ -228,6 +228,9 @@ pub struct Rig {
 
 pub const LAMP: [f64; 3] = [1.0, 0.0, 0.0];
 
+/// cos θ at or below which a direction counts as on or below the horizon.
+pub const HORIZON_EPS: f64 = 1e-9;
+
 impl Rig {
     pub fn new(spec: RigSpec) -> Result<Self, KinematicsError> {
         spec.validate()?;
@@ -274,7 +277,8 @@ impl Rig {
             return Err(KinematicsError::NotFinite);
         }
         for v in [&wi, &wo] {
-            if v.z <= 0.0 {
+            // at or below the horizon (θ ≥ 90° − 6e-8°): the lamp or camera grazes the sample
+            if v.z <= HORIZON_EPS {
                 return Err(KinematicsError::BelowHorizon {
                     theta_deg: Spherical::from_vector(v).theta_deg(),
                 });
