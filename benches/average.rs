@@ -37,7 +37,9 @@ fn write_inputs(dir: &Path) -> Vec<(String, PathBuf)> {
             .map(|(r, g, b)| image::Rgb([r, g, b]))
             .collect();
         let f = std::io::BufWriter::new(std::fs::File::create(&hdr).expect("create"));
-        image::codecs::hdr::HdrEncoder::new(f).encode(&px, W, H).expect("hdr encode");
+        image::codecs::hdr::HdrEncoder::new(f)
+            .encode(&px, W, H)
+            .expect("hdr encode");
     }
     out.push((".hdr (RLE RGBE)".to_string(), hdr));
     for (name, comp, half) in [
@@ -70,7 +72,15 @@ fn write_inputs(dir: &Path) -> Vec<(String, PathBuf)> {
                     .expect("exr write");
             }
         }
-        let label = format!(".exr {} {}", if name.starts_with("zip") { "ZIP" } else { "PIZ" }, if half { "half" } else { "float" });
+        let label = format!(
+            ".exr {} {}",
+            if name.starts_with("zip") {
+                "ZIP"
+            } else {
+                "PIZ"
+            },
+            if half { "half" } else { "float" }
+        );
         out.push((label, p));
     }
     out
@@ -97,7 +107,11 @@ fn python_peer(files: &[PathBuf], repeat: usize) -> Result<Vec<PeerResult>, Stri
         .output()
         .map_err(|e| e.to_string())?;
     if !out.status.success() {
-        return Err(String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("failed").to_string());
+        return Err(String::from_utf8_lossy(&out.stderr)
+            .lines()
+            .last()
+            .unwrap_or("failed")
+            .to_string());
     }
     let text = String::from_utf8_lossy(&out.stdout);
     text.lines()
@@ -106,14 +120,21 @@ fn python_peer(files: &[PathBuf], repeat: usize) -> Result<Vec<PeerResult>, Stri
             let m = v["mean_rgb"].as_array().ok_or("no mean")?;
             Ok(PeerResult {
                 seconds: v["median_seconds"].as_f64().ok_or("no time")?,
-                mean: [m[0].as_f64().unwrap_or(f64::NAN), m[1].as_f64().unwrap_or(f64::NAN), m[2].as_f64().unwrap_or(f64::NAN)],
+                mean: [
+                    m[0].as_f64().unwrap_or(f64::NAN),
+                    m[1].as_f64().unwrap_or(f64::NAN),
+                    m[2].as_f64().unwrap_or(f64::NAN),
+                ],
             })
         })
         .collect()
 }
 
 fn main() {
-    let repeat: usize = std::env::var("GW_BENCH_REPEAT").ok().and_then(|s| s.parse().ok()).unwrap_or(9);
+    let repeat: usize = std::env::var("GW_BENCH_REPEAT")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(9);
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/bench-data");
     let inputs = write_inputs(&dir);
     let files: Vec<PathBuf> = inputs.iter().map(|(_, p)| p.clone()).collect();
@@ -121,46 +142,79 @@ fn main() {
     let opts = AverageOptions::default();
     let mb = (W * H * 12) as f64 / 1e6;
 
-    println!("Decode + average, {W}×{H} ({:.1} MP), median of {repeat} runs, 1 thread.", (W * H) as f64 / 1e6);
+    println!(
+        "Decode + average, {W}×{H} ({:.1} MP). End to end = read + decode + average, median of {repeat} runs; \
+         average and plain sum on the decoded buffer: fastest of {} interleaved runs.",
+        (W * H) as f64 / 1e6,
+        repeat.max(31)
+    );
     println!();
-    println!("| input | file MB | end to end ms | captures/s | decoded MB/s | average ms | plain sum ms | average / limit | peer ms | speed-up vs peer | max rel. diff vs peer |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| input | file MB | end to end ms, 1 thread | captures/s | decoded MB/s | end to end ms, 2 threads | average ms | plain sum ms | average / limit | peer ms | speed-up vs peer (1 / 2 threads) | max rel. diff vs peer |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (i, (label, path)) in inputs.iter().enumerate() {
-        let file_mb = std::fs::metadata(path).map(|m| m.len() as f64 / 1e6).unwrap_or(0.0);
-        let mut t_end = Vec::new();
+        let file_mb = std::fs::metadata(path)
+            .map(|m| m.len() as f64 / 1e6)
+            .unwrap_or(0.0);
         let mut mean = [0.0; 3];
-        for _ in 0..repeat {
-            let t0 = Instant::now();
-            let bytes = std::fs::read(path).expect("read");
-            let img = decode(&bytes, &DecodeLimits::default()).expect("decode");
-            let s = average(&img.view(), &opts).expect("average");
-            t_end.push(t0.elapsed().as_secs_f64());
-            mean = black_box(s.mean_rgb);
-        }
-        let img = decode(&std::fs::read(path).expect("read"), &DecodeLimits::default()).expect("decode");
+        let mut end_to_end = |threads: usize| {
+            let mut t = Vec::new();
+            for _ in 0..repeat {
+                let t0 = Instant::now();
+                let bytes = std::fs::read(path).expect("read");
+                let img = decode(
+                    &bytes,
+                    &DecodeLimits {
+                        threads,
+                        ..DecodeLimits::default()
+                    },
+                )
+                .expect("decode");
+                let s = average(&img.view(), &opts).expect("average");
+                t.push(t0.elapsed().as_secs_f64());
+                mean = black_box(s.mean_rgb);
+            }
+            median(t)
+        };
+        let e = end_to_end(1);
+        let e2 = end_to_end(2);
+        let img = decode(
+            &std::fs::read(path).expect("read"),
+            &DecodeLimits::default(),
+        )
+        .expect("decode");
         let mut t_avg = Vec::new();
         let mut t_sum = Vec::new();
-        for _ in 0..repeat.max(15) {
+        for _ in 0..repeat.max(31) {
             let t0 = Instant::now();
             black_box(average(&black_box(img.view()), &opts).expect("average"));
             t_avg.push(t0.elapsed().as_secs_f64());
             let t0 = Instant::now();
-            black_box(plain_sum(black_box(&img.data)));
+            black_box(plain_sum(&black_box(img.view())));
             t_sum.push(t0.elapsed().as_secs_f64());
         }
-        let (e, a, s) = (median(t_end), median(t_avg), median(t_sum));
+        // the machine is a shared VM: the fastest of many interleaved runs is the stable figure
+        // for a CPU-bound inner loop (end to end uses the median)
+        let fastest = |v: Vec<f64>| v.into_iter().fold(f64::INFINITY, f64::min);
+        let (a, s) = (fastest(t_avg), fastest(t_sum));
         let (peer_ms, speedup, diff) = match &peer {
             Ok(p) => {
-                let d = (0..3).map(|c| ((mean[c] - p[i].mean[c]) / p[i].mean[c]).abs()).fold(0.0, f64::max);
-                (format!("{:.1}", p[i].seconds * 1e3), format!("{:.1}×", p[i].seconds / e), format!("{d:.1e}"))
+                let d = (0..3)
+                    .map(|c| ((mean[c] - p[i].mean[c]) / p[i].mean[c]).abs())
+                    .fold(0.0, f64::max);
+                (
+                    format!("{:.1}", p[i].seconds * 1e3),
+                    format!("{:.1}× / {:.1}×", p[i].seconds / e, p[i].seconds / e2),
+                    format!("{d:.1e}"),
+                )
             }
             Err(_) => ("–".into(), "–".into(), "–".into()),
         };
         println!(
-            "| {label} | {file_mb:.1} | {:.1} | {:.1} | {:.0} | {:.2} | {:.2} | {:.0} % | {peer_ms} | {speedup} | {diff} |",
+            "| {label} | {file_mb:.1} | {:.1} | {:.1} | {:.0} | {:.1} | {:.2} | {:.2} | {:.0} % | {peer_ms} | {speedup} | {diff} |",
             e * 1e3,
             1.0 / e,
             mb / e,
+            e2 * 1e3,
             a * 1e3,
             s * 1e3,
             100.0 * s / a

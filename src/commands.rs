@@ -52,13 +52,22 @@ pub fn average_file(path: &Path, cfg: &Config, opts: &AverageOptions) -> Average
     AverageRecord { file, outcome }
 }
 
-fn average_file_inner(path: &Path, cfg: &Config, opts: &AverageOptions) -> anyhow::Result<AverageOk> {
+fn average_file_inner(
+    path: &Path,
+    cfg: &Config,
+    opts: &AverageOptions,
+) -> anyhow::Result<AverageOk> {
     use anyhow::Context;
     let bytes = std::fs::read(path).context("cannot read file")?;
     let img = decode(&bytes, &DecodeLimits::default())?;
     let s: CaptureStats = average(&img.view(), opts)?;
     let xyz = cfg.xyz_of(s.mean_rgb);
-    let lab = cfg.colour.white.resolve(None).ok().map(|w| xyz_to_lab(xyz, w));
+    let lab = cfg
+        .colour
+        .white
+        .resolve(None)
+        .ok()
+        .map(|w| xyz_to_lab(xyz, w));
     Ok(AverageOk {
         format: img.format,
         width: img.width,

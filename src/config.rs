@@ -177,15 +177,21 @@ impl Config {
             });
         }
         if !matches!(self.colour.white, WhiteSpec::ReferenceCapture { .. }) {
-            self.colour.white.resolve(None).map_err(|source| ConfigError::Colour {
-                field: "colour.white",
-                source,
-            })?;
+            self.colour
+                .white
+                .resolve(None)
+                .map_err(|source| ConfigError::Colour {
+                    field: "colour.white",
+                    source,
+                })?;
         }
         if !(self.capture.clip_level.is_finite() && self.capture.clip_level > 0.0) {
             return Err(ConfigError::Invalid {
                 field: "capture.clip_level",
-                message: format!("{} is not a finite positive number", self.capture.clip_level),
+                message: format!(
+                    "{} is not a finite positive number",
+                    self.capture.clip_level
+                ),
             });
         }
         if let crate::measure::averaging::Roi::MarginFraction { fraction } = self.capture.roi {
@@ -235,11 +241,17 @@ mod tests {
 
     #[test]
     fn unknown_field_is_named() {
-        let e = Config::from_toml_str("[rig]\nmin_separation = 3\n").unwrap_err().to_string();
+        let e = Config::from_toml_str("[rig]\nmin_separation = 3\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("min_separation"), "{e}");
-        let e = Config::from_toml_str("[plan]\norder = \"spiral\"\n").unwrap_err().to_string();
+        let e = Config::from_toml_str("[plan]\norder = \"spiral\"\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("spiral") && e.contains("order"), "{e}");
-        let e = Config::from_toml_str("[colour]\nrgb_scale = -1\n").unwrap_err().to_string();
+        let e = Config::from_toml_str("[colour]\nrgb_scale = -1\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("colour.rgb_scale"), "{e}");
         let e = Config::from_toml_str("[colour.white]\nkind = \"xyz\"\nxyz = [1, 0, 1]\n")
             .unwrap_err()
@@ -249,9 +261,13 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("plan.delta_phi_deg[1]"), "{e}");
-        let e = Config::from_toml_str("[rig]\nmin_separation_deg = 95\n").unwrap_err().to_string();
+        let e = Config::from_toml_str("[rig]\nmin_separation_deg = 95\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("rig.min_separation_deg"), "{e}");
-        let e = Config::from_toml_str("[rig]\nmin_separation_deg = \"ten\"\n").unwrap_err().to_string();
+        let e = Config::from_toml_str("[rig]\nmin_separation_deg = \"ten\"\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("min_separation_deg"), "{e}");
     }
 }

@@ -52,7 +52,8 @@ fn load_config(path: Option<&Path>) -> Result<Config> {
     match path {
         None => Ok(Config::default()),
         Some(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("cannot read config {}", p.display()))?;
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read config {}", p.display()))?;
             Config::from_toml_str(&text).with_context(|| format!("invalid config {}", p.display()))
         }
     }
@@ -61,7 +62,10 @@ fn load_config(path: Option<&Path>) -> Result<Config> {
 fn init_logging() {
     let filter = tracing_subscriber::EnvFilter::try_from_env("GONIOWATCH_LOG")
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
-    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).init();
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .init();
     // A decoder panic is caught and reported as a typed error; log it instead of printing raw.
     std::panic::set_hook(Box::new(|info| {
         tracing::debug!(target: "goniowatch::panic", "contained panic: {info}");
@@ -93,7 +97,9 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let cfg = load_config(config.as_deref())?;
             let mut opts = cfg.capture;
             if let Some(r) = roi {
-                opts.roi = Roi::parse(&r).map_err(anyhow::Error::msg).context("--roi")?;
+                opts.roi = Roi::parse(&r)
+                    .map_err(anyhow::Error::msg)
+                    .context("--roi")?;
             }
             let mut failed = 0usize;
             for f in &files {
@@ -130,11 +136,23 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 writeln!(out, "Sampling plan ({:?} order)", s.order)?;
                 writeln!(out, "  θ [deg]   Δφ [deg]   directions")?;
                 for (t, d, n) in &s.table1 {
-                    writeln!(out, "  {t:>7}   {:>8}   {n:>10}", if *t == 0.0 { "-".to_string() } else { d.to_string() })?;
+                    writeln!(
+                        out,
+                        "  {t:>7}   {:>8}   {n:>10}",
+                        if *t == 0.0 {
+                            "-".to_string()
+                        } else {
+                            d.to_string()
+                        }
+                    )?;
                 }
                 writeln!(out, "directions             {}", s.directions)?;
                 writeln!(out, "captures               {}", s.captures)?;
-                writeln!(out, "reciprocal pairs       {} (+ {} self pairs)", s.reciprocal_pairs, s.self_pairs)?;
+                writeln!(
+                    out,
+                    "reciprocal pairs       {} (+ {} self pairs)",
+                    s.reciprocal_pairs, s.self_pairs
+                )?;
                 writeln!(out, "isotropy classes       {}", s.isotropy_classes)?;
                 writeln!(
                     out,

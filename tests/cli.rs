@@ -14,10 +14,22 @@ fn average_json_one_line_per_file_and_errors_inline() {
     let bad = reference("images/invalid/comp_early_eof_piz.exr");
     let missing = reference("images/valid/does-not-exist.exr");
     let hdr = reference("images/valid/image1.hdr");
-    let out = bin().arg("average").arg("--json").args([&good, &bad, &missing, &hdr]).output().unwrap();
-    assert_eq!(out.status.code(), Some(1), "a failed file gives a non-zero exit at the end");
+    let out = bin()
+        .arg("average")
+        .arg("--json")
+        .args([&good, &bad, &missing, &hdr])
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "a failed file gives a non-zero exit at the end"
+    );
     let text = String::from_utf8(out.stdout).unwrap();
-    let lines: Vec<serde_json::Value> = text.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let lines: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
     assert_eq!(lines.len(), 4, "the other files are still processed");
     for (l, ok) in lines.iter().zip([true, false, false, true]) {
         assert!(l["file"].is_string());
@@ -32,31 +44,57 @@ fn average_json_one_line_per_file_and_errors_inline() {
             assert!(l["error"].as_str().unwrap().len() > 5, "{l}");
         }
     }
-    assert!(lines[2]["error"].as_str().unwrap().contains("cannot read file"));
+    assert!(lines[2]["error"]
+        .as_str()
+        .unwrap()
+        .contains("cannot read file"));
 }
 
 #[test]
 fn average_roi_and_config() {
     let f = reference("images/valid/Desk.exr");
-    let out = bin().args(["average", "--json", "--roi", "margin:10"]).arg(&f).output().unwrap();
+    let out = bin()
+        .args(["average", "--json", "--roi", "margin:10"])
+        .arg(&f)
+        .output()
+        .unwrap();
     assert!(out.status.success());
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["pixels"].as_u64().unwrap(), (644 - 20) * (874 - 20));
-    let out = bin().args(["average", "--roi", "circle:3"]).arg(&f).output().unwrap();
+    let out = bin()
+        .args(["average", "--roi", "circle:3"])
+        .arg(&f)
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--roi"));
     // the shipped config works with average
     let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/config/ubo.toml");
-    let out = bin().args(["average", "--json", "--config", cfg]).arg(&f).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = bin()
+        .args(["average", "--json", "--config", cfg])
+        .arg(&f)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 #[test]
 fn plan_json_has_the_ubo_counts() {
     let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/config/ubo.toml");
-    for args in [vec!["plan", "--json"], vec!["plan", "--json", "--config", cfg]] {
+    for args in [
+        vec!["plan", "--json"],
+        vec!["plan", "--json", "--config", cfg],
+    ] {
         let out = bin().args(&args).output().unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
         assert_eq!(v["directions"], 81);
         assert_eq!(v["captures"], 6561);
@@ -78,7 +116,10 @@ fn bad_config_names_the_field_and_exits_2() {
         ("[rig]\nmin_separation = 3\n", "min_separation"),
         ("[plan]\norder = \"zigzag\"\n", "order"),
         ("[capture]\nclip_level = -1\n", "capture.clip_level"),
-        ("[capture.roi]\nkind = \"margin-fraction\"\nfraction = 0.7\n", "capture.roi.fraction"),
+        (
+            "[capture.roi]\nkind = \"margin-fraction\"\nfraction = 0.7\n",
+            "capture.roi.fraction",
+        ),
         ("[rig.joints]\n", "joints"),
         ("this is not toml", "expected"),
     ] {
@@ -89,7 +130,10 @@ fn bad_config_names_the_field_and_exits_2() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(field), "{text}: {err}");
     }
-    let out = bin().args(["plan", "--config", "/nonexistent/x.toml"]).output().unwrap();
+    let out = bin()
+        .args(["plan", "--config", "/nonexistent/x.toml"])
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read config"));
     std::fs::remove_dir_all(&dir).ok();

@@ -16,7 +16,11 @@ fn ciede2000_sharma_all_34_pairs_both_orders() {
         let d1 = ciede2000(a, b);
         let d2 = ciede2000(b, a);
         assert!((d1 - want).abs() < 1e-4, "pair {}: {d1} vs {want}", i + 1);
-        assert!((d2 - want).abs() < 1e-4, "pair {} reversed: {d2} vs {want}", i + 1);
+        assert!(
+            (d2 - want).abs() < 1e-4,
+            "pair {} reversed: {d2} vs {want}",
+            i + 1
+        );
     }
 }
 
@@ -24,11 +28,22 @@ fn ciede2000_sharma_all_34_pairs_both_orders() {
 fn ciede2000_is_symmetric_and_zero_on_identity() {
     let mut rng = SplitMix(7);
     for _ in 0..20_000 {
-        let a = Lab::new(rng.range(0.0, 100.0), rng.range(-128.0, 128.0), rng.range(-128.0, 128.0));
-        let b = Lab::new(rng.range(0.0, 100.0), rng.range(-128.0, 128.0), rng.range(-128.0, 128.0));
+        let a = Lab::new(
+            rng.range(0.0, 100.0),
+            rng.range(-128.0, 128.0),
+            rng.range(-128.0, 128.0),
+        );
+        let b = Lab::new(
+            rng.range(0.0, 100.0),
+            rng.range(-128.0, 128.0),
+            rng.range(-128.0, 128.0),
+        );
         let (d1, d2) = (ciede2000(a, b), ciede2000(b, a));
         assert!(d1.is_finite() && d1 >= 0.0);
-        assert!((d1 - d2).abs() <= 1e-10 * d1.max(1.0), "{a:?} {b:?}: {d1} vs {d2}");
+        assert!(
+            (d1 - d2).abs() <= 1e-10 * d1.max(1.0),
+            "{a:?} {b:?}: {d1} vs {d2}"
+        );
         assert_eq!(ciede2000(a, a), 0.0);
         assert!((delta_e76(a, b) - delta_e76(b, a)).abs() < 1e-12);
         assert!((delta_h76(a, b) + delta_h76(b, a)).abs() < 1e-9);
@@ -63,12 +78,22 @@ fn hue_wrap_around_at_0_and_360() {
     let straddle = ciede2000(at(359.5), at(0.5));
     let plain = ciede2000(at(10.0), at(11.0));
     assert!(straddle < 0.5, "{straddle}");
-    assert!((straddle / plain - 1.0).abs() < 0.2, "{straddle} vs {plain}");
+    assert!(
+        (straddle / plain - 1.0).abs() < 0.2,
+        "{straddle} vs {plain}"
+    );
     // exactly 180° apart (|h1 - h2| = 180 branch) in both orders, and the mean-hue branches
     let opp = ciede2000(at(90.0), at(270.0));
     assert!((opp - ciede2000(at(270.0), at(90.0))).abs() < 1e-12);
     assert!(opp > 10.0);
-    for (h1, h2) in [(350.0, 20.0), (20.0, 350.0), (200.0, 10.0), (10.0, 200.0), (0.0, 180.0), (180.0, 0.0)] {
+    for (h1, h2) in [
+        (350.0, 20.0),
+        (20.0, 350.0),
+        (200.0, 10.0),
+        (10.0, 200.0),
+        (0.0, 180.0),
+        (180.0, 0.0),
+    ] {
         let d = ciede2000(at(h1), at(h2));
         assert!(d.is_finite() && (d - ciede2000(at(h2), at(h1))).abs() < 1e-12);
     }
@@ -84,7 +109,10 @@ fn lab_is_continuous_at_the_knee_and_finite_near_black() {
     let below = xyz_to_lab([95.047, knee * (1.0 - 1e-12), 108.883], w);
     let above = xyz_to_lab([95.047, knee * (1.0 + 1e-12), 108.883], w);
     assert!((below.l - above.l).abs() < 1e-9);
-    assert!((xyz_to_lab([0.0, knee, 0.0], w).l - 8.0).abs() < 1e-12, "L* = 8 at the knee");
+    assert!(
+        (xyz_to_lab([0.0, knee, 0.0], w).l - 8.0).abs() < 1e-12,
+        "L* = 8 at the knee"
+    );
     // slope continuity: the linear segment's slope equals the cube root's at the knee
     let h = knee * 1e-6;
     let s_lo = (xyz_to_lab([0.0, knee, 0.0], w).l - xyz_to_lab([0.0, knee - h, 0.0], w).l) / h;
@@ -119,23 +147,44 @@ fn d65_white_from_the_cie_tables() {
     let s30 = SpectralToXyz::d65(&bands(400.0, 10.0, 30)).unwrap();
     let w30 = s30.white();
     assert!((w30[1] - 100.0).abs() < 1e-12);
-    assert!((w30[0] / 95.047 - 1.0).abs() < 0.02 && (w30[2] / 108.883 - 1.0).abs() < 0.02, "{w30:?}");
+    assert!(
+        (w30[0] / 95.047 - 1.0).abs() < 0.02 && (w30[2] / 108.883 - 1.0).abs() < 0.02,
+        "{w30:?}"
+    );
     // wrong lengths and bad band sets are typed errors
-    assert_eq!(s30.convert(&[1.0; 29]), Err(ColourError::SpectrumLength { expected: 30, got: 29 }));
-    assert!(matches!(SpectralToXyz::d65(&[400.0, 400.0]), Err(ColourError::BandsNotIncreasing { .. })));
-    assert!(matches!(SpectralToXyz::d65(&[300.0]), Err(ColourError::BandOutOfRange { .. })));
+    assert_eq!(
+        s30.convert(&[1.0; 29]),
+        Err(ColourError::SpectrumLength {
+            expected: 30,
+            got: 29
+        })
+    );
+    assert!(matches!(
+        SpectralToXyz::d65(&[400.0, 400.0]),
+        Err(ColourError::BandsNotIncreasing { .. })
+    ));
+    assert!(matches!(
+        SpectralToXyz::d65(&[300.0]),
+        Err(ColourError::BandOutOfRange { .. })
+    ));
     assert_eq!(SpectralToXyz::d65(&[]), Err(ColourError::NoBands));
 }
 
 #[test]
 fn ten_nm_table_agrees_with_the_interpolated_five_nm_table() {
-    let ten = parse_observer_table(&std::fs::read_to_string(common::reference("cmf1931_d65_10nm.csv")).unwrap()).unwrap();
+    let ten = parse_observer_table(
+        &std::fs::read_to_string(common::reference("cmf1931_d65_10nm.csv")).unwrap(),
+    )
+    .unwrap();
     let wl: Vec<f64> = ten.iter().map(|r| r.wavelength).collect();
     let a = SpectralToXyz::with_table(&wl, &ten).unwrap();
     let b = SpectralToXyz::d65(&wl).unwrap();
     assert_eq!(a.white(), b.white());
     // a smooth reflectance gives the same XYZ from either table
-    let refl: Vec<f64> = wl.iter().map(|l| 0.2 + 0.6 * ((l - 400.0) / 300.0)).collect();
+    let refl: Vec<f64> = wl
+        .iter()
+        .map(|l| 0.2 + 0.6 * ((l - 400.0) / 300.0))
+        .collect();
     assert_eq!(a.convert(&refl).unwrap(), b.convert(&refl).unwrap());
 }
 

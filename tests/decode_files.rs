@@ -40,10 +40,15 @@ const VALID: &[&str] = &[
 #[test]
 fn every_valid_file_decodes_with_the_right_format() {
     for name in VALID {
-        let img = decode(&read(name), &DecodeLimits::default()).unwrap_or_else(|e| panic!("{name}: {e}"));
-        let want = if name.ends_with(".exr") { CaptureFormat::Exr } else { CaptureFormat::Hdr };
+        let img =
+            decode(&read(name), &DecodeLimits::default()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let want = if name.ends_with(".exr") {
+            CaptureFormat::Exr
+        } else {
+            CaptureFormat::Hdr
+        };
         assert_eq!(img.format, want);
-        assert_eq!(img.data.len(), img.width * img.height * 3);
+        assert_eq!(img.samples().count(), img.width * img.height * 3);
         let s = average(&img.view(), &AverageOptions::default()).unwrap();
         assert!(s.mean_rgb.iter().all(|v| v.is_finite()), "{name}");
     }
@@ -52,15 +57,30 @@ fn every_valid_file_decodes_with_the_right_format() {
 #[test]
 fn lossless_compressions_give_identical_means() {
     let reference_mean = stats("valid/f32_uncompressed.exr").mean_rgb;
-    for name in ["valid/f32_zip.exr", "valid/f32_piz.exr", "valid/f32_rle.exr"] {
+    for name in [
+        "valid/f32_zip.exr",
+        "valid/f32_piz.exr",
+        "valid/f32_rle.exr",
+    ] {
         assert_eq!(stats(name).mean_rgb, reference_mean, "{name}");
     }
-    assert_eq!(stats("valid/f16_piz.exr").mean_rgb, stats("valid/f16_zip.exr").mean_rgb);
+    assert_eq!(
+        stats("valid/f16_piz.exr").mean_rgb,
+        stats("valid/f16_zip.exr").mean_rgb
+    );
     // lossy ones stay close
-    for name in ["valid/f32_pxr24.exr", "valid/f32_b44.exr", "valid/f32_dwaa.exr", "valid/f16_b44.exr"] {
+    for name in [
+        "valid/f32_pxr24.exr",
+        "valid/f32_b44.exr",
+        "valid/f32_dwaa.exr",
+        "valid/f16_b44.exr",
+    ] {
         let m = stats(name).mean_rgb;
         for c in 0..3 {
-            assert!((m[c] / reference_mean[c] - 1.0).abs() < 0.06, "{name}: {m:?}");
+            assert!(
+                (m[c] / reference_mean[c] - 1.0).abs() < 0.06,
+                "{name}: {m:?}"
+            );
         }
     }
 }
@@ -81,7 +101,10 @@ fn all_half_values_including_denormals_nan_and_inf() {
     assert_eq!(s.mean_rgb, [0.0, 0.0, 0.0]);
     // denormals survive the f16 → f32 → f64 path: the smallest positive one is 2^-24
     let img = decode(&read("valid/AllHalfValues.exr"), &DecodeLimits::default()).unwrap();
-    let smallest = img.data.iter().copied().filter(|v| *v > 0.0).fold(f32::INFINITY, f32::min);
+    let smallest = img
+        .samples()
+        .filter(|v| *v > 0.0)
+        .fold(f32::INFINITY, f32::min);
     assert_eq!(smallest, 2f32.powi(-24));
 }
 
@@ -100,10 +123,14 @@ fn values_near_1e36_do_not_overflow() {
     assert!(s.max_value > 1e36, "{}", s.max_value);
     assert!(s.mean_rgb.iter().all(|v| v.is_finite()));
     // an f32 accumulator overflows on the same data
-    let f32_sum: f32 = img.data.iter().skip(2).step_by(3).sum();
+    let blue_f32: Vec<f32> = (0..img.height)
+        .flat_map(|y| (0..img.width).map(move |x| (x, y)))
+        .map(|(x, y)| img.pixel(x, y).unwrap()[2])
+        .collect();
+    let f32_sum: f32 = blue_f32.iter().sum();
     assert!(f32_sum.is_infinite());
     // the f64 row-wise sum agrees with an exactly rounded reference (sorted pairwise in f64)
-    let mut blue: Vec<f64> = img.data.iter().skip(2).step_by(3).map(|&v| v as f64).collect();
+    let mut blue: Vec<f64> = blue_f32.iter().map(|&v| v as f64).collect();
     blue.sort_by(|a, b| a.partial_cmp(b).unwrap());
     let exact: f64 = blue.iter().sum::<f64>() / blue.len() as f64;
     assert!((s.mean_rgb[2] / exact - 1.0).abs() < 1e-14);
@@ -114,10 +141,29 @@ fn values_near_1e36_do_not_overflow() {
 fn region_of_interest_excludes_the_holder() {
     let img = decode(&read("valid/Desk.exr"), &DecodeLimits::default()).unwrap();
     let full = average(&img.view(), &AverageOptions::default()).unwrap();
-    let inner = average(&img.view(), &AverageOptions { roi: Roi::Margin { pixels: 100 }, ..AverageOptions::default() }).unwrap();
+    let inner = average(
+        &img.view(),
+        &AverageOptions {
+            roi: Roi::Margin { pixels: 100 },
+            ..AverageOptions::default()
+        },
+    )
+    .unwrap();
     assert_eq!(inner.pixels, ((644 - 200) * (874 - 200)) as u64);
     assert_ne!(inner.mean_rgb, full.mean_rgb);
-    let rect = average(&img.view(), &AverageOptions { roi: Roi::Rect { x: 100, y: 100, width: 444, height: 674 }, ..AverageOptions::default() }).unwrap();
+    let rect = average(
+        &img.view(),
+        &AverageOptions {
+            roi: Roi::Rect {
+                x: 100,
+                y: 100,
+                width: 444,
+                height: 674,
+            },
+            ..AverageOptions::default()
+        },
+    )
+    .unwrap();
     assert_eq!(rect, inner);
 }
 
@@ -137,7 +183,15 @@ fn malformed_exr_files_give_typed_errors() {
         "invalid/invalid_integer_bounds.exr",
     ] {
         let e = decode(&read(name), &DecodeLimits::default());
-        assert!(matches!(e, Err(DecodeError::Exr(_)) | Err(DecodeError::Panicked(_)) | Err(DecodeError::TooLarge { .. })), "{name}: {e:?}");
+        assert!(
+            matches!(
+                e,
+                Err(DecodeError::Exr(_))
+                    | Err(DecodeError::Panicked(_))
+                    | Err(DecodeError::TooLarge { .. })
+            ),
+            "{name}: {e:?}"
+        );
     }
 }
 
@@ -146,7 +200,21 @@ fn truncated_copies_of_every_valid_file_never_panic() {
     for name in VALID {
         let bytes = read(name);
         let n = bytes.len();
-        for cut in [0, 1, 2, 4, 8, 16, 64, 200, n / 4, n / 2, n * 3 / 4, n - 100.min(n), n - 1] {
+        for cut in [
+            0,
+            1,
+            2,
+            4,
+            8,
+            16,
+            64,
+            200,
+            n / 4,
+            n / 2,
+            n * 3 / 4,
+            n - 100.min(n),
+            n - 1,
+        ] {
             let r = decode(&bytes[..cut.min(n)], &DecodeLimits::default());
             if cut == 0 {
                 assert_eq!(r, Err(DecodeError::Empty));
@@ -154,7 +222,11 @@ fn truncated_copies_of_every_valid_file_never_panic() {
             // a Radiance file cut at a scanline boundary may still decode partially; anything
             // else must be an error, and nothing may panic past `decode`
             if let Ok(img) = &r {
-                assert_eq!(img.data.len(), img.width * img.height * 3, "{name} cut at {cut}");
+                assert_eq!(
+                    img.samples().count(),
+                    img.width * img.height * 3,
+                    "{name} cut at {cut}"
+                );
             }
         }
     }
@@ -179,16 +251,35 @@ fn corrupted_bytes_never_panic() {
 
 #[test]
 fn garbage_and_unknown_formats() {
-    assert!(matches!(decode(b"P6\n2 2\n255\n", &DecodeLimits::default()), Err(DecodeError::UnknownFormat(_))));
-    assert!(matches!(decode(b"#?RADIANCE\n\n-Y 2 +X 2\n", &DecodeLimits::default()), Err(DecodeError::Hdr(_))));
-    assert!(matches!(decode(&[0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0], &DecodeLimits::default()), Err(DecodeError::Exr(_))));
+    assert!(matches!(
+        decode(b"P6\n2 2\n255\n", &DecodeLimits::default()),
+        Err(DecodeError::UnknownFormat(_))
+    ));
+    assert!(matches!(
+        decode(b"#?RADIANCE\n\n-Y 2 +X 2\n", &DecodeLimits::default()),
+        Err(DecodeError::Hdr(_))
+    ));
+    assert!(matches!(
+        decode(
+            &[0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0],
+            &DecodeLimits::default()
+        ),
+        Err(DecodeError::Exr(_))
+    ));
 }
 
 #[test]
 fn oversized_headers_are_refused_before_allocation() {
     // Radiance: a header that claims 100,000 × 100,000 pixels
     let hdr = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 100000 +X 100000\n\x02\x02\x00\x00";
-    assert!(matches!(decode(hdr, &DecodeLimits::default()), Err(DecodeError::TooLarge { .. })), "{:?}", decode(hdr, &DecodeLimits::default()));
+    assert!(
+        matches!(
+            decode(hdr, &DecodeLimits::default()),
+            Err(DecodeError::TooLarge { .. })
+        ),
+        "{:?}",
+        decode(hdr, &DecodeLimits::default())
+    );
     // OpenEXR: patch the dataWindow of a real file to 200,000 × 200,000
     let mut b = read("valid/f32_uncompressed.exr");
     let key = b"dataWindow\0box2i\0";
@@ -196,9 +287,67 @@ fn oversized_headers_are_refused_before_allocation() {
     b[at + 8..at + 12].copy_from_slice(&199_999i32.to_le_bytes());
     b[at + 12..at + 16].copy_from_slice(&199_999i32.to_le_bytes());
     let r = decode(&b, &DecodeLimits::default());
-    assert!(matches!(r, Err(DecodeError::TooLarge { .. }) | Err(DecodeError::Exr(_))), "{r:?}");
+    assert!(
+        matches!(
+            r,
+            Err(DecodeError::TooLarge { .. }) | Err(DecodeError::Exr(_))
+        ),
+        "{r:?}"
+    );
     // and a small limit refuses a real file
-    let small = DecodeLimits { max_pixels: 1000, max_dimension: 100 };
-    assert!(matches!(decode(&read("valid/Desk.exr"), &small), Err(DecodeError::TooLarge { .. })));
-    assert!(matches!(decode(&read("valid/old-rle.hdr"), &small), Err(DecodeError::TooLarge { .. })));
+    let small = DecodeLimits {
+        max_pixels: 1000,
+        max_dimension: 100,
+        threads: 1,
+    };
+    assert!(matches!(
+        decode(&read("valid/Desk.exr"), &small),
+        Err(DecodeError::TooLarge { .. })
+    ));
+    assert!(matches!(
+        decode(&read("valid/old-rle.hdr"), &small),
+        Err(DecodeError::TooLarge { .. })
+    ));
+}
+
+#[test]
+fn threaded_exr_decoding_gives_the_same_pixels() {
+    for name in VALID.iter().filter(|n| n.ends_with(".exr")) {
+        let bytes = read(name);
+        let one = decode(
+            &bytes,
+            &DecodeLimits {
+                threads: 1,
+                ..DecodeLimits::default()
+            },
+        )
+        .unwrap();
+        let two = decode(
+            &bytes,
+            &DecodeLimits {
+                threads: 2,
+                ..DecodeLimits::default()
+            },
+        )
+        .unwrap();
+        // compare bit patterns so NaN pixels count as equal
+        let bits = |d: &goniowatch::decode::DecodedImage| {
+            d.samples().map(f32::to_bits).collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&one), bits(&two), "{name}");
+    }
+    // and malformed files fail the same way on several threads
+    for name in [
+        "invalid/comp_bad_pos_bounds_piz.exr",
+        "invalid/comp_short_decode_piz.exr",
+    ] {
+        assert!(decode(
+            &read(name),
+            &DecodeLimits {
+                threads: 4,
+                ..DecodeLimits::default()
+            }
+        )
+        .is_err());
+    }
 }

@@ -13,14 +13,24 @@ fn concentric_anchors_from_pbrt_and_mitsuba() {
     for r in rows {
         let (u, v) = (r[0], r[1]);
         let (x, y) = square_to_disc(u, v);
-        assert!((x - r[2]).abs() < 1e-11 && (y - r[3]).abs() < 1e-11, "({u},{v}) -> ({x},{y})");
+        assert!(
+            (x - r[2]).abs() < 1e-11 && (y - r[3]).abs() < 1e-11,
+            "({u},{v}) -> ({x},{y})"
+        );
         assert!((x.hypot(y) - r[4]).abs() < 1e-11);
         let (iu, iv) = disc_to_square(r[2], r[3]);
         for (ref_u, ref_v) in [(r[5], r[6]), (r[7], r[8])] {
-            assert!((iu - ref_u).abs() < 1e-11 && (iv - ref_v).abs() < 1e-11, "inverse of ({u},{v}) = ({iu},{iv})");
+            assert!(
+                (iu - ref_u).abs() < 1e-11 && (iv - ref_v).abs() < 1e-11,
+                "inverse of ({u},{v}) = ({iu},{iv})"
+            );
         }
         let h = disc_to_hemisphere(r[2], r[3]);
-        assert!((h.x - r[9]).abs() < 1e-11 && (h.y - r[10]).abs() < 1e-11 && (h.z - r[11]).abs() < 1e-11);
+        assert!(
+            (h.x - r[9]).abs() < 1e-11
+                && (h.y - r[10]).abs() < 1e-11
+                && (h.z - r[11]).abs() < 1e-11
+        );
     }
 }
 
@@ -57,7 +67,10 @@ fn extended_map_equals_the_papers_two_stage_form_and_is_continuous() {
     assert!((square_to_sphere(0.5, 0.5) - Vec3::z()).norm() < 1e-15);
     for t in [0.0, 0.1, 0.5, 0.9, 1.0] {
         for (u, v) in [(t, 0.0), (t, 1.0), (0.0, t), (1.0, t)] {
-            assert!((square_to_sphere(u, v) + Vec3::z()).norm() < 1e-7, "({u},{v})");
+            assert!(
+                (square_to_sphere(u, v) + Vec3::z()).norm() < 1e-7,
+                "({u},{v})"
+            );
         }
     }
     let (u_eq, v_eq) = disc_to_square(FRAC_1_SQRT_2, 0.0);
@@ -76,7 +89,10 @@ fn extended_map_round_trips() {
         let (u, v) = (rng.range(1e-6, 1.0 - 1e-6), rng.range(1e-6, 1.0 - 1e-6));
         let d = square_to_sphere(u, v);
         let (u2, v2) = sphere_to_square(&d);
-        assert!((u - u2).abs() < 1e-9 && (v - v2).abs() < 1e-9, "({u},{v}) -> ({u2},{v2})");
+        assert!(
+            (u - u2).abs() < 1e-9 && (v - v2).abs() < 1e-9,
+            "({u},{v}) -> ({u2},{v2})"
+        );
     }
     // near the north pole the inverse has no cancellation
     let d = square_to_sphere(0.5 + 1e-9, 0.5);
@@ -98,7 +114,10 @@ fn extended_map_is_equal_area() {
         let du = (square_to_sphere(u + h, v) - square_to_sphere(u - h, v)) / (2.0 * h);
         let dv = (square_to_sphere(u, v + h) - square_to_sphere(u, v - h)) / (2.0 * h);
         let area = du.cross(&dv).norm();
-        assert!((area / (4.0 * std::f64::consts::PI) - 1.0).abs() < 1e-4, "({u},{v}): {area}");
+        assert!(
+            (area / (4.0 * std::f64::consts::PI) - 1.0).abs() < 1e-4,
+            "({u},{v}): {area}"
+        );
     }
     // Monte Carlo (Archimedes): uniform points on the square give uniform z on [-1, 1]
     let mut rng = SplitMix(4);
@@ -110,7 +129,10 @@ fn extended_map_is_equal_area() {
     }
     let expected = n as f64 / 20.0;
     for b in bins {
-        assert!((b as f64 - expected).abs() < 5.0 * expected.sqrt(), "{bins:?}");
+        assert!(
+            (b as f64 - expected).abs() < 5.0 * expected.sqrt(),
+            "{bins:?}"
+        );
     }
 }
 
@@ -123,7 +145,10 @@ fn mirror_aligned_map_is_stable_at_and_near_both_poles() {
             let wi = Spherical::from_deg(theta_deg, phi_deg).to_vector();
             let m = MirrorAlignedMap::new(&wi);
             let centre = m.direction(0.5, 0.5);
-            assert!((centre - mirror(&wi)).norm() < 1e-12, "θ={theta_deg} φ={phi_deg}");
+            assert!(
+                (centre - mirror(&wi)).norm() < 1e-12,
+                "θ={theta_deg} φ={phi_deg}"
+            );
             let edge = m.direction(0.0, 0.3);
             assert!((edge + mirror(&wi)).norm() < 1e-7);
             let mut rng = SplitMix(5);

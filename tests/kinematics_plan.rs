@@ -21,11 +21,23 @@ fn round_trip_over_all_6561_plan_entries() {
     let mut spec = RigSpec::default();
     // a rig with non-trivial calibration must round-trip just the same
     spec.joints = [
-        AxisCalibration { offset_deg: 12.5, sign: 1.0 },
-        AxisCalibration { offset_deg: -3.0, sign: -1.0 },
-        AxisCalibration { offset_deg: 0.25, sign: 1.0 },
+        AxisCalibration {
+            offset_deg: 12.5,
+            sign: 1.0,
+        },
+        AxisCalibration {
+            offset_deg: -3.0,
+            sign: -1.0,
+        },
+        AxisCalibration {
+            offset_deg: 0.25,
+            sign: 1.0,
+        },
     ];
-    spec.wagon = AxisCalibration { offset_deg: 90.0, sign: -1.0 };
+    spec.wagon = AxisCalibration {
+        offset_deg: 90.0,
+        sign: -1.0,
+    };
     let rig = Rig::new(spec).unwrap();
     let mut substitutes = 0;
     for i in 0..plan.capture_count() {
@@ -33,8 +45,14 @@ fn round_trip_over_all_6561_plan_entries() {
         let (pi, po) = (dirs[e.light].spherical(), dirs[e.camera].spherical());
         let planned = rig.plan_pose(pi, po).unwrap();
         let back = rig.forward(&planned.pose).unwrap();
-        assert!((back.omega_i - planned.used.omega_i).norm() < 1e-12, "entry {i}");
-        assert!((back.omega_o - planned.used.omega_o).norm() < 1e-12, "entry {i}");
+        assert!(
+            (back.omega_i - planned.used.omega_i).norm() < 1e-12,
+            "entry {i}"
+        );
+        assert!(
+            (back.omega_o - planned.used.omega_o).norm() < 1e-12,
+            "entry {i}"
+        );
         let a = back.angles();
         assert!((a.theta_o_deg - dirs[e.camera].theta_deg).abs() < 1e-9);
         if dirs[e.camera].theta_deg > 0.0 {
@@ -55,11 +73,18 @@ fn round_trip_over_all_6561_plan_entries() {
                 assert!((planned_t - dirs[e.light].theta_deg).abs() < 1e-12);
                 assert!((a.theta_i_deg - used_t).abs() < 1e-9);
                 // the substitute sits exactly at the rig's minimum separation
-                assert!((back.separation_deg() - 12.0).abs() < 1e-6, "entry {i}: {}", back.separation_deg());
+                assert!(
+                    (back.separation_deg() - 12.0).abs() < 1e-6,
+                    "entry {i}: {}",
+                    back.separation_deg()
+                );
             }
         }
     }
-    assert_eq!(substitutes, 81, "with a 12° minimum only the light = camera entries are occluded");
+    assert_eq!(
+        substitutes, 81,
+        "with a 12° minimum only the light = camera entries are occluded"
+    );
 }
 
 #[test]
@@ -100,36 +125,91 @@ fn poles_and_occlusion_errors() {
     assert_eq!(planned, 0.0);
     assert!((used - 12.0).abs() < 1e-6);
     // inverse refuses occluded and below-horizon inputs with typed errors
-    let inc = Incidence::from_angles(&Angles { theta_i_deg: 30.0, phi_i_deg: 0.0, theta_o_deg: 30.0, phi_o_deg: 5.0 });
-    assert!(matches!(rig.inverse(&inc), Err(KinematicsError::Occluded { .. })));
-    let inc = Incidence::from_angles(&Angles { theta_i_deg: 95.0, phi_i_deg: 0.0, theta_o_deg: 30.0, phi_o_deg: 90.0 });
-    assert!(matches!(rig.inverse(&inc), Err(KinematicsError::BelowHorizon { .. })));
-    let inc = Incidence::from_angles(&Angles { theta_i_deg: 90.0, phi_i_deg: 0.0, theta_o_deg: 30.0, phi_o_deg: 90.0 });
-    assert!(matches!(rig.inverse(&inc), Err(KinematicsError::BelowHorizon { .. })));
+    let inc = Incidence::from_angles(&Angles {
+        theta_i_deg: 30.0,
+        phi_i_deg: 0.0,
+        theta_o_deg: 30.0,
+        phi_o_deg: 5.0,
+    });
+    assert!(matches!(
+        rig.inverse(&inc),
+        Err(KinematicsError::Occluded { .. })
+    ));
+    let inc = Incidence::from_angles(&Angles {
+        theta_i_deg: 95.0,
+        phi_i_deg: 0.0,
+        theta_o_deg: 30.0,
+        phi_o_deg: 90.0,
+    });
+    assert!(matches!(
+        rig.inverse(&inc),
+        Err(KinematicsError::BelowHorizon { .. })
+    ));
+    let inc = Incidence::from_angles(&Angles {
+        theta_i_deg: 90.0,
+        phi_i_deg: 0.0,
+        theta_o_deg: 30.0,
+        phi_o_deg: 90.0,
+    });
+    assert!(matches!(
+        rig.inverse(&inc),
+        Err(KinematicsError::BelowHorizon { .. })
+    ));
     // grazing but above the horizon still works, and the pole of ωo is handled
-    let inc = Incidence::from_angles(&Angles { theta_i_deg: 89.9, phi_i_deg: 10.0, theta_o_deg: 0.0, phi_o_deg: 0.0 });
+    let inc = Incidence::from_angles(&Angles {
+        theta_i_deg: 89.9,
+        phi_i_deg: 10.0,
+        theta_o_deg: 0.0,
+        phi_o_deg: 0.0,
+    });
     let pose = rig.inverse(&inc).unwrap();
     let back = rig.forward(&pose).unwrap();
-    assert!((back.omega_i - inc.omega_i).norm() < 1e-12 && (back.omega_o - inc.omega_o).norm() < 1e-12);
+    assert!(
+        (back.omega_i - inc.omega_i).norm() < 1e-12 && (back.omega_o - inc.omega_o).norm() < 1e-12
+    );
     // NaN in a pose is a typed error, not a NaN direction
-    assert_eq!(rig.forward(&Pose { joints_deg: [f64::NAN, 0.0, 0.0], wagon_deg: 30.0 }), Err(KinematicsError::NotFinite));
+    assert_eq!(
+        rig.forward(&Pose {
+            joints_deg: [f64::NAN, 0.0, 0.0],
+            wagon_deg: 30.0
+        }),
+        Err(KinematicsError::NotFinite)
+    );
     // a near-vertical incidence with no feasible substitute below the limit
-    let tight = Rig::new(RigSpec { min_separation_deg: 30.0, max_substitute_theta_deg: 20.0, ..RigSpec::default() }).unwrap();
-    let r = tight.plan_pose(Spherical::from_deg(10.0, 0.0), Spherical::from_deg(10.0, 0.0));
-    assert!(matches!(r, Err(KinematicsError::NoSubstitute { .. })), "{r:?}");
+    let tight = Rig::new(RigSpec {
+        min_separation_deg: 30.0,
+        max_substitute_theta_deg: 20.0,
+        ..RigSpec::default()
+    })
+    .unwrap();
+    let r = tight.plan_pose(
+        Spherical::from_deg(10.0, 0.0),
+        Spherical::from_deg(10.0, 0.0),
+    );
+    assert!(
+        matches!(r, Err(KinematicsError::NoSubstitute { .. })),
+        "{r:?}"
+    );
 }
 
 #[test]
 fn a_joint_offset_moves_the_true_directions() {
     // the basis of positioning detection: a reading that is off by 1° on one joint changes ω
     let rig = rig(12.0);
-    let inc = Incidence::from_angles(&Angles { theta_i_deg: 45.0, phi_i_deg: 20.0, theta_o_deg: 30.0, phi_o_deg: 200.0 });
+    let inc = Incidence::from_angles(&Angles {
+        theta_i_deg: 45.0,
+        phi_i_deg: 20.0,
+        theta_o_deg: 30.0,
+        phi_o_deg: 200.0,
+    });
     let pose = rig.inverse(&inc).unwrap();
     for j in 0..3 {
         let mut off = pose;
         off.joints_deg[j] += 1.0;
         let moved = rig.forward(&off).unwrap();
-        let d = angle_between(&moved.omega_i, &inc.omega_i).to_degrees().max(angle_between(&moved.omega_o, &inc.omega_o).to_degrees());
+        let d = angle_between(&moved.omega_i, &inc.omega_i)
+            .to_degrees()
+            .max(angle_between(&moved.omega_o, &inc.omega_o).to_degrees());
         assert!(d > 0.1 && d <= 1.0 + 1e-9, "joint {j}: {d}");
     }
 }
@@ -158,8 +238,16 @@ fn pairs_and_classes_by_brute_force() {
             let d = (l.phi_deg - c.phi_deg).rem_euclid(360.0);
             d.min(360.0 - d)
         };
-        let (lo, hi) = if l.theta_deg <= c.theta_deg { (l.theta_deg, c.theta_deg) } else { (c.theta_deg, l.theta_deg) };
-        keys.insert(((lo * 1e6) as i64, (hi * 1e6) as i64, (dphi * 1e6).round() as i64));
+        let (lo, hi) = if l.theta_deg <= c.theta_deg {
+            (l.theta_deg, c.theta_deg)
+        } else {
+            (c.theta_deg, l.theta_deg)
+        };
+        keys.insert((
+            (lo * 1e6) as i64,
+            (hi * 1e6) as i64,
+            (dphi * 1e6).round() as i64,
+        ));
     }
     assert_eq!(plan.isotropy_classes().len(), keys.len());
     let total: usize = plan.isotropy_classes().values().map(|v| v.len()).sum();

@@ -192,7 +192,11 @@ pub fn parse_observer_table(text: &str) -> Result<Vec<ObserverRow>, String> {
             .collect::<Result<_, _>>()
             .map_err(|e| format!("line {}: {e}", n + 1))?;
         if f.len() != 5 {
-            return Err(format!("line {}: expected 5 columns, got {}", n + 1, f.len()));
+            return Err(format!(
+                "line {}: expected 5 columns, got {}",
+                n + 1,
+                f.len()
+            ));
         }
         rows.push(ObserverRow {
             wavelength: f[0],
@@ -419,7 +423,11 @@ pub fn lab_to_xyz(lab: Lab, white: White) -> Xyz {
     let fy = (lab.l + 16.0) / 116.0;
     let fx = fy + lab.a / 500.0;
     let fz = fy - lab.b / 200.0;
-    [w[0] * lab_f_inv(fx), w[1] * lab_f_inv(fy), w[2] * lab_f_inv(fz)]
+    [
+        w[0] * lab_f_inv(fx),
+        w[1] * lab_f_inv(fy),
+        w[2] * lab_f_inv(fz),
+    ]
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -578,7 +586,12 @@ mod tests {
     #[test]
     fn lab_round_trip() {
         let w = White::d65_scaled(100.0).unwrap();
-        for xyz in [[41.24, 21.26, 1.93], [0.001, 0.001, 0.001], [95.0, 100.0, 108.9], [-0.5, 0.2, 3.0]] {
+        for xyz in [
+            [41.24, 21.26, 1.93],
+            [0.001, 0.001, 0.001],
+            [95.0, 100.0, 108.9],
+            [-0.5, 0.2, 3.0],
+        ] {
             let back = lab_to_xyz(xyz_to_lab(xyz, w), w);
             for c in 0..3 {
                 assert!((back[c] - xyz[c]).abs() < 1e-10, "{xyz:?} -> {back:?}");

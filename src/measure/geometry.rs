@@ -227,7 +227,13 @@ mod tests {
 
     #[test]
     fn spherical_round_trip_and_poles() {
-        for (t, p) in [(0.0, 0.0), (15.0, 60.0), (75.0, 345.0), (89.9, 180.0), (90.0, 270.0)] {
+        for (t, p) in [
+            (0.0, 0.0),
+            (15.0, 60.0),
+            (75.0, 345.0),
+            (89.9, 180.0),
+            (90.0, 270.0),
+        ] {
             let s = Spherical::from_deg(t, p);
             let back = Spherical::from_vector(&s.to_vector());
             assert!((back.theta_deg() - t).abs() < 1e-12);

@@ -119,9 +119,14 @@ impl Default for RigSpec {
 
 impl RigSpec {
     pub fn validate(&self) -> Result<(), KinematicsError> {
-        let bad = |field: &'static str, message: String| Err(KinematicsError::BadSpec { field, message });
-        if !(self.min_separation_deg.is_finite() && (0.0..90.0).contains(&self.min_separation_deg)) {
-            return bad("min_separation_deg", format!("{} is not in [0, 90)", self.min_separation_deg));
+        let bad =
+            |field: &'static str, message: String| Err(KinematicsError::BadSpec { field, message });
+        if !(self.min_separation_deg.is_finite() && (0.0..90.0).contains(&self.min_separation_deg))
+        {
+            return bad(
+                "min_separation_deg",
+                format!("{} is not in [0, 90)", self.min_separation_deg),
+            );
         }
         if !(self.max_substitute_theta_deg > 0.0 && self.max_substitute_theta_deg < 90.0) {
             return bad(
@@ -130,16 +135,30 @@ impl RigSpec {
             );
         }
         if !(self.wagon_max_deg > self.min_separation_deg && self.wagon_max_deg <= 180.0) {
-            return bad("wagon_max_deg", format!("{} is not in (min_separation_deg, 180]", self.wagon_max_deg));
+            return bad(
+                "wagon_max_deg",
+                format!("{} is not in (min_separation_deg, 180]", self.wagon_max_deg),
+            );
         }
         for (i, j) in self.joints.iter().enumerate() {
             if !(j.sign == 1.0 || j.sign == -1.0) || !j.offset_deg.is_finite() {
                 let field = ["joints[0]", "joints[1]", "joints[2]"][i];
-                return bad(field, format!("sign must be 1 or -1 and offset finite, got {:?}", j));
+                return bad(
+                    field,
+                    format!("sign must be 1 or -1 and offset finite, got {:?}", j),
+                );
             }
         }
-        if !(self.wagon.sign == 1.0 || self.wagon.sign == -1.0) || !self.wagon.offset_deg.is_finite() {
-            return bad("wagon", format!("sign must be 1 or -1 and offset finite, got {:?}", self.wagon));
+        if !(self.wagon.sign == 1.0 || self.wagon.sign == -1.0)
+            || !self.wagon.offset_deg.is_finite()
+        {
+            return bad(
+                "wagon",
+                format!(
+                    "sign must be 1 or -1 and offset finite, got {:?}",
+                    self.wagon
+                ),
+            );
         }
         Ok(())
     }
@@ -271,8 +290,14 @@ impl Rig {
     /// Inverse kinematics: directions → readings. Errors when a direction is at or below the
     /// horizon or the separation is below the rig's minimum.
     pub fn inverse(&self, inc: &Incidence) -> Result<Pose, KinematicsError> {
-        let wi = inc.omega_i.try_normalize(0.0).ok_or(KinematicsError::NotFinite)?;
-        let wo = inc.omega_o.try_normalize(0.0).ok_or(KinematicsError::NotFinite)?;
+        let wi = inc
+            .omega_i
+            .try_normalize(0.0)
+            .ok_or(KinematicsError::NotFinite)?;
+        let wo = inc
+            .omega_o
+            .try_normalize(0.0)
+            .ok_or(KinematicsError::NotFinite)?;
         if !wi.iter().chain(wo.iter()).all(|v| v.is_finite()) {
             return Err(KinematicsError::NotFinite);
         }
@@ -320,7 +345,11 @@ impl Rig {
     }
 
     /// The pose for a planned (ωᵢ, ωₒ), substituting θᵢ when the camera would shadow the lamp.
-    pub fn plan_pose(&self, planned_i: Spherical, planned_o: Spherical) -> Result<PlannedPose, KinematicsError> {
+    pub fn plan_pose(
+        &self,
+        planned_i: Spherical,
+        planned_o: Spherical,
+    ) -> Result<PlannedPose, KinematicsError> {
         let inc = Incidence {
             omega_i: planned_i.to_vector(),
             omega_o: planned_o.to_vector(),
@@ -355,7 +384,11 @@ impl Rig {
     /// The θᵢ nearest to the planned one (same φᵢ) whose separation from ωₒ is exactly the
     /// rig's minimum. cos γ(θ) = cos θ cos θₒ + sin θ sin θₒ cos Δφ = R cos(θ − δ), so the two
     /// solutions are δ ± acos(cos γ_min / R).
-    pub fn substitute_theta_i(&self, planned_i: Spherical, planned_o: Spherical) -> Result<f64, KinematicsError> {
+    pub fn substitute_theta_i(
+        &self,
+        planned_i: Spherical,
+        planned_o: Spherical,
+    ) -> Result<f64, KinematicsError> {
         let gmin = self.spec.min_separation_deg.to_radians() + 1e-9;
         let a = planned_o.theta.cos();
         let b = planned_o.theta.sin() * (planned_i.phi - planned_o.phi).cos();
@@ -380,7 +413,8 @@ impl Rig {
                 let better = match best {
                     None => true,
                     Some(b) => {
-                        let (dc, db) = ((cand - planned_i.theta).abs(), (b - planned_i.theta).abs());
+                        let (dc, db) =
+                            ((cand - planned_i.theta).abs(), (b - planned_i.theta).abs());
                         dc < db - 1e-12 || ((dc - db).abs() <= 1e-12 && cand < b)
                     }
                 };
@@ -415,7 +449,12 @@ mod tests {
 
     #[test]
     fn zyz_round_trip() {
-        for (a, b, c) in [(0.3, 0.7, -1.2), (-2.0, 2.5, 3.0), (1.0, 0.0, 0.0), (0.5, std::f64::consts::PI, 0.0)] {
+        for (a, b, c) in [
+            (0.3, 0.7, -1.2),
+            (-2.0, 2.5, 3.0),
+            (1.0, 0.0, 0.0),
+            (0.5, std::f64::consts::PI, 0.0),
+        ] {
             let r = rz(a) * ry(b) * rz(c);
             let (a2, b2, c2) = zyz_angles(&r);
             let r2 = rz(a2) * ry(b2) * rz(c2);
@@ -426,10 +465,21 @@ mod tests {
     #[test]
     fn calibration_is_applied_both_ways() {
         let mut spec = RigSpec::default();
-        spec.joints[1] = AxisCalibration { offset_deg: 2.5, sign: -1.0 };
-        spec.wagon = AxisCalibration { offset_deg: -10.0, sign: -1.0 };
+        spec.joints[1] = AxisCalibration {
+            offset_deg: 2.5,
+            sign: -1.0,
+        };
+        spec.wagon = AxisCalibration {
+            offset_deg: -10.0,
+            sign: -1.0,
+        };
         let rig = Rig::new(spec).unwrap();
-        let inc = Incidence::from_angles(&Angles { theta_i_deg: 30.0, phi_i_deg: 40.0, theta_o_deg: 60.0, phi_o_deg: 200.0 });
+        let inc = Incidence::from_angles(&Angles {
+            theta_i_deg: 30.0,
+            phi_i_deg: 40.0,
+            theta_o_deg: 60.0,
+            phi_o_deg: 200.0,
+        });
         let pose = rig.inverse(&inc).unwrap();
         let back = rig.forward(&pose).unwrap();
         assert!((back.omega_i - inc.omega_i).norm() < 1e-12);

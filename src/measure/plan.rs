@@ -14,7 +14,9 @@ pub enum PlanError {
     Empty,
     #[error("plan.thetas_deg[{index}] = {value}: θ must be in [0, 90) and strictly increasing")]
     BadTheta { index: usize, value: f64 },
-    #[error("plan.delta_phi_deg[{index}] = {value}: Δφ must divide 360° into a whole number of steps")]
+    #[error(
+        "plan.delta_phi_deg[{index}] = {value}: Δφ must divide 360° into a whole number of steps"
+    )]
     BadDeltaPhi { index: usize, value: f64 },
     #[error("capture index {index} is outside the plan (0..{captures})")]
     IndexOutOfRange { index: usize, captures: usize },
@@ -133,7 +135,10 @@ impl SamplingPlan {
             }
             let steps = 360.0 / dp;
             if !(dp.is_finite() && dp > 0.0 && (steps - steps.round()).abs() < 1e-9) {
-                return Err(PlanError::BadDeltaPhi { index: i, value: dp });
+                return Err(PlanError::BadDeltaPhi {
+                    index: i,
+                    value: dp,
+                });
             }
             for k in 0..steps.round() as usize {
                 directions.push(PlanDirection {
@@ -204,7 +209,12 @@ impl SamplingPlan {
             AcquisitionOrder::LightOuter => light * n + camera,
             AcquisitionOrder::CameraOuter => camera * n + light,
             AcquisitionOrder::LightOuterSerpentine => {
-                light * n + if light % 2 == 0 { camera } else { n - 1 - camera }
+                light * n
+                    + if light % 2 == 0 {
+                        camera
+                    } else {
+                        n - 1 - camera
+                    }
             }
         })
     }
@@ -317,10 +327,22 @@ mod tests {
                 order: AcquisitionOrder::LightOuter,
             })
         };
-        assert_eq!(bad(vec![0.0, 15.0], vec![0.0]), Err(PlanError::LengthMismatch(2, 1)));
-        assert!(matches!(bad(vec![0.0, 15.0], vec![0.0, 7.0]), Err(PlanError::BadDeltaPhi { index: 1, .. })));
-        assert!(matches!(bad(vec![0.0, 90.0], vec![0.0, 60.0]), Err(PlanError::BadTheta { index: 1, .. })));
-        assert!(matches!(bad(vec![30.0, 15.0], vec![30.0, 60.0]), Err(PlanError::BadTheta { index: 1, .. })));
+        assert_eq!(
+            bad(vec![0.0, 15.0], vec![0.0]),
+            Err(PlanError::LengthMismatch(2, 1))
+        );
+        assert!(matches!(
+            bad(vec![0.0, 15.0], vec![0.0, 7.0]),
+            Err(PlanError::BadDeltaPhi { index: 1, .. })
+        ));
+        assert!(matches!(
+            bad(vec![0.0, 90.0], vec![0.0, 60.0]),
+            Err(PlanError::BadTheta { index: 1, .. })
+        ));
+        assert!(matches!(
+            bad(vec![30.0, 15.0], vec![30.0, 60.0]),
+            Err(PlanError::BadTheta { index: 1, .. })
+        ));
         assert_eq!(bad(vec![], vec![]), Err(PlanError::Empty));
         assert!(SamplingPlan::ubo().entry(6561).is_err());
     }

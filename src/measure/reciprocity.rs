@@ -18,7 +18,11 @@ pub const DEFAULT_MIN_COS: f64 = 1e-3;
 #[derive(Debug, Error, PartialEq)]
 pub enum PairError {
     #[error("grazing incidence θᵢ = {theta_deg:.3}° (cos θᵢ = {cos:.2e} < {min_cos:.1e}): pair not comparable")]
-    Grazing { theta_deg: f64, cos: f64, min_cos: f64 },
+    Grazing {
+        theta_deg: f64,
+        cos: f64,
+        min_cos: f64,
+    },
     #[error("non-finite colour value in pair: {0:?}")]
     NotFinite([f64; 6]),
 }

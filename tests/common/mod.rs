@@ -5,7 +5,9 @@ use std::path::PathBuf;
 
 /// The repository's copy of the shared reference material (`tests/reference/`).
 pub fn reference(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/reference").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/reference")
+        .join(name)
 }
 
 /// Read a reference CSV: skips `#` comments and the header row; returns the numeric rows.
@@ -22,7 +24,11 @@ pub fn csv_rows(name: &str) -> Vec<Vec<f64>> {
             header_seen = true;
             continue;
         }
-        rows.push(line.split(',').map(|s| s.trim().parse::<f64>().expect("number")).collect());
+        rows.push(
+            line.split(',')
+                .map(|s| s.trim().parse::<f64>().expect("number"))
+                .collect(),
+        );
     }
     rows
 }
