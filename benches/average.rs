@@ -93,6 +93,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 struct PeerResult {
     seconds: f64,
+    decode_seconds: f64,
     mean: [f64; 3],
 }
 
@@ -120,6 +121,7 @@ fn python_peer(files: &[PathBuf], repeat: usize) -> Result<Vec<PeerResult>, Stri
             let m = v["mean_rgb"].as_array().ok_or("no mean")?;
             Ok(PeerResult {
                 seconds: v["median_seconds"].as_f64().ok_or("no time")?,
+                decode_seconds: v["median_decode_seconds"].as_f64().ok_or("no time")?,
                 mean: [
                     m[0].as_f64().unwrap_or(f64::NAN),
                     m[1].as_f64().unwrap_or(f64::NAN),
@@ -149,7 +151,7 @@ fn main() {
         repeat.max(31)
     );
     println!();
-    println!("| input | file MB | end to end ms, 1 thread | captures/s | decoded MB/s | end to end ms, 2 threads | average ms | plain sum ms | average / limit | peer ms | speed-up vs peer (1 / 2 threads) | max rel. diff vs peer |");
+    println!("| input | file MB | end to end ms, 1 thread | captures/s | decoded MB/s | end to end ms, 2 threads | average ms | plain sum ms | average / limit | peer ms (of which decode) | speed-up vs peer (1 / 2 threads) | max rel. diff vs peer |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (i, (label, path)) in inputs.iter().enumerate() {
         let file_mb = std::fs::metadata(path)
@@ -202,7 +204,11 @@ fn main() {
                     .map(|c| ((mean[c] - p[i].mean[c]) / p[i].mean[c]).abs())
                     .fold(0.0, f64::max);
                 (
-                    format!("{:.1}", p[i].seconds * 1e3),
+                    format!(
+                        "{:.1} ({:.1})",
+                        p[i].seconds * 1e3,
+                        p[i].decode_seconds * 1e3
+                    ),
                     format!("{:.1}× / {:.1}×", p[i].seconds / e, p[i].seconds / e2),
                     format!("{d:.1e}"),
                 )

@@ -42,13 +42,25 @@ def main():
     ap.add_argument("files", nargs="+")
     a = ap.parse_args()
     for path in a.files:
-        times = []
+        times, decode_times = [], []
         m = None
         for _ in range(a.repeat):
             t0 = time.perf_counter()
-            m = mean_rgb(load(path))
+            rgb = load(path)
+            t1 = time.perf_counter()
+            m = mean_rgb(rgb)
             times.append(time.perf_counter() - t0)
-        print(json.dumps({"file": path, "median_seconds": statistics.median(times), "mean_rgb": [float(v) for v in m]}))
+            decode_times.append(t1 - t0)
+        print(
+            json.dumps(
+                {
+                    "file": path,
+                    "median_seconds": statistics.median(times),
+                    "median_decode_seconds": statistics.median(decode_times),
+                    "mean_rgb": [float(v) for v in m],
+                }
+            )
+        )
 
 
 if __name__ == "__main__":

@@ -188,9 +188,14 @@ impl SamplingPlan {
         let (light, camera) = match self.order {
             AcquisitionOrder::LightOuter => (outer, inner),
             AcquisitionOrder::CameraOuter => (inner, outer),
-            AcquisitionOrder::LightOuterSerpentine => {
-                (outer, if outer % 2 == 0 { inner } else { n - 1 - inner })
-            }
+            AcquisitionOrder::LightOuterSerpentine => (
+                outer,
+                if outer.is_multiple_of(2) {
+                    inner
+                } else {
+                    n - 1 - inner
+                },
+            ),
         };
         Ok(PlanEntry {
             index,
@@ -210,7 +215,7 @@ impl SamplingPlan {
             AcquisitionOrder::CameraOuter => camera * n + light,
             AcquisitionOrder::LightOuterSerpentine => {
                 light * n
-                    + if light % 2 == 0 {
+                    + if light.is_multiple_of(2) {
                         camera
                     } else {
                         n - 1 - camera
