@@ -66,9 +66,9 @@ fn init_logging() {
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
         .init();
-    // A decoder panic is caught and reported as a typed error; log it instead of printing raw.
+    // Route panics to the log. A decoder panic is also caught and reported as a typed error.
     std::panic::set_hook(Box::new(|info| {
-        tracing::debug!(target: "goniowatch::panic", "contained panic: {info}");
+        tracing::error!(target: "goniowatch::panic", "panic: {info}");
     }));
 }
 
