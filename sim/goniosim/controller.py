@@ -1,0 +1,380 @@
+"""The simulated arm/wagon controller: runs the plan, renders and writes the captures, speaks
+docs/protocol.md on its serial port, injects the scenario's faults, and writes the truth file."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import serial
+
+from . import protocol as P
+from .geometry import vec_to_sph
+from .link import Cable
+from .material import PRESETS, REALISM, albedo_texture
+from .render import add_noise, exr_bytes_to_file, hdr_bytes, render, write_atomic
+from .scenario import ONE_SHOT, Scenario
+
+PROTO_VERSION = 1
+TRUTH_ROI_FRACTION = 0.1
+
+
+@dataclass
+class CaptureRecord:
+    idx: int
+    entry: int
+    fields: dict
+
+
+class Controller:
+    def __init__(self, sc: Scenario, cable: Cable | None = None, log=sys.stderr, linger_s: float = 5.0) -> None:
+        self.sc = sc
+        self.cable = cable if cable is not None else Cable(sc.port, sc.baud, sc.seed)
+        self.own_cable = cable is None
+        self.log = log
+        self.linger_s = linger_s
+        self.ser = serial.Serial(self.cable.rig_path, baudrate=115200, timeout=0)
+        self.rx = P.LineBuffer()
+        self.seq = 0
+        self.boot = 0
+        self.subscribed = False
+        self.state = "running"
+        self.t = 0.0  # controller time, seconds since session start
+        self.next_idx = 0
+        self.captures: list[CaptureRecord] = []
+        self.probes: list[int] = []
+        self.prev_cmd: list[float] | None = None
+        self.material = PRESETS[sc.material]
+        self.realism = REALISM[sc.realism]
+        w, h = sc.image_size
+        self.albedo = albedo_texture(self.material, h, w, sc.seed)
+        self.holder_px = max(1, int(round(sc.holder_fraction * min(w, h))))
+        self.rng = np.random.default_rng(sc.seed + 1)
+        self.flicker_rng = np.random.default_rng(sc.seed + 2)
+        os.makedirs(os.path.join(sc.capture_root, sc.session_id), exist_ok=True)
+        os.makedirs(os.path.dirname(os.path.abspath(sc.truth_path())), exist_ok=True)
+        self.truth = open(sc.truth_path(), "w", encoding="utf-8")
+        self.stats = {"bad_lines": 0, "commands": 0}
+        self.fired: set[int] = set()  # one-shot faults already fired (by index in sc.faults)
+        self._writers: list[threading.Thread] = []
+        self.stop = threading.Event()  # ends the linger after the session
+
+    # -- serial ----------------------------------------------------------------------------------
+    def send(self, verb: str, fields: dict | None = None, event: bool = False) -> None:
+        if event and not self.subscribed:
+            return
+        line = P.frame(self.seq, verb, fields)
+        self.seq = (self.seq + 1) % P.SEQ_MOD
+        self.ser.write(line)
+
+    def poll(self) -> None:
+        data = self.ser.read(65536)
+        if not data:
+            return
+        for line in self.rx.feed(data):
+            try:
+                msg = P.parse(line)
+            except P.ProtocolError:
+                self.stats["bad_lines"] += 1
+                self.send("NAK", {"ref": -1, "reason": "bad-crc"})
+                continue
+            self.handle(msg)
+
+    def handle(self, m: P.Message) -> None:
+        self.stats["commands"] += 1
+        ref = m.seq
+        if m.verb == "HELLO":
+            versions = [v for v in (m.get("proto") or "").split(",") if v]
+            if str(PROTO_VERSION) not in versions:
+                self.send("NAK", {"ref": ref, "reason": "unsupported-version", "supported": PROTO_VERSION})
+            else:
+                self.send_ident()
+        elif m.verb == "SUBSCRIBE":
+            self.subscribed = True
+            self.send("ACK", {"ref": ref})
+            self.send("STATUS", {"state": self.state, "t": f"{self.t:.3f}", "next": self.next_idx})
+        elif m.verb == "RESYNC":
+            try:
+                start = int(m.get("from", "0") or 0)
+            except ValueError:
+                self.send("NAK", {"ref": ref, "reason": "bad-args"})
+                return
+            n = 0
+            for rec in self.captures:
+                if rec.idx >= start:
+                    f = dict(rec.fields)
+                    f["replay"] = 1
+                    self.send("CAPTURE", f)
+                    n += 1
+            self.send("ACK", {"ref": ref, "count": n, "next": self.next_idx})
+        elif m.verb == "POSE?":
+            cmd = self.prev_cmd or [0.0, 0.0, 0.0, 0.0]
+            self.send("POSE", {"t": f"{self.t:.3f}", "cmd": P.fmt_pose(cmd), "enc": P.fmt_pose(cmd), "ref": ref})
+        elif m.verb in ("PAUSE", "RESUME"):
+            if not self.sc.allow_actions:
+                self.send("NAK", {"ref": ref, "reason": "refused"})
+                return
+            self.state = "paused" if m.verb == "PAUSE" else "running"
+            self.send("ACK", {"ref": ref})
+            self.send("STATUS", {"state": self.state, "t": f"{self.t:.3f}", "next": self.next_idx}, event=True)
+        elif m.verb == "PROBE":
+            if not self.sc.allow_actions:
+                self.send("NAK", {"ref": ref, "reason": "refused"})
+                return
+            try:
+                entry = int(m.get("entry", ""))
+                if not 0 <= entry < self.sc.plan.captures:
+                    raise ValueError
+            except ValueError:
+                self.send("NAK", {"ref": ref, "reason": "bad-args"})
+                return
+            self.probes.append(entry)
+            self.send("ACK", {"ref": ref, "queued": len(self.probes)})
+        else:
+            self.send("NAK", {"ref": ref, "reason": "unknown-verb"})
+
+    def send_ident(self) -> None:
+        self.send(
+            "IDENT",
+            {
+                "rig": self.sc.rig_id,
+                "fw": self.sc.firmware,
+                "proto": PROTO_VERSION,
+                "session": self.sc.session_id,
+                "captures": self.sc.capture_count,
+                "boot": self.boot,
+            },
+        )
+
+    def reboot(self) -> None:
+        """Controller restart: sequence restarts, subscription is lost, the capture log is kept."""
+        self.boot += 1
+        self.seq = 0
+        self.subscribed = False
+        self.rx = P.LineBuffer()
+        self.send_ident()
+
+    # -- faults ------------------------------------------------------------------------------------
+    def active_faults(self, idx: int) -> list[tuple[int, object]]:
+        t_h = self.t / 3600.0
+        out = []
+        for i, f in enumerate(self.sc.faults):
+            if f.kind in ONE_SHOT:
+                if i not in self.fired and f.onset_reached(idx, t_h):
+                    out.append((i, f))
+            elif f.active(idx, t_h):
+                out.append((i, f))
+        return out
+
+    def onset_hours(self, f) -> float:
+        if f.at_hours is not None:
+            return float(f.at_hours)
+        return (f.at_capture or 0) * self.sc.time_per_capture_s / 3600.0
+
+    def lamp_gain(self, faults) -> float:
+        g = self.sc.lamp_gain
+        t_h = self.t / 3600.0
+        for _, f in faults:
+            if f.kind == "lamp-decay":
+                dt = max(0.0, t_h - self.onset_hours(f))
+                r = float(f.p("rate_pct_per_h", 1.0)) / 100.0
+                g *= math.exp(-r * dt) if f.p("model", "linear") == "exponential" else max(0.0, 1.0 - r * dt)
+            elif f.kind == "lamp-step":
+                g *= 1.0 + float(f.p("step_pct", -3.0)) / 100.0
+            elif f.kind == "lamp-flicker":
+                g *= 1.0 + float(f.p("amplitude_pct", 1.0)) / 100.0 * float(self.flicker_rng.normal())
+            elif f.kind == "dark-frame":
+                g = 0.0
+        return g
+
+    # -- one capture ---------------------------------------------------------------------------
+    def take(self, entry: int, probe: bool = False) -> None:
+        sc = self.sc
+        idx = self.next_idx
+        faults = self.active_faults(idx)
+        kinds = {f.kind for _, f in faults}
+        for i, f in faults:
+            if f.kind in ONE_SHOT:
+                self.fired.add(i)
+        if "reboot" in kinds:
+            self.reboot()
+        if "unplug" in kinds:
+            f = next(f for _, f in faults if f.kind == "unplug")
+            self.cable.unplug(float(f.p("duration_s", 2.0)))
+        self.cable.corrupt_rate = max([float(f.p("rate", 0.0)) for _, f in faults if f.kind == "corrupt-bytes"] or [0.0])
+        self.cable.drop_rate = max([float(f.p("rate", 0.0)) for _, f in faults if f.kind == "drop-lines"] or [0.0])
+
+        light, camera = sc.plan.entry(entry)
+        ld, cd = sc.plan.directions[light], sc.plan.directions[camera]
+        cmd, _, _, sub = sc.rig.plan_pose(ld, cd)
+        true_pose = list(cmd)
+        enc = list(cmd)
+        for _, f in faults:
+            if f.kind == "joint-offset":
+                j = int(f.p("joint", 1)) - 1
+                true_pose[j] += float(f.p("offset_deg", 1.0))
+            elif f.kind == "encoder-mismatch":
+                j = int(f.p("joint", 1)) - 1
+                enc[j] += float(f.p("offset_deg", 0.5))
+            elif f.kind == "wagon-backlash" and self.prev_cmd is not None:
+                move = cmd[3] - self.prev_cmd[3]
+                if move != 0:
+                    true_pose[3] -= math.copysign(float(f.p("backlash_deg", 0.5)), move)
+        self.prev_cmd = list(cmd)
+        self.send("POSE", {"t": f"{self.t:.3f}", "cmd": P.fmt_pose(cmd), "enc": P.fmt_pose(enc)}, event=True)
+
+        wi, wo = sc.rig.forward(true_pose)
+        gain = self.lamp_gain(faults)
+        clean = render(self.albedo, wi, wo, self.material, self.realism, gain, self.holder_px)
+        img = add_noise(clean, self.rng, sc.photons_per_unit, sc.read_noise) if sc.noise else clean.copy()
+        if "nan-pixels" in kinds or "inf-pixels" in kinds:
+            for _, f in faults:
+                if f.kind in ("nan-pixels", "inf-pixels"):
+                    n = int(f.p("count", 10))
+                    ys = self.rng.integers(0, img.shape[0], n)
+                    xs = self.rng.integers(0, img.shape[1], n)
+                    img[ys, xs, self.rng.integers(0, 3, n)] = np.nan if f.kind == "nan-pixels" else np.inf
+        if "saturated-block" in kinds:
+            f = next(f for _, f in faults if f.kind == "saturated-block")
+            s = int(f.p("size_px", 8))
+            h, w, _ = img.shape
+            y0, x0 = (h - s) // 2, (w - s) // 2
+            img[y0 : y0 + s, x0 : x0 + s, :] = float(f.p("value", 65504.0))
+
+        # NaN/Inf cannot be stored in Radiance RGBE: such captures are written as OpenEXR
+        fmt = "exr" if ("nan-pixels" in kinds or "inf-pixels" in kinds or sc.format == "exr") else "hdr"
+        rel = f"{sc.session_id}/cap_{idx:05d}_e{entry:04d}.{fmt}"
+        path = os.path.join(sc.capture_root, rel)
+        written = self.write_capture(path, img, fmt, kinds)
+
+        fields = {
+            "idx": idx,
+            "entry": entry,
+            "file": rel,
+            "t": f"{self.t:.3f}",
+            "cmd": P.fmt_pose(cmd),
+            "enc": P.fmt_pose(enc),
+            "exp": "hdr5",
+        }
+        if sub is not None:
+            fields["sub"] = f"{sub:.4f}"
+        if probe:
+            fields["probe"] = 1
+        self.captures.append(CaptureRecord(idx, entry, fields))
+        announced = dict(fields)
+        if "duplicate-index" in kinds and idx > 0:
+            announced["idx"] = idx - 1
+        self.send("CAPTURE", announced, event=True)
+
+        ti, pi = vec_to_sph(wi)
+        to, po = vec_to_sph(wo)
+        # the same region as goniowatch's default for the simulator, margin-fraction 0.1
+        my, mx = int(clean.shape[0] * TRUTH_ROI_FRACTION), int(clean.shape[1] * TRUTH_ROI_FRACTION)
+        roi = clean[my : clean.shape[0] - my, mx : clean.shape[1] - mx].reshape(-1, 3)
+        truth = {
+            "idx": idx,
+            "entry": entry,
+            "light": light,
+            "camera": camera,
+            "probe": probe,
+            "file": rel,
+            "format": fmt,
+            "written": written,
+            "t": round(self.t, 6),
+            "cmd": cmd,
+            "enc": enc,
+            "true_pose": true_pose,
+            "substitute_theta_i": sub,
+            "true_angles": [ti, pi, to, po],
+            "lamp_gain": gain,
+            "faults": sorted(kinds),
+            "announced_idx": announced["idx"],
+            "boot": self.boot,
+            "mean_rgb_noiseless_roi": roi.mean(axis=0).tolist(),
+        }
+        self.truth.write(json.dumps(truth) + "\n")
+        self.truth.flush()
+        self.next_idx += 1
+        self.t += sc.time_per_capture_s
+
+    def write_capture(self, path: str, img: np.ndarray, fmt: str, kinds: set[str]) -> bool:
+        if "missing-file" in kinds:
+            return False
+        if fmt == "exr":
+            tmp = os.path.join(os.path.dirname(path), "." + os.path.basename(path) + ".tmp.exr")
+            exr_bytes_to_file(img, tmp, half=True)
+            with open(tmp, "rb") as f:
+                data = f.read()
+            os.unlink(tmp)
+        else:
+            data = hdr_bytes(img)
+        if "truncated-file" in kinds:
+            f = next(f for f in self.sc.faults if f.kind == "truncated-file" and self.sc.faults.index(f) in self.fired)
+            data = data[: max(1, int(len(data) * float(f.p("keep_fraction", 0.5))))]
+        if "slow-write" in kinds:
+            f = next(f for f in self.sc.faults if f.kind == "slow-write" and self.sc.faults.index(f) in self.fired)
+            th = threading.Thread(target=slow_write, args=(path, data, float(f.p("duration_s", 2.0))), daemon=True)
+            th.start()
+            self._writers.append(th)
+            return True
+        write_atomic(path, data)
+        return True
+
+    # -- the session -----------------------------------------------------------------------------
+    def sleep(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while True:
+            self.poll()
+            left = end - time.monotonic()
+            if left <= 0:
+                return
+            time.sleep(min(left, 0.005))
+
+    def run(self) -> None:
+        sc = self.sc
+        self.reboot()  # first boot: IDENT, boot = 1
+        self.sleep(0.05)
+        period = sc.time_per_capture_s / sc.speed if sc.speed > 0 else 0.0
+        count = sc.capture_count
+        started = time.monotonic()
+        for k in range(count):
+            self.poll()
+            while self.state == "paused":
+                self.sleep(0.01)
+            while self.probes:
+                self.take(self.probes.pop(0), probe=True)
+            self.take(sc.start_capture + k)
+            if period:
+                self.sleep(max(0.0, started + (k + 1) * period - time.monotonic()))
+            if self.log and (k % 500 == 0 or k == count - 1):
+                print(f"goniosim: capture {k + 1}/{count}", file=self.log, flush=True)
+        self.state = "done"
+        self.send("STATUS", {"state": "done", "t": f"{self.t:.3f}", "next": self.next_idx}, event=True)
+        for th in self._writers:
+            th.join()
+        end = time.monotonic() + self.linger_s
+        while time.monotonic() < end and not self.stop.is_set():
+            self.sleep(0.02)
+
+    def close(self) -> None:
+        self.truth.close()
+        self.ser.close()
+        if self.own_cable:
+            self.cable.close()
+
+
+def slow_write(path: str, data: bytes, duration_s: float) -> None:
+    """Write in place, without a rename, in pieces spread over `duration_s`."""
+    pieces = 8
+    step = max(1, len(data) // pieces)
+    with open(path, "wb") as f:
+        for i in range(0, len(data), step):
+            f.write(data[i : i + step])
+            f.flush()
+            time.sleep(duration_s / pieces)

@@ -1,0 +1,103 @@
+"""Reciprocal BRDFs (Lambert + GGX microfacet lobe with Smith masking and Schlick Fresnel), the
+paper's four material presets, spatially varying albedo textures, and the "realistic" preset's
+non-reciprocal, geometry-dependent deviations (lamp footprint and holder bleed)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Material:
+    name: str
+    albedo: tuple[float, float, float]  # mean diffuse albedo (linear RGB)
+    texture_contrast: float  # relative albedo variation of the texture
+    texture_scale: float  # pattern frequency (cycles across the sample)
+    ks: float  # specular weight
+    roughness: float  # GGX alpha
+    f0: float  # Fresnel reflectance at normal incidence
+
+
+# After the paper's four samples (Fig. 1): ceiling, floortile, pinkwall, walkway.
+PRESETS = {
+    "ceiling": Material("ceiling (matte painted agglomerate)", (0.62, 0.60, 0.56), 0.25, 9.0, 0.02, 0.55, 0.04),
+    "floortile": Material("floortile (granite)", (0.36, 0.34, 0.33), 0.45, 23.0, 0.05, 0.30, 0.05),
+    "pinkwall": Material("pinkwall (polished ceramic)", (0.70, 0.46, 0.45), 0.10, 5.0, 0.12, 0.08, 0.05),
+    "walkway": Material("walkway (plastic with a glossy varnish)", (0.42, 0.36, 0.26), 0.30, 13.0, 0.10, 0.15, 0.045),
+}
+
+
+def ggx_d(cos_h: float, alpha: float) -> float:
+    a2 = alpha * alpha
+    d = cos_h * cos_h * (a2 - 1.0) + 1.0
+    return a2 / (math.pi * d * d)
+
+
+def smith_g1(cos_v: float, alpha: float) -> float:
+    a2 = alpha * alpha
+    return 2.0 * cos_v / (cos_v + math.sqrt(a2 + (1.0 - a2) * cos_v * cos_v))
+
+
+def specular(wi: np.ndarray, wo: np.ndarray, m: Material) -> float:
+    """The microfacet lobe f_s(wi, wo); symmetric in wi and wo."""
+    ci, co = float(wi[2]), float(wo[2])
+    if ci <= 0.0 or co <= 0.0:
+        return 0.0
+    h = wi + wo
+    hn = float(np.linalg.norm(h))
+    if hn == 0.0:
+        return 0.0
+    h = h / hn
+    cos_h = float(h[2])
+    cos_d = float(np.dot(h, wi))
+    fresnel = m.f0 + (1.0 - m.f0) * (1.0 - cos_d) ** 5
+    return m.ks * ggx_d(cos_h, m.roughness) * smith_g1(ci, m.roughness) * smith_g1(co, m.roughness) * fresnel / (4.0 * ci * co)
+
+
+def albedo_texture(m: Material, height: int, width: int, seed: int) -> np.ndarray:
+    """(H, W, 3) diffuse albedo: smooth pattern plus grain, mean = m.albedo."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:height, 0:width]
+    u, v = x / max(width, 1), y / max(height, 1)
+    f = m.texture_scale
+    phase = rng.uniform(0, 2 * math.pi, 4)
+    pattern = (
+        np.sin(2 * math.pi * f * u + phase[0]) * np.cos(2 * math.pi * f * 0.7 * v + phase[1])
+        + 0.5 * np.sin(2 * math.pi * f * 1.9 * (u + v) + phase[2])
+    )
+    grain = rng.normal(0.0, 0.5, (height, width))
+    t = pattern + grain
+    t = (t - t.mean()) / (t.std() + 1e-12)
+    tint = rng.normal(0.0, 0.15, 3)
+    out = np.empty((height, width, 3))
+    for c in range(3):
+        out[..., c] = m.albedo[c] * np.clip(1.0 + m.texture_contrast * (1.0 + tint[c]) * t * 0.5, 0.05, None)
+    # renormalise so the texture's mean is exactly the preset's albedo
+    out *= np.array(m.albedo) / out.reshape(-1, 3).mean(axis=0)
+    return out
+
+
+@dataclass(frozen=True)
+class Realism:
+    """Non-reciprocal deviations of real averaged BTF data (border and footprint effects).
+
+    footprint: the lamp's spot is not uniform; across the sample along the light's azimuth the
+      irradiance falls off as 1 - footprint * k_c * tan^2(theta_i) * s^2 (s in [-1/2, 1/2], k_c the
+      channel's footprint_rgb factor), so the mean drops with theta_i only.
+    bleed_px: at grazing view the holder bleeds into the rectified image by bleed_px * tan(theta_o)
+      pixels on the two edges across the view azimuth, so the mean depends on theta_o only.
+    """
+
+    footprint: float = 0.0
+    bleed_px: float = 0.0
+    # the lamp's spot is slightly chromatic: the blue end falls off faster
+    footprint_rgb: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+
+REALISM = {
+    "clean": Realism(),
+    "realistic": Realism(footprint=0.65, bleed_px=2.4, footprint_rgb=(0.96, 1.0, 1.07)),
+}

@@ -1,0 +1,113 @@
+"""Render one capture from the true geometry and write it as Radiance .hdr or OpenEXR."""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from .material import Material, Realism, specular
+
+HOLDER_ALBEDO = (0.10, 0.10, 0.11)
+
+
+def render(
+    albedo: np.ndarray,
+    wi: np.ndarray,
+    wo: np.ndarray,
+    material: Material,
+    realism: Realism,
+    gain: float,
+    holder_px: int,
+) -> np.ndarray:
+    """Noiseless linear RGB image (H, W, 3), float64.
+
+    A white Lambertian reflector at normal incidence renders as 1.0 (pixel = gain * pi * cos
+    theta_i * f_r). The sample occupies the image inside a holder border of `holder_px`.
+    """
+    h, w, _ = albedo.shape
+    ci = max(float(wi[2]), 0.0)
+    spec = specular(wi, wo, material)
+    img = gain * ci * (albedo + math.pi * spec)  # pi * (albedo/pi + spec)
+    holder = gain * ci * np.array(HOLDER_ALBEDO)
+    mask = np.zeros((h, w), dtype=bool)
+    mask[holder_px : h - holder_px, holder_px : w - holder_px] = True
+    y, x = np.mgrid[0:h, 0:w]
+    u = (x + 0.5) / w - 0.5
+    v = (y + 0.5) / h - 0.5
+    if realism.footprint > 0.0:
+        # lamp footprint: along the projected light direction
+        pi_az = math.atan2(wi[1], wi[0])
+        s = u * math.cos(pi_az) + v * math.sin(pi_az)
+        ti2 = (1.0 - ci * ci) / max(ci * ci, 1e-6)
+        k = np.asarray(realism.footprint_rgb)
+        img = img * (1.0 - realism.footprint * min(ti2, 20.0) * (s**2)[..., None] * k)
+    if realism.bleed_px > 0.0:
+        co = max(float(wo[2]), 1e-6)
+        to = math.sqrt(max(1.0 - co * co, 0.0)) / co
+        bleed = realism.bleed_px * min(to, 10.0)
+        po_az = math.atan2(wo[1], wo[0])
+        # distance from the sample's edge across the view azimuth, in pixels
+        t = np.abs(u * math.cos(po_az) + v * math.sin(po_az))
+        half = 0.5 * (w - 2 * holder_px) / w
+        inside_edge = (half - t) * w
+        mask = mask & (inside_edge > bleed)
+    out = np.where(mask[..., None], img, holder)
+    return out
+
+
+def add_noise(img: np.ndarray, rng: np.random.Generator, photons_per_unit: float, read_noise: float) -> np.ndarray:
+    """Shot noise (Gaussian approximation of Poisson with `photons_per_unit` at value 1) + read noise."""
+    sigma = np.sqrt(np.clip(img, 0.0, None) / photons_per_unit + read_noise * read_noise)
+    return img + rng.normal(0.0, 1.0, img.shape) * sigma
+
+
+def encode_rgbe(img: np.ndarray) -> bytes:
+    """Flat (uncompressed) RGBE scanlines, top row first."""
+    rgb = np.clip(np.nan_to_num(img, nan=0.0, posinf=1e38, neginf=0.0), 0.0, None)
+    m = rgb.max(axis=2)
+    mant, exp = np.frexp(m)
+    scale = np.where(m > 1e-32, mant * 256.0 / np.where(m > 0, m, 1.0), 0.0)
+    out = np.zeros(rgb.shape[:2] + (4,), dtype=np.uint8)
+    out[..., :3] = np.clip(np.floor(rgb * scale[..., None]), 0, 255).astype(np.uint8)
+    out[..., 3] = np.where(m > 1e-32, exp + 128, 0).clip(0, 255).astype(np.uint8)
+    return out.tobytes()
+
+
+def hdr_bytes(img: np.ndarray) -> bytes:
+    h, w, _ = img.shape
+    header = f"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\nSOFTWARE=goniosim\n\n-Y {h} +X {w}\n".encode("ascii")
+    return header + encode_rgbe(img)
+
+
+def decode_hdr(data: bytes) -> np.ndarray:
+    """Read back a flat RGBE file written by `hdr_bytes` (for tests)."""
+    end = data.index(b"\n\n") + 2
+    res_end = data.index(b"\n", end)
+    parts = data[end:res_end].split()
+    h, w = int(parts[1]), int(parts[3])
+    px = np.frombuffer(data[res_end + 1 : res_end + 1 + h * w * 4], dtype=np.uint8).reshape(h, w, 4).astype(np.float64)
+    e = px[..., 3]
+    f = np.where(e > 0, np.ldexp(1.0, (e - 136).astype(int)), 0.0)
+    return (px[..., :3] + 0.5) * f[..., None] * (e > 0)[..., None]
+
+
+def exr_bytes_to_file(img: np.ndarray, path: str, half: bool) -> None:
+    import OpenEXR  # optional dependency, pinned in sim/requirements.txt
+
+    arr = img.astype(np.float16 if half else np.float32)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(header, {"RGB": arr}) as f:
+        f.write(path)
+
+
+def write_atomic(path: str, data: bytes) -> None:
+    """Write to a temporary name in the same directory, then rename into place."""
+    d, name = os.path.split(path)
+    tmp = os.path.join(d, f".{name}.tmp")
+    with open(tmp, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)

@@ -1,0 +1,141 @@
+"""Every fault kind shows up where it was scheduled, in the truth file and in the data."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from goniosim.controller import Controller
+from goniosim.render import decode_hdr
+
+FAULTS = [
+    {"kind": "lamp-decay", "at_capture": 5, "until_capture": 10, "rate_pct_per_h": 360.0},
+    {"kind": "lamp-decay", "at_capture": 10, "until_capture": 12, "rate_pct_per_h": 360.0, "model": "exponential"},
+    {"kind": "lamp-step", "at_capture": 12, "until_capture": 14, "step_pct": -3.0},
+    {"kind": "lamp-flicker", "at_capture": 14, "until_capture": 16, "amplitude_pct": 2.0},
+    {"kind": "joint-offset", "at_capture": 16, "until_capture": 18, "joint": 2, "offset_deg": 1.0},
+    {"kind": "encoder-mismatch", "at_capture": 18, "until_capture": 20, "joint": 4, "offset_deg": 0.5},
+    {"kind": "wagon-backlash", "at_capture": 36, "until_capture": 38, "backlash_deg": 0.5},
+    {"kind": "nan-pixels", "at_capture": 22, "count": 5},
+    {"kind": "inf-pixels", "at_capture": 23, "count": 5},
+    {"kind": "saturated-block", "at_capture": 24, "size_px": 4},
+    {"kind": "dark-frame", "at_capture": 25},
+    {"kind": "truncated-file", "at_capture": 26, "keep_fraction": 0.3},
+    {"kind": "missing-file", "at_capture": 27},
+    {"kind": "slow-write", "at_capture": 28, "duration_s": 0.4},
+    {"kind": "duplicate-index", "at_capture": 29},
+    {"kind": "corrupt-bytes", "at_capture": 30, "until_capture": 32, "rate": 0.05},
+    {"kind": "drop-lines", "at_capture": 32, "until_capture": 34, "rate": 0.5},
+    {"kind": "reboot", "at_capture": 34},
+    {"kind": "unplug", "at_capture": 38, "duration_s": 0.2},
+]
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    from goniosim import scenario as S
+
+    tmp = tmp_path_factory.mktemp("faults")
+    sc = S.from_dict(
+        {
+            "session": {
+                "id": "f",
+                "capture_root": str(tmp / "cap"),
+                "port": str(tmp / "port"),
+                "image_size": [16, 16],
+                "captures": 40,
+                "speed": 0.0,
+                "seed": 4,
+                "noise": False,
+            },
+            "faults": FAULTS,
+        }
+    )
+    import threading
+
+    from conftest import Client
+
+    sc.speed = 7.0 / 0.03  # 30 ms per capture
+    ctl = Controller(sc, log=None, linger_s=0.5)
+    th = threading.Thread(target=ctl.run, daemon=True)
+    th.start()
+    # a subscribed reader on the daemon side, so the link faults act on real traffic
+    c = Client(sc.port)
+    c.send("HELLO", {"proto": "1"})
+    c.send("SUBSCRIBE")
+    try:
+        while th.is_alive():
+            c.pump()
+    except Exception:
+        pass  # the unplug fault ends the reader
+    th.join()
+    c.close()
+    stats = dict(ctl.cable.stats)
+    ctl.close()
+    truth = {t["idx"]: t for t in map(json.loads, open(sc.truth_path()))}
+    return sc, truth, stats
+
+
+def path(sc, t):
+    return os.path.join(sc.capture_root, t["file"])
+
+
+def test_lamp_faults(session):
+    sc, truth, _ = session
+    assert truth[4]["lamp_gain"] == 1.0 and truth[4]["faults"] == []
+    # linear 360 %/h: 7 s per capture = 7 % per capture after onset
+    for k in range(5, 10):
+        assert truth[k]["lamp_gain"] == pytest.approx(1 - 3.6 * (k - 5) * 7 / 3600)
+        assert "lamp-decay" in truth[k]["faults"]
+    assert truth[11]["lamp_gain"] == pytest.approx(np.exp(-3.6 * 7 / 3600))
+    assert truth[12]["lamp_gain"] == pytest.approx(0.97) and "lamp-step" in truth[12]["faults"]
+    assert truth[14]["lamp_gain"] != 1.0 and truth[15]["lamp_gain"] != truth[14]["lamp_gain"]
+    assert truth[16]["lamp_gain"] == 1.0
+    # the data shows it: same geometry scaled by the gain
+    a = decode_hdr(open(path(sc, truth[12]), "rb").read()).mean()
+    assert a > 0
+
+
+def test_positioning_faults(session):
+    _, truth, _ = session
+    t = truth[16]
+    assert t["true_pose"][1] == pytest.approx(t["cmd"][1] + 1.0) and t["enc"] == t["cmd"]
+    t = truth[18]
+    assert t["enc"][3] == pytest.approx(t["cmd"][3] + 0.5) and t["true_pose"] == t["cmd"]
+    moved = [truth[k] for k in (36, 37) if truth[k]["cmd"][3] != truth[k - 1]["cmd"][3]]
+    assert moved and all(abs(t["true_pose"][3] - t["cmd"][3]) == pytest.approx(0.5) for t in moved)
+    assert truth[22]["true_pose"] == truth[22]["cmd"]
+
+
+def test_pixel_faults(session):
+    import OpenEXR
+
+    sc, truth, _ = session
+    for k, bad in ((22, np.isnan), (23, np.isinf)):
+        assert truth[k]["format"] == "exr"
+        with OpenEXR.File(path(sc, truth[k])) as f:
+            rgb = f.channels()["RGB"].pixels
+        assert bad(rgb).sum() >= 1
+    sat = decode_hdr(open(path(sc, truth[24]), "rb").read())
+    assert sat.max() > 60000
+    dark = decode_hdr(open(path(sc, truth[25]), "rb").read())
+    assert truth[25]["lamp_gain"] == 0.0 and dark.max() == 0.0
+
+
+def test_file_faults(session):
+    sc, truth, _ = session
+    full = os.path.getsize(path(sc, truth[25]))
+    assert os.path.getsize(path(sc, truth[26])) < 0.5 * full
+    assert not truth[27]["written"] and not os.path.exists(path(sc, truth[27]))
+    assert os.path.getsize(path(sc, truth[28])) == full, "the slow write finishes"
+    assert not [n for n in os.listdir(os.path.dirname(path(sc, truth[0]))) if n.endswith(".tmp")]
+    assert truth[29]["announced_idx"] == 28 and truth[29]["idx"] == 29
+
+
+def test_link_faults(session):
+    _, truth, stats = session
+    assert stats.get("corrupted_bytes", 0) > 0
+    assert stats.get("dropped_lines", 0) > 0
+    assert truth[33]["boot"] == 1 and truth[34]["boot"] == 2
+    assert stats["unplugs"] >= 1 and stats["plugs"] == 2

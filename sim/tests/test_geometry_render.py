@@ -1,0 +1,123 @@
+import json
+import math
+import os
+import subprocess
+
+import numpy as np
+import pytest
+from conftest import REPO, goniowatch_binary
+
+from goniosim.geometry import Plan, Rig, angle_between, sph_to_vec
+from goniosim.material import PRESETS, REALISM, albedo_texture
+from goniosim.render import add_noise, decode_hdr, hdr_bytes, render
+
+
+def test_plan_counts_and_orders():
+    for order in ("light-outer", "camera-outer", "light-outer-serpentine"):
+        p = Plan(order=order)
+        assert (p.n, p.captures) == (81, 6561)
+        seen = set()
+        for i in range(p.captures):
+            l, c = p.entry(i)
+            assert p.index_of(l, c) == i
+            seen.add((l, c))
+        assert len(seen) == 6561
+    p = Plan()
+    assert p.entry(0) == (0, 0) and p.entry(1) == (0, 1) and p.entry(81) == (1, 0)
+    with pytest.raises(ValueError):
+        Plan(delta_phi_deg=[0, 60, 30, 20, 18, 7])
+
+
+def test_kinematics_round_trip_and_substitutes():
+    p, r = Plan(), Rig()
+    subs = 0
+    for i in range(p.captures):
+        l, c = p.entry(i)
+        pose, wi, wo, sub = r.plan_pose(p.directions[l], p.directions[c])
+        a, b = r.forward(pose)
+        assert np.linalg.norm(a - wi) < 1e-12 and np.linalg.norm(b - wo) < 1e-12
+        if sub is not None:
+            subs += 1
+            assert abs(angle_between(wi, wo) - 12.0) < 1e-6
+    assert subs == 81
+
+
+def test_substitutes_match_goniowatch():
+    """The simulator and the daemon share one kinematic convention: same substitutes."""
+    exe = goniowatch_binary()
+    if exe is None:
+        pytest.skip("goniowatch binary not built")
+    cfg = os.path.join(REPO, "config", "sim.toml")
+    out = json.loads(subprocess.run([exe, "plan", "--json", "--config", cfg], check=True, capture_output=True).stdout)
+    p, r = Plan(), Rig()
+    for s in out["substitutes"]:
+        l, c = p.entry(s["index"])
+        assert (l, c) == (s["light"], s["camera"])
+        _, _, _, sub = r.plan_pose(p.directions[l], p.directions[c])
+        assert abs(sub - s["theta_i_used_deg"]) < 1e-9
+
+
+def _mean(img):
+    return img.reshape(-1, 3).mean(axis=0)
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_noiseless_clean_render_is_reciprocal(preset):
+    """Mirrored pairs agree after the cosine re-correction, to rounding."""
+    m = PRESETS[preset]
+    alb = albedo_texture(m, 32, 32, 5)
+    p = Plan()
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        l, c = rng.integers(0, 81, 2)
+        if l == c:
+            continue
+        wi, wo = sph_to_vec(*p.directions[l]), sph_to_vec(*p.directions[c])
+        a = _mean(render(alb, wi, wo, m, REALISM["clean"], 1.0, 3))
+        b = _mean(render(alb, wo, wi, m, REALISM["clean"], 1.0, 3))
+        ca, cb = wi[2], wo[2]
+        np.testing.assert_allclose(a / ca, b / cb, rtol=1e-12, atol=1e-15)
+
+
+def test_realistic_render_is_stationary_and_not_reciprocal():
+    m = PRESETS["walkway"]
+    alb = albedo_texture(m, 64, 64, 5)
+    wi, wo = sph_to_vec(75, 0), sph_to_vec(15, 120)
+    a1 = _mean(render(alb, wi, wo, m, REALISM["realistic"], 1.0, 5)[6:-6, 6:-6])
+    a2 = _mean(render(alb, wi, wo, m, REALISM["realistic"], 1.0, 5)[6:-6, 6:-6])
+    b = _mean(render(alb, wo, wi, m, REALISM["realistic"], 1.0, 5)[6:-6, 6:-6])
+    assert np.array_equal(a1, a2)
+    assert abs(a1[1] / wi[2] / (b[1] / wo[2]) - 1) > 0.01
+
+
+def test_white_lambertian_at_normal_incidence_renders_as_one():
+    from goniosim.material import Material
+
+    white = Material("white", (1.0, 1.0, 1.0), 0.0, 1.0, 0.0, 0.5, 0.04)
+    alb = np.ones((16, 16, 3))
+    img = render(alb, sph_to_vec(0, 0), sph_to_vec(30, 0), white, REALISM["clean"], 1.0, 2)
+    assert np.allclose(img[8, 8], 1.0)
+
+
+def test_hdr_writer_round_trip_and_noise():
+    rng = np.random.default_rng(1)
+    img = rng.uniform(0.001, 50.0, (12, 20, 3))
+    back = decode_hdr(hdr_bytes(img))
+    assert back.shape == img.shape
+    # 8-bit mantissas share the largest channel's exponent: error ≤ max channel / 128
+    assert np.all(np.abs(back - img) <= img.max(axis=2, keepdims=True) * 2**-7)
+    noisy = add_noise(np.full((64, 64, 3), 0.5), rng, 4000.0, 0.002)
+    assert abs(noisy.std() - math.sqrt(0.5 / 4000 + 0.002**2)) < 2e-3
+
+
+def test_goniowatch_reads_the_simulators_files(tmp_path):
+    exe = goniowatch_binary()
+    if exe is None:
+        pytest.skip("goniowatch binary not built")
+    rng = np.random.default_rng(2)
+    img = rng.uniform(0.01, 3.0, (16, 24, 3))
+    path = tmp_path / "x.hdr"
+    path.write_bytes(hdr_bytes(img))
+    out = json.loads(subprocess.run([exe, "average", "--json", str(path)], check=True, capture_output=True).stdout)
+    assert out["width"] == 24 and out["height"] == 16
+    np.testing.assert_allclose(out["mean_rgb"], decode_hdr(path.read_bytes()).reshape(-1, 3).mean(axis=0), rtol=5e-3)
