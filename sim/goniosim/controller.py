@@ -209,6 +209,8 @@ class Controller:
             self.cable.unplug(float(f.p("duration_s", 2.0)))
         self.cable.corrupt_rate = max([float(f.p("rate", 0.0)) for _, f in faults if f.kind == "corrupt-bytes"] or [0.0])
         self.cable.drop_rate = max([float(f.p("rate", 0.0)) for _, f in faults if f.kind == "drop-lines"] or [0.0])
+        slow = [int(f.p("baud", 9600)) for _, f in faults if f.kind == "slow-link"]
+        self.cable.baud = min(slow) if slow else sc.baud
 
         light, camera = sc.plan.entry(entry)
         ld, cd = sc.plan.directions[light], sc.plan.directions[camera]

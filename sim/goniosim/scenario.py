@@ -32,6 +32,7 @@ FAULT_KINDS = {
     "drop-lines": {"rate"},
     "reboot": set(),
     "unplug": {"duration_s"},
+    "slow-link": {"baud"},
 }
 COMMON = {"kind", "at_capture", "at_hours", "until_capture"}
 # faults that happen once, at their onset capture

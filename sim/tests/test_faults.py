@@ -29,6 +29,7 @@ FAULTS = [
     {"kind": "drop-lines", "at_capture": 32, "until_capture": 34, "rate": 0.5},
     {"kind": "reboot", "at_capture": 34},
     {"kind": "unplug", "at_capture": 38, "duration_s": 0.2},
+    {"kind": "slow-link", "at_capture": 39, "baud": 2400},
 ]
 
 
@@ -139,3 +140,30 @@ def test_link_faults(session):
     assert stats.get("dropped_lines", 0) > 0
     assert truth[33]["boot"] == 1 and truth[34]["boot"] == 2
     assert stats["unplugs"] >= 1 and stats["plugs"] == 2
+    assert truth[39]["faults"] == ["slow-link"]
+
+
+def test_slow_link_paces_bytes():
+    from goniosim.link import Cable
+    import tempfile, time as _t
+
+    with tempfile.TemporaryDirectory() as d:
+        cable = Cable(os.path.join(d, "port"), baud=9600)
+        try:
+            import serial
+
+            rig = serial.Serial(cable.rig_path, timeout=0)
+            dmn = serial.Serial(os.path.join(d, "port"), timeout=0.05)
+            payload = b"x" * 479 + b"\n"  # 480 bytes at 960 bytes/s: about 0.5 s
+            t0 = _t.monotonic()
+            rig.write(payload)
+            got = b""
+            while len(got) < len(payload) and _t.monotonic() - t0 < 5:
+                got += dmn.read(4096)
+            elapsed = _t.monotonic() - t0
+            assert got == payload
+            assert elapsed > 0.35, f"not paced: {elapsed:.3f} s"
+            rig.close()
+            dmn.close()
+        finally:
+            cable.close()
