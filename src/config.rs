@@ -3,7 +3,11 @@
 //! Parsing is pure ([`Config::from_toml_str`]); reading the file is the caller's job. Errors name
 //! the offending field (serde's message plus the TOML key path and line).
 
+use crate::daemon::ingest::IngestSpec;
+use crate::daemon::link::LinkSpec;
+use crate::engine::EngineSpec;
 use crate::measure::averaging::AverageOptions;
+use crate::measure::checks::CheckSpec;
 use crate::measure::colour::{ColourError, RgbPrimaries, RgbToXyz, White, Xyz};
 use crate::measure::kinematics::{KinematicsError, Rig, RigSpec};
 use crate::measure::plan::{PlanError, PlanSpec, SamplingPlan};
@@ -142,6 +146,42 @@ impl Default for ReciprocitySpec {
     }
 }
 
+/// `[alarms]`: where alarms go besides the log and `alarms.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AlarmSpec {
+    /// A command run for every alarm, with the alarm as JSON on its standard input, e.g.
+    /// `["/usr/local/bin/notify-lab", "--channel", "rig"]`. Empty: none.
+    pub hook: Vec<String>,
+    /// Ask the controller to pause on a critical alarm (off by default; the rig may refuse).
+    pub pause_on_critical: bool,
+    /// A link alarm when this many of the last `crc_window` lines are corrupt.
+    pub crc_errors_alarm: usize,
+    pub crc_window: usize,
+}
+
+impl Default for AlarmSpec {
+    fn default() -> Self {
+        let e = EngineSpec::default();
+        AlarmSpec {
+            hook: Vec::new(),
+            pause_on_critical: e.pause_on_critical,
+            crc_errors_alarm: e.crc_errors_alarm,
+            crc_window: e.crc_window,
+        }
+    }
+}
+
+impl AlarmSpec {
+    pub fn engine(&self) -> EngineSpec {
+        EngineSpec {
+            pause_on_critical: self.pause_on_critical,
+            crc_errors_alarm: self.crc_errors_alarm,
+            crc_window: self.crc_window,
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 pub struct Config {
@@ -157,6 +197,14 @@ pub struct Config {
     pub capture: AverageOptions,
     #[serde(default)]
     pub reciprocity: ReciprocitySpec,
+    #[serde(default)]
+    pub checks: CheckSpec,
+    #[serde(default)]
+    pub alarms: AlarmSpec,
+    #[serde(default)]
+    pub link: LinkSpec,
+    #[serde(default)]
+    pub ingest: IngestSpec,
 }
 
 impl Config {
@@ -208,7 +256,80 @@ impl Config {
                 message: format!("{} is not in (0, 1)", self.reciprocity.min_cos),
             });
         }
+        if self.ingest.workers == 0 || self.ingest.queue == 0 {
+            return Err(ConfigError::Invalid {
+                field: "ingest.workers",
+                message: "workers and queue must be at least 1".into(),
+            });
+        }
+        if !(self.ingest.give_up_s.is_finite() && self.ingest.give_up_s >= 0.0) {
+            return Err(ConfigError::Invalid {
+                field: "ingest.give_up_s",
+                message: format!(
+                    "{} is not a finite non-negative number",
+                    self.ingest.give_up_s
+                ),
+            });
+        }
+        if self.alarms.crc_window == 0 {
+            return Err(ConfigError::Invalid {
+                field: "alarms.crc_window",
+                message: "must be at least 1".into(),
+            });
+        }
+        for (field, v) in [
+            ("checks.pair_tolerance_deg", self.checks.pair_tolerance_deg),
+            ("checks.pose_tolerance_deg", self.checks.pose_tolerance_deg),
+            (
+                "checks.encoder_tolerance_deg",
+                self.checks.encoder_tolerance_deg,
+            ),
+            ("checks.outlier_k", self.checks.outlier_k),
+            (
+                "checks.clipped_fraction_max",
+                self.checks.clipped_fraction_max,
+            ),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(ConfigError::Invalid {
+                    field,
+                    message: format!("{v} is not a finite non-negative number"),
+                });
+            }
+        }
         Ok(())
+    }
+
+    /// The white for L*a*b* in the live checks (a reference-capture white is for offline use).
+    pub fn live_white(&self) -> Result<White, ConfigError> {
+        match self.colour.white {
+            WhiteSpec::ReferenceCapture { .. } => Err(ConfigError::Invalid {
+                field: "colour.white",
+                message: "kind = \"reference-capture\" is not available to the live checks yet; use \"d65\" or \"xyz\"".into(),
+            }),
+            w => w.resolve(None).map_err(|source| ConfigError::Colour {
+                field: "colour.white",
+                source,
+            }),
+        }
+    }
+
+    /// The checker and engine for a session with this configuration.
+    pub fn engine(&self) -> Result<crate::engine::Engine, ConfigError> {
+        use crate::measure::checks::{Checker, ColourSettings};
+        let checker = Checker::new(
+            self.plan()?,
+            self.rig()?,
+            ColourSettings {
+                to_xyz: self.rgb_to_xyz(),
+                rgb_scale: self.colour.rgb_scale,
+                white: self.live_white()?,
+                min_cos: self.reciprocity.min_cos,
+            },
+            self.checks.clone(),
+            self.sample.isotropic,
+        );
+        Ok(crate::engine::Engine::new(checker, self.alarms.engine()))
     }
 
     pub fn plan(&self) -> Result<SamplingPlan, ConfigError> {

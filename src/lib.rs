@@ -5,9 +5,16 @@
 //!   reciprocity). Pure and deterministic.
 //! - [`config`]: the TOML configuration (pure parsing and validation).
 //! - [`decode`]: shell side, HDR/EXR bytes → RGB buffer, hardened against malformed files.
+//! - [`protocol`]: the line framing of docs/protocol.md (pure).
+//! - [`engine`]: the deterministic session engine: inputs (serial lines, link events, capture
+//!   outcomes) in, lines to send, captures to ingest and result records out (pure).
+//! - [`daemon`]: shell side, `run` and `replay`: serial link, ingestion pool, journal, sinks.
 //! - [`commands`]: shell side, the CLI's commands as functions returning serialisable records.
 
 pub mod commands;
 pub mod config;
+pub mod daemon;
 pub mod decode;
+pub mod engine;
 pub mod measure;
+pub mod protocol;

@@ -34,6 +34,44 @@ enum Command {
         #[arg(long)]
         roi: Option<String>,
     },
+    /// Run beside the rig: follow the controller on the serial link, check every capture as it
+    /// is written, raise alarms, and record the session so it can be resumed and replayed.
+    Run {
+        /// Config file (required to start a new session; a session folder keeps its own copy).
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Session folder (created if absent; resumed if it holds a journal).
+        #[arg(long, default_value = "session")]
+        session: PathBuf,
+        /// Serial port, overriding the config's `[link] port`.
+        #[arg(long)]
+        port: Option<PathBuf>,
+        /// Capture root, overriding the config's `[ingest] capture_root`.
+        #[arg(long)]
+        capture_root: Option<PathBuf>,
+        /// Stay attached after the controller reports the run done.
+        #[arg(long)]
+        keep_running: bool,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Replay a recorded session through the same code path into a fresh results folder.
+    Replay {
+        /// The session folder to replay (only read).
+        session: PathBuf,
+        /// Where to write the results (default: SESSION/replay).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// max, realtime, or a factor of real time (e.g. 60).
+        #[arg(long, default_value = "max")]
+        speed: goniowatch::daemon::replay::Speed,
+        /// Decoding threads.
+        #[arg(long, default_value_t = 2)]
+        workers: usize,
+        #[arg(long)]
+        quiet: bool,
+    },
     /// Print the sampling plan: directions, captures, reciprocal pairs, isotropy classes and the
     /// entries the rig must take at a substitute pose.
     Plan {
@@ -47,6 +85,8 @@ enum Command {
 
 /// Exit codes (documented in README.md).
 const EXIT_FILE_FAILED: u8 = 1;
+const EXIT_CRITICAL: u8 = 4;
+const EXIT_REPLAY_MISMATCH: u8 = 5;
 
 fn load_config(path: Option<&Path>) -> Result<Config> {
     match path {
@@ -79,7 +119,12 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitCode::from(2)
+            // configuration problems are 2, anything else at run time is 3
+            let config_error = e.chain().any(|c| {
+                c.downcast_ref::<goniowatch::config::ConfigError>()
+                    .is_some()
+            }) || format!("{e:#}").contains("config");
+            ExitCode::from(if config_error { 2 } else { 3 })
         }
     }
 }
@@ -125,6 +170,63 @@ fn run(cli: Cli) -> Result<ExitCode> {
             if failed > 0 {
                 eprintln!("{failed} of {} files failed", files.len());
                 return Ok(ExitCode::from(EXIT_FILE_FAILED));
+            }
+        }
+        Command::Run {
+            config,
+            session,
+            port,
+            capture_root,
+            keep_running,
+            quiet,
+        } => {
+            use goniowatch::daemon::run::{print_summary, run, RunEnd, RunOptions};
+            let rt = tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(2)
+                .enable_all()
+                .build()
+                .context("cannot start the async runtime")?;
+            let (end, summary) = rt.block_on(run(RunOptions {
+                session_dir: session.clone(),
+                config,
+                port,
+                capture_root,
+                keep_running,
+                progress: !quiet,
+            }))?;
+            rt.shutdown_timeout(std::time::Duration::from_secs(1));
+            print_summary(&summary, &mut out)?;
+            writeln!(out, "results in {}", session.display())?;
+            return Ok(match end {
+                RunEnd::Finished { critical: false } => ExitCode::SUCCESS,
+                RunEnd::Finished { critical: true } => ExitCode::from(EXIT_CRITICAL),
+                RunEnd::Signal(n) => ExitCode::from(128 + n as u8),
+            });
+        }
+        Command::Replay {
+            session,
+            out: out_dir,
+            speed,
+            workers,
+            quiet,
+        } => {
+            use goniowatch::daemon::replay::replay;
+            use goniowatch::daemon::run::print_summary;
+            let r = replay(&session, out_dir.as_deref(), speed, workers, !quiet)?;
+            print_summary(&r.summary, &mut out)?;
+            writeln!(
+                out,
+                "replayed {} inputs, {} captures decoded in {:.2} s ({:.1} captures/s)",
+                r.inputs,
+                r.captures_decoded,
+                r.seconds,
+                r.captures_decoded as f64 / r.seconds.max(1e-9)
+            )?;
+            for m in &r.mismatches {
+                writeln!(out, "MISMATCH: {m}")?;
+            }
+            if !r.mismatches.is_empty() {
+                return Ok(ExitCode::from(EXIT_REPLAY_MISMATCH));
             }
         }
         Command::Plan { config, json } => {

@@ -5,7 +5,9 @@
 //! errors (`thiserror`). The shell (`crate::decode`, `crate::cli`, and later the daemon) does
 //! the I/O and feeds this module. Replaying the same inputs gives the same bytes out.
 
+pub mod alarm;
 pub mod averaging;
+pub mod checks;
 pub mod colour;
 pub mod geometry;
 pub mod kinematics;

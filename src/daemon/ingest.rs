@@ -1,0 +1,293 @@
+//! Shell: reading announced capture files safely and turning them into `Outcome`s.
+//!
+//! - The file name comes from the wire, so it is untrusted: absolute paths, `..`, and links that
+//!   leave the capture root are refused.
+//! - A file that appears is not a finished file: it is accepted once it decodes and its size did
+//!   not change while it was read (a rename into place gives that at once); a file that is
+//!   absent, still growing, or does not decode is retried with backoff, and after the limit it is
+//!   recorded as missing or failed. The file is never moved, changed or deleted.
+//! - Decoding runs on a bounded pool of worker threads (crossbeam-channel); the caller keeps
+//!   jobs it could not queue, so a slow disk pushes back instead of piling up.
+
+use crate::decode::{decode, DecodeLimits};
+use crate::measure::averaging::{average, AverageOptions};
+use crate::measure::checks::Outcome;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::path::{Component, Path, PathBuf};
+use std::time::{Duration, Instant};
+use thiserror::Error;
+
+#[derive(Debug, Error, PartialEq)]
+pub enum PathError {
+    #[error("file name is empty")]
+    Empty,
+    #[error("absolute file name '{0}' refused (names are relative to the capture root)")]
+    Absolute(String),
+    #[error("file name '{0}' refused: it climbs out of the capture root with '..'")]
+    ParentDir(String),
+    #[error("file '{0}' refused: it resolves outside the capture root (a link?)")]
+    OutsideRoot(String),
+}
+
+/// Resolve an announced name under `root`. Lexical checks first; then, if the file exists, its
+/// canonical path must stay under the canonical root (so a symlink cannot leave it).
+pub fn resolve(root: &Path, name: &str) -> Result<PathBuf, PathError> {
+    if name.is_empty() {
+        return Err(PathError::Empty);
+    }
+    let rel = Path::new(name);
+    for c in rel.components() {
+        match c {
+            Component::Normal(_) | Component::CurDir => {}
+            Component::ParentDir => return Err(PathError::ParentDir(name.into())),
+            Component::RootDir | Component::Prefix(_) => {
+                return Err(PathError::Absolute(name.into()))
+            }
+        }
+    }
+    let path = root.join(rel);
+    if let (Ok(real), Ok(real_root)) = (path.canonicalize(), root.canonicalize()) {
+        if !real.starts_with(&real_root) {
+            return Err(PathError::OutsideRoot(name.into()));
+        }
+    }
+    Ok(path)
+}
+
+/// Retry policy (`[ingest]` in the config).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct IngestSpec {
+    /// Where the camera PC writes; announced names are relative to it. Relative to the config
+    /// file's folder.
+    pub capture_root: PathBuf,
+    /// Worker threads decoding captures.
+    pub workers: usize,
+    /// Jobs queued for the workers before the daemon holds further ones back.
+    pub queue: usize,
+    /// First retry delay; it doubles up to `retry_max_ms`.
+    pub retry_first_ms: u64,
+    pub retry_max_ms: u64,
+    /// Give up on a file that is absent, growing or undecodable after this long.
+    pub give_up_s: f64,
+    /// A file that fails to decode this many times at an unchanged size is failed at once.
+    pub stable_failures: u32,
+    /// Threads per EXR decode (1 inside the pool).
+    pub decode_threads: usize,
+}
+
+impl Default for IngestSpec {
+    fn default() -> Self {
+        IngestSpec {
+            capture_root: PathBuf::from("captures"),
+            workers: 2,
+            queue: 8,
+            retry_first_ms: 50,
+            retry_max_ms: 1000,
+            give_up_s: 30.0,
+            stable_failures: 3,
+            decode_threads: 1,
+        }
+    }
+}
+
+/// Read, decode and average one file once. `Err` carries the reason and the size seen.
+pub fn measure_file(
+    path: &Path,
+    opts: &AverageOptions,
+    limits: &DecodeLimits,
+) -> Result<Outcome, (String, Option<u64>)> {
+    let before = std::fs::metadata(path).map_err(|e| (format!("cannot stat: {e}"), None))?;
+    if !before.is_file() {
+        return Err(("not a regular file".into(), None));
+    }
+    let bytes = std::fs::read(path).map_err(|e| (format!("cannot read: {e}"), None))?;
+    let size = bytes.len() as u64;
+    let after = std::fs::metadata(path).map_err(|e| (format!("cannot stat: {e}"), Some(size)))?;
+    if after.len() != size || before.len() != size {
+        return Err((
+            format!(
+                "file is still growing ({} → {} bytes)",
+                before.len(),
+                after.len()
+            ),
+            Some(after.len()),
+        ));
+    }
+    let img = decode(&bytes, limits).map_err(|e| (e.to_string(), Some(size)))?;
+    let stats = average(&img.view(), opts).map_err(|e| (e.to_string(), Some(size)))?;
+    let sha256 = hex(&Sha256::digest(&bytes));
+    Ok(Outcome::Ok {
+        stats,
+        width: img.width,
+        height: img.height,
+        size,
+        sha256,
+    })
+}
+
+fn hex(b: &[u8]) -> String {
+    b.iter().map(|x| format!("{x:02x}")).collect()
+}
+
+/// Ingest one announced capture with the retry policy; blocks the calling (worker) thread.
+pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions) -> Outcome {
+    let path = match resolve(root, name) {
+        Ok(p) => p,
+        Err(e) => {
+            return Outcome::Failed {
+                error: e.to_string(),
+            }
+        }
+    };
+    let limits = DecodeLimits {
+        threads: spec.decode_threads.max(1),
+        ..DecodeLimits::default()
+    };
+    let start = Instant::now();
+    let give_up = Duration::from_secs_f64(spec.give_up_s.max(0.0));
+    let mut delay = Duration::from_millis(spec.retry_first_ms.max(1));
+    let mut last_size: Option<u64> = None;
+    let mut same_size_failures = 0u32;
+    let mut attempts = 0u32;
+    loop {
+        attempts += 1;
+        // re-check the path each time: a link could be swapped in while we wait
+        if let Err(e) = resolve(root, name) {
+            return Outcome::Failed {
+                error: e.to_string(),
+            };
+        }
+        match measure_file(&path, opts, &limits) {
+            Ok(o) => return o,
+            Err((reason, size)) => {
+                let exists = size.is_some();
+                if exists && size == last_size {
+                    same_size_failures += 1;
+                } else {
+                    same_size_failures = if exists { 1 } else { 0 };
+                }
+                last_size = size;
+                let stable_bad = exists
+                    && same_size_failures >= spec.stable_failures.max(1)
+                    && !reason.contains("growing");
+                if stable_bad || start.elapsed() >= give_up {
+                    return if exists {
+                        Outcome::Failed {
+                            error: format!("{reason} (after {attempts} attempts)"),
+                        }
+                    } else {
+                        Outcome::Missing {
+                            reason: format!(
+                                "file not found after {:.1} s ({reason})",
+                                spec.give_up_s
+                            ),
+                        }
+                    };
+                }
+                std::thread::sleep(
+                    delay
+                        .min(give_up.saturating_sub(start.elapsed()))
+                        .max(Duration::from_millis(1)),
+                );
+                delay = (delay * 2).min(Duration::from_millis(spec.retry_max_ms.max(1)));
+            }
+        }
+    }
+}
+
+/// A job for the pool.
+#[derive(Debug, Clone)]
+pub struct Job {
+    pub idx: u64,
+    pub file: String,
+}
+
+/// The bounded worker pool. Results go to `on_result` (called on the worker thread).
+pub struct Pool {
+    tx: Option<crossbeam_channel::Sender<Job>>,
+    workers: Vec<std::thread::JoinHandle<()>>,
+}
+
+impl Pool {
+    pub fn start<F>(root: PathBuf, spec: IngestSpec, opts: AverageOptions, on_result: F) -> Pool
+    where
+        F: Fn(u64, Outcome) + Send + Sync + 'static,
+    {
+        let (tx, rx) = crossbeam_channel::bounded::<Job>(spec.queue.max(1));
+        let on_result = std::sync::Arc::new(on_result);
+        let workers = (0..spec.workers.max(1))
+            .map(|i| {
+                let rx = rx.clone();
+                let (root, spec, on_result) = (root.clone(), spec.clone(), on_result.clone());
+                std::thread::Builder::new()
+                    .name(format!("ingest-{i}"))
+                    .spawn(move || {
+                        while let Ok(job) = rx.recv() {
+                            let outcome = ingest(&root, &job.file, &spec, &opts);
+                            on_result(job.idx, outcome);
+                        }
+                    })
+                    .map_err(|e| tracing::error!("cannot start ingest worker: {e}"))
+                    .ok()
+            })
+            .collect::<Option<Vec<_>>>()
+            .unwrap_or_default();
+        Pool {
+            tx: Some(tx),
+            workers,
+        }
+    }
+
+    /// Queue a job; gives it back when the queue is full (backpressure).
+    pub fn try_submit(&self, job: Job) -> Result<(), Job> {
+        match &self.tx {
+            Some(tx) => tx.try_send(job).map_err(|e| e.into_inner()),
+            None => Err(job),
+        }
+    }
+
+    /// Stop taking jobs and wait for the workers to finish what they hold.
+    pub fn shutdown(mut self) {
+        self.tx = None;
+        for w in self.workers.drain(..) {
+            let _ = w.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_checked() {
+        let root = std::env::temp_dir();
+        assert_eq!(resolve(&root, ""), Err(PathError::Empty));
+        assert!(matches!(
+            resolve(&root, "/etc/passwd"),
+            Err(PathError::Absolute(_))
+        ));
+        assert!(matches!(
+            resolve(&root, "a/../../etc/passwd"),
+            Err(PathError::ParentDir(_))
+        ));
+        assert!(matches!(resolve(&root, ".."), Err(PathError::ParentDir(_))));
+        assert!(resolve(&root, "demo/./cap_0.hdr").is_ok());
+    }
+
+    #[test]
+    fn links_leaving_the_root_are_refused() {
+        let base = std::env::temp_dir().join(format!("gw-resolve-{}", std::process::id()));
+        let root = base.join("root");
+        std::fs::create_dir_all(&root).unwrap();
+        std::fs::write(base.join("secret.hdr"), b"x").unwrap();
+        let _ = std::os::unix::fs::symlink(base.join("secret.hdr"), root.join("evil.hdr"));
+        assert!(matches!(
+            resolve(&root, "evil.hdr"),
+            Err(PathError::OutsideRoot(_))
+        ));
+        std::fs::remove_dir_all(&base).ok();
+    }
+}

@@ -1,0 +1,10 @@
+//! The daemon shell: everything that touches tokio, the serial port, files and the terminal.
+//! The decisions are the engine's (`crate::engine`); this module moves bytes and records.
+
+pub mod ingest;
+pub mod journal;
+pub mod link;
+pub mod replay;
+pub mod run;
+pub mod session;
+pub mod sinks;

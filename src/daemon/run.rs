@@ -1,0 +1,364 @@
+//! Shell: `goniowatch run`, the live daemon.
+//!
+//! One task owns the engine and the session files. Everything else sends it `Input`s: the link
+//! task (lines, connect/disconnect), the ingestion workers (outcomes). Each input is journaled
+//! before the engine sees it; the engine's outputs are carried out in order: lines go to the
+//! link, captures to the pool, records to the result files, alarms to the sinks.
+
+use super::ingest::{Job, Pool};
+use super::journal::{now_ms, JournalEntry, JournalItem, JsonlFile, Results, SessionLock};
+use super::session::{recover, Session};
+use super::sinks::{log_alarm, run_hook};
+use crate::engine::{Engine, Input, Output, Summary};
+use crate::measure::alarm::Severity;
+use anyhow::{Context, Result};
+use std::collections::{BTreeSet, VecDeque};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+use tokio::sync::{mpsc, watch};
+
+pub struct RunOptions {
+    pub session_dir: PathBuf,
+    pub config: Option<PathBuf>,
+    pub port: Option<PathBuf>,
+    pub capture_root: Option<PathBuf>,
+    /// Stay attached after the controller reports `done` (default: exit once all is checked).
+    pub keep_running: bool,
+    /// Draw a progress bar (when stderr is a terminal).
+    pub progress: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunEnd {
+    Finished { critical: bool },
+    Signal(i32),
+}
+
+struct Live {
+    engine: Engine,
+    journal: JsonlFile,
+    results: Results,
+    pool: Pool,
+    pending_jobs: VecDeque<Job>,
+    link_tx: mpsc::UnboundedSender<String>,
+    hook: Vec<String>,
+    bar: Option<indicatif::ProgressBar>,
+    capture_root: PathBuf,
+    finished: bool,
+    critical: bool,
+    announced_files: BTreeSet<String>,
+    last_plain_report: Instant,
+}
+
+impl Live {
+    fn submit_pending(&mut self) {
+        while let Some(job) = self.pending_jobs.pop_front() {
+            if let Err(job) = self.pool.try_submit(job) {
+                self.pending_jobs.push_front(job);
+                break;
+            }
+        }
+    }
+
+    fn process(&mut self, input: Input) -> Result<()> {
+        let is_outcome = matches!(input, Input::Outcome { .. });
+        self.journal.write(&JournalEntry {
+            wall_ms: now_ms(),
+            item: JournalItem::In(input.clone()),
+        })?;
+        let outputs = self.engine.handle(&input);
+        self.carry_out(outputs)?;
+        if is_outcome {
+            self.results.sync()?;
+            self.journal.sync()?;
+            self.submit_pending();
+            self.update_progress();
+        }
+        Ok(())
+    }
+
+    fn carry_out(&mut self, outputs: Vec<Output>) -> Result<()> {
+        for o in outputs {
+            match &o {
+                Output::Send(line) => {
+                    self.journal.write(&JournalEntry {
+                        wall_ms: now_ms(),
+                        item: JournalItem::Out(line.clone()),
+                    })?;
+                    let _ = self.link_tx.send(line.clone());
+                }
+                Output::Ingest { idx, file } => {
+                    self.announced_files.insert(file.clone());
+                    self.pending_jobs.push_back(Job {
+                        idx: *idx,
+                        file: file.clone(),
+                    });
+                    self.submit_pending();
+                }
+                Output::Finished => self.finished = true,
+                Output::Alarm(a) => {
+                    if a.severity == Severity::Critical {
+                        self.critical = true;
+                    }
+                    log_alarm(a, self.bar.as_ref(), false);
+                    run_hook(&self.hook, a, false);
+                    self.results.record(&o)?;
+                }
+                _ => self.results.record(&o)?,
+            }
+        }
+        Ok(())
+    }
+
+    fn update_progress(&mut self) {
+        let done = self.engine.checked_through();
+        let total = self.engine.captures_planned();
+        let t2 = self.engine.table2();
+        let msg = format!(
+            "alarms {}  pairs {}  mean ΔE*ab {:.2}  ΔE00 {:.2}",
+            self.engine.alarm_count(),
+            t2.pairs,
+            t2.de76,
+            t2.de2000
+        );
+        match &self.bar {
+            Some(b) if !b.is_hidden() => {
+                b.set_length(total);
+                b.set_position(done);
+                b.set_message(msg);
+            }
+            _ => {
+                if self.last_plain_report.elapsed() >= Duration::from_secs(10) || done == total {
+                    self.last_plain_report = Instant::now();
+                    eprintln!("goniowatch: checked {done}/{total}  {msg}");
+                }
+            }
+        }
+    }
+
+    /// Files in the folders of announced captures that were never announced.
+    fn unannounced(&self) -> Vec<String> {
+        let mut dirs = BTreeSet::new();
+        for f in &self.announced_files {
+            if let Some(parent) = Path::new(f).parent() {
+                dirs.insert(parent.to_path_buf());
+            }
+        }
+        let mut out = Vec::new();
+        for d in dirs {
+            let Ok(rd) = std::fs::read_dir(self.capture_root.join(&d)) else {
+                continue;
+            };
+            let mut names: Vec<String> = rd
+                .filter_map(|e| e.ok())
+                .filter(|e| e.file_type().map(|t| t.is_file()).unwrap_or(false))
+                .filter_map(|e| e.file_name().to_str().map(str::to_string))
+                .filter(|n| !n.starts_with('.'))
+                .map(|n| d.join(n).to_string_lossy().into_owned())
+                .filter(|n| !self.announced_files.contains(n))
+                .collect();
+            names.sort();
+            out.extend(names);
+        }
+        out
+    }
+}
+
+pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
+    let session = Session::open_or_create(
+        &opts.session_dir,
+        opts.config.as_deref(),
+        opts.port.as_deref(),
+        opts.capture_root.as_deref(),
+    )?;
+    let _lock = SessionLock::acquire(&session.dir)?;
+    let cfg = session.config.clone();
+
+    let bar = if opts.progress && std::io::stderr().is_terminal() {
+        let b = indicatif::ProgressBar::new(cfg.plan()?.capture_count() as u64);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} {per_sec} ETA {eta} {msg}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b.enable_steady_tick(Duration::from_millis(250));
+        Some(b)
+    } else {
+        None
+    };
+
+    // recover: rebuild the results from the journal, then note the restart
+    let (engine, recovered) = if session.resumed {
+        let (e, n) = recover(&session).context("cannot recover the session from its journal")?;
+        (e, n)
+    } else {
+        (cfg.engine()?, 0)
+    };
+    if session.resumed {
+        eprintln!(
+            "goniowatch: resuming {} ({recovered} journaled inputs, {} captures already checked)",
+            session.dir.display(),
+            engine.checked_through()
+        );
+    }
+    let results = Results::open(&session.dir, !session.resumed)?;
+    let journal = JsonlFile::append(&session.dir.join("journal.jsonl"))?;
+
+    let (ev_tx, mut ev_rx) = mpsc::unbounded_channel::<Input>();
+    let (link_tx, link_rx) = mpsc::unbounded_channel::<String>();
+    let (stop_tx, stop_rx) = watch::channel(false);
+
+    let outcome_tx = ev_tx.clone();
+    let pool = Pool::start(
+        session.info.capture_root.clone(),
+        cfg.ingest.clone(),
+        cfg.capture,
+        move |idx, outcome| {
+            let _ = outcome_tx.send(Input::Outcome { idx, outcome });
+        },
+    );
+
+    let mut live = Live {
+        engine,
+        journal,
+        results,
+        pool,
+        pending_jobs: VecDeque::new(),
+        link_tx,
+        hook: cfg.alarms.hook.clone(),
+        bar,
+        capture_root: session.info.capture_root.clone(),
+        finished: false,
+        critical: false,
+        announced_files: BTreeSet::new(),
+        last_plain_report: Instant::now(),
+    };
+
+    if session.resumed {
+        live.process(Input::Restart)?;
+        for (idx, file) in live.engine.pending_ingest() {
+            live.announced_files.insert(file.clone());
+            live.pending_jobs.push_back(Job { idx, file });
+        }
+        live.submit_pending();
+    }
+    // alarm states are evaluated on start and resume, not only on transitions
+    for a in live.engine.active_conditions() {
+        log_alarm(&a, live.bar.as_ref(), true);
+        run_hook(&live.hook, &a, true);
+    }
+
+    let mut link_spec = cfg.link.clone();
+    link_spec.port = session.info.port.clone();
+    let link = tokio::spawn(super::link::run(link_spec, ev_tx.clone(), link_rx, stop_rx));
+
+    let mut sigterm = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+        .context("cannot install SIGTERM handler")?;
+    let mut tick = tokio::time::interval(Duration::from_secs(2));
+    let end = loop {
+        tokio::select! {
+            ev = ev_rx.recv() => {
+                let Some(ev) = ev else { break RunEnd::Signal(0) };
+                live.process(ev)?;
+                if live.finished && !opts.keep_running {
+                    let files = live.unannounced();
+                    live.process(Input::Unannounced { files })?;
+                    break RunEnd::Finished { critical: live.critical };
+                }
+            }
+            _ = tokio::signal::ctrl_c() => break RunEnd::Signal(2),
+            _ = sigterm.recv() => break RunEnd::Signal(15),
+            _ = tick.tick() => {
+                live.submit_pending();
+                live.update_progress();
+                live.results.write_summary(&live.engine.summary())?;
+            }
+        }
+    };
+
+    // shut down: stop the link, flush everything; workers still retrying are abandoned (their
+    // captures are redone on resume)
+    let _ = stop_tx.send(true);
+    let _ = tokio::time::timeout(Duration::from_secs(2), link).await;
+    live.results.sync()?;
+    live.journal.sync()?;
+    let summary = live.engine.summary();
+    live.results.write_summary(&summary)?;
+    if let Some(b) = &live.bar {
+        b.finish_and_clear();
+    }
+    drop(live.pool);
+    Ok((end, summary))
+}
+
+/// Print the end-of-run summary in the paper's Table 2 form.
+pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "session {}  rig {}",
+        s.session.as_deref().unwrap_or("?"),
+        s.rig.as_deref().unwrap_or("?")
+    )?;
+    writeln!(
+        out,
+        "captures: {} planned, {} announced, {} checked ({} ok, {} failed, {} missing, {} probes)",
+        s.captures_planned,
+        s.captures_announced,
+        s.checked.captures,
+        s.checked.ok,
+        s.checked.failed,
+        s.checked.missing,
+        s.checked.probes
+    )?;
+    writeln!(
+        out,
+        "pairs: {} exact, {} need resampling, {} grazing; isotropy comparisons: {}",
+        s.checked.pairs_exact,
+        s.checked.pairs_needs_resampling,
+        s.checked.pairs_grazing,
+        s.checked.isotropy_comparisons
+    )?;
+    writeln!(out, "Table 2 (means over exact reciprocal pairs):")?;
+    writeln!(
+        out,
+        "  |ΔX|     |ΔY|     |ΔZ|     ΔE*ab    ΔC*ab    ΔH*ab    ΔE00"
+    )?;
+    let t = &s.table2;
+    writeln!(
+        out,
+        "  {:<8.3} {:<8.3} {:<8.3} {:<8.3} {:<8.3} {:<8.3} {:<8.3}",
+        t.abs_dx, t.abs_dy, t.abs_dz, t.de76, t.dc, t.dh, t.de2000
+    )?;
+    if s.isotropy.pairs > 0 {
+        let t = &s.isotropy;
+        writeln!(
+            out,
+            "isotropy (capture vs class mean): ΔE*ab {:.3}  ΔE00 {:.3} over {}",
+            t.de76, t.de2000, t.pairs
+        )?;
+    }
+    let alarms: Vec<String> = s.alarms.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    writeln!(
+        out,
+        "alarms: {}",
+        if alarms.is_empty() {
+            "none".into()
+        } else {
+            alarms.join(", ")
+        }
+    )?;
+    let l = &s.link;
+    writeln!(
+        out,
+        "link: {} lines, {} CRC errors, {} sequence gaps, {} reconnects, {} controller reboots, {} resyncs",
+        l.lines,
+        l.crc_errors,
+        l.sequence_gaps,
+        l.connects.saturating_sub(1),
+        l.reboots,
+        l.resyncs
+    )?;
+    Ok(())
+}

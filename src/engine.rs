@@ -1,0 +1,821 @@
+//! The session engine: a deterministic state machine between the shell and the checks.
+//!
+//! It consumes the session's inputs in the order the shell received them (serial lines, link
+//! events, capture outcomes), and returns what to do: lines to send, captures to ingest, and the
+//! records to append to the results. It holds no clock, file or port, so feeding it the journal
+//! of a session reproduces that session's results byte for byte (replay, crash recovery).
+//!
+//! Protocol handling follows docs/protocol.md: HELLO on connect, SUBSCRIBE + RESYNC after IDENT,
+//! RESYNC after a sequence gap, a capture-index gap or a reboot; CAPTURE lines are keyed by index
+//! (idempotent). Outcomes are handed to the checker in capture-index order.
+
+use crate::measure::alarm::{Alarm, AlarmKind, Severity};
+use crate::measure::checks::{
+    CaptureInput, CaptureRecord, CheckCounts, Checker, IsotropyRecord, Outcome, PairRecord, Table2,
+};
+use crate::protocol::{self, Message, PROTO_VERSION};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+
+/// An input of the engine; also the unit of the session journal.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "kebab-case")]
+pub enum Input {
+    /// The serial port was opened.
+    Connected,
+    /// The serial port was lost (EOF, EIO, unplugged).
+    Disconnected { reason: String },
+    /// One received line, without its LF.
+    Rx { line: String },
+    /// A received line that could not even be framed (too long, not UTF-8).
+    RxBad { reason: String },
+    /// The ingestion's verdict on an announced capture.
+    Outcome { idx: u64, outcome: Outcome },
+    /// Files in the session's capture folder that no CAPTURE line announced.
+    Unannounced { files: Vec<String> },
+    /// The daemon restarted on an existing session (after a crash or a stop).
+    Restart,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ManifestRecord {
+    pub idx: u64,
+    pub file: String,
+    pub status: String,
+    pub size: Option<u64>,
+    pub sha256: Option<String>,
+    pub error: Option<String>,
+}
+
+/// What the shell must do or record.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Output {
+    Send(String),
+    Ingest {
+        idx: u64,
+        file: String,
+    },
+    Capture(CaptureRecord),
+    Pair(PairRecord),
+    Isotropy(IsotropyRecord),
+    Alarm(Alarm),
+    Manifest(ManifestRecord),
+    /// Every capture the controller announced as taken is checked and the run is done.
+    Finished,
+}
+
+/// Link counters (part of the summary; they depend on the traffic, so a resumed session's
+/// differ from an uninterrupted one's).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct LinkStats {
+    pub lines: u64,
+    pub bytes: u64,
+    pub crc_errors: u64,
+    pub framing_errors: u64,
+    pub sequence_gaps: u64,
+    pub connects: u64,
+    pub disconnects: u64,
+    pub reboots: u64,
+    pub resyncs: u64,
+    pub unknown_verbs: u64,
+    pub naks: u64,
+    pub duplicate_announcements: u64,
+    pub restarts: u64,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    pub session: Option<String>,
+    pub rig: Option<String>,
+    pub captures_planned: u64,
+    pub captures_announced: u64,
+    pub checked: CheckCounts,
+    pub table2: Table2,
+    pub isotropy: Table2,
+    pub alarms: BTreeMap<String, u64>,
+    pub link: LinkStats,
+    pub finished: bool,
+}
+
+/// Engine settings beyond the checker's.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EngineSpec {
+    /// Send PAUSE to the controller on a critical alarm (the rig may refuse).
+    pub pause_on_critical: bool,
+    /// Alarm when this many of the last `crc_window` lines failed their CRC.
+    pub crc_errors_alarm: usize,
+    pub crc_window: usize,
+}
+
+impl Default for EngineSpec {
+    fn default() -> Self {
+        EngineSpec {
+            pause_on_critical: false,
+            crc_errors_alarm: 5,
+            crc_window: 200,
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+struct Announcement {
+    entry: usize,
+    file: String,
+    t: f64,
+    cmd: [f64; 4],
+    enc: [f64; 4],
+    substitute: Option<f64>,
+    probe: bool,
+}
+
+pub struct Engine {
+    checker: Checker,
+    spec: EngineSpec,
+    tx_seq: u32,
+    connected: bool,
+    expect_seq: Option<u32>,
+    boot: Option<u64>,
+    session: Option<String>,
+    rig_id: Option<String>,
+    subscribed: bool,
+    version_refused: bool,
+    outstanding_resync: Option<u32>,
+    resync_needed: bool,
+    gap_during_resync: bool,
+    stats: LinkStats,
+    announced: BTreeMap<u64, Announcement>,
+    outcomes: BTreeMap<u64, Outcome>,
+    missing_announcements: BTreeSet<u64>,
+    next_check: u64,
+    controller_next: u64,
+    done: bool,
+    finished: bool,
+    crc_recent: VecDeque<bool>,
+    crc_alarm_active: bool,
+    alarm_counts: BTreeMap<String, u64>,
+    paused_for: BTreeSet<String>,
+    captures_planned: u64,
+}
+
+fn announcement(m: &Message) -> Result<(u64, Announcement), String> {
+    let idx = m.get_u64("idx").ok_or("missing or bad idx")?;
+    let entry = m.get_u64("entry").ok_or("missing or bad entry")? as usize;
+    let file = m
+        .get("file")
+        .filter(|f| !f.is_empty())
+        .ok_or("missing file")?
+        .to_string();
+    let t = m.get_f64("t").ok_or("missing or bad t")?;
+    let cmd = m
+        .get("cmd")
+        .and_then(protocol::parse_pose)
+        .ok_or("missing or bad cmd")?;
+    let enc = m
+        .get("enc")
+        .and_then(protocol::parse_pose)
+        .ok_or("missing or bad enc")?;
+    let substitute = match m.get("sub") {
+        None => None,
+        Some(s) => Some(
+            s.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or("bad sub")?,
+        ),
+    };
+    Ok((
+        idx,
+        Announcement {
+            entry,
+            file,
+            t,
+            cmd,
+            enc,
+            substitute,
+            probe: m.get("probe") == Some("1"),
+        },
+    ))
+}
+
+impl Engine {
+    pub fn new(checker: Checker, spec: EngineSpec) -> Self {
+        let captures_planned = checker.plan().capture_count() as u64;
+        Engine {
+            checker,
+            spec,
+            tx_seq: 0,
+            connected: false,
+            expect_seq: None,
+            boot: None,
+            session: None,
+            rig_id: None,
+            subscribed: false,
+            version_refused: false,
+            outstanding_resync: None,
+            resync_needed: false,
+            gap_during_resync: false,
+            stats: LinkStats::default(),
+            announced: BTreeMap::new(),
+            outcomes: BTreeMap::new(),
+            missing_announcements: BTreeSet::new(),
+            next_check: 0,
+            controller_next: 0,
+            done: false,
+            finished: false,
+            crc_recent: VecDeque::new(),
+            crc_alarm_active: false,
+            alarm_counts: BTreeMap::new(),
+            paused_for: BTreeSet::new(),
+            captures_planned,
+        }
+    }
+
+    /// Captures checked so far (the next index to check).
+    pub fn checked_through(&self) -> u64 {
+        self.next_check
+    }
+    /// Captures expected in this session (the controller's count once known).
+    pub fn captures_planned(&self) -> u64 {
+        self.captures_planned
+    }
+    pub fn is_finished(&self) -> bool {
+        self.finished
+    }
+    pub fn alarm_count(&self) -> u64 {
+        self.alarm_counts.values().sum()
+    }
+    pub fn link_stats(&self) -> &LinkStats {
+        &self.stats
+    }
+    pub fn table2(&self) -> &Table2 {
+        self.checker.table2()
+    }
+
+    /// Announced captures still waiting for an outcome (to re-ingest after a restart).
+    pub fn pending_ingest(&self) -> Vec<(u64, String)> {
+        self.announced
+            .range(self.next_check..)
+            .filter(|(i, _)| !self.outcomes.contains_key(i))
+            .map(|(i, a)| (*i, a.file.clone()))
+            .collect()
+    }
+
+    /// Alarm conditions that hold right now (evaluated on start and resume).
+    pub fn active_conditions(&self) -> Vec<Alarm> {
+        let mut v = Vec::new();
+        if !self.connected && self.stats.connects > 0 {
+            v.push(Alarm::new(
+                AlarmKind::Link,
+                Severity::Warning,
+                "port-lost",
+                "the serial link is down; reconnecting".into(),
+            ));
+        }
+        if self.version_refused {
+            v.push(Alarm::new(
+                AlarmKind::Link,
+                Severity::Critical,
+                "unsupported-version",
+                format!("the controller does not speak protocol version {PROTO_VERSION}"),
+            ));
+        }
+        if self.crc_alarm_active {
+            v.push(Alarm::new(
+                AlarmKind::Link,
+                Severity::Warning,
+                "crc-errors",
+                "many lines are failing their CRC".into(),
+            ));
+        }
+        let waiting = self.pending_ingest().len();
+        if waiting > 0 {
+            v.push(Alarm::new(
+                AlarmKind::CaptureQuality,
+                Severity::Info,
+                "captures-pending",
+                format!("{waiting} announced captures are waiting to be checked"),
+            ));
+        }
+        v
+    }
+
+    pub fn summary(&self) -> Summary {
+        Summary {
+            session: self.session.clone(),
+            rig: self.rig_id.clone(),
+            captures_planned: self.captures_planned,
+            captures_announced: self.announced.len() as u64,
+            checked: self.checker.counts().clone(),
+            table2: self.checker.table2().clone(),
+            isotropy: self.checker.isotropy_table().clone(),
+            alarms: self.alarm_counts.clone(),
+            link: self.stats.clone(),
+            finished: self.finished,
+        }
+    }
+
+    fn send(&mut self, out: &mut Vec<Output>, verb: &str, fields: &[(&str, String)]) -> u32 {
+        let seq = self.tx_seq;
+        out.push(Output::Send(protocol::format(seq, verb, fields)));
+        self.tx_seq = (self.tx_seq + 1) % protocol::SEQ_MOD;
+        seq
+    }
+
+    fn alarm(&mut self, out: &mut Vec<Output>, a: Alarm) {
+        let key = serde_json::to_value(a.kind)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default();
+        *self.alarm_counts.entry(key).or_default() += 1;
+        if a.severity == Severity::Critical
+            && self.spec.pause_on_critical
+            && self.connected
+            && !self.paused_for.contains(&a.code)
+        {
+            self.paused_for.insert(a.code.clone());
+            self.send(out, "PAUSE", &[]);
+        }
+        out.push(Output::Alarm(a));
+    }
+
+    /// The lowest capture index neither announced nor known to be missing.
+    fn lowest_unseen(&self) -> u64 {
+        let mut i = self.next_check;
+        while self.announced.contains_key(&i) || self.missing_announcements.contains(&i) {
+            i += 1;
+        }
+        i
+    }
+
+    fn request_resync(&mut self, out: &mut Vec<Output>) {
+        if !self.connected || !self.subscribed || self.outstanding_resync.is_some() {
+            self.resync_needed = true;
+            return;
+        }
+        self.resync_needed = false;
+        self.gap_during_resync = false;
+        let from = self.lowest_unseen();
+        let seq = self.send(out, "RESYNC", &[("from", from.to_string())]);
+        self.outstanding_resync = Some(seq);
+        self.stats.resyncs += 1;
+    }
+
+    /// Feed one input; returns what to do, in order.
+    pub fn handle(&mut self, input: &Input) -> Vec<Output> {
+        let mut out = Vec::new();
+        match input {
+            Input::Connected => {
+                self.connected = true;
+                self.stats.connects += 1;
+                self.expect_seq = None;
+                self.subscribed = false;
+                self.outstanding_resync = None;
+                self.tx_seq = 0;
+                if self.stats.connects > 1 {
+                    let n = self.stats.connects;
+                    self.alarm(
+                        &mut out,
+                        Alarm::new(
+                            AlarmKind::Link,
+                            Severity::Info,
+                            "port-back",
+                            format!("serial port open again (connection {n})"),
+                        ),
+                    );
+                }
+                self.send(
+                    &mut out,
+                    "HELLO",
+                    &[
+                        ("proto", PROTO_VERSION.to_string()),
+                        (
+                            "client",
+                            format!("goniowatch/{}", env!("CARGO_PKG_VERSION")),
+                        ),
+                    ],
+                );
+            }
+            Input::Disconnected { reason } => {
+                if self.connected {
+                    self.stats.disconnects += 1;
+                    self.alarm(
+                        &mut out,
+                        Alarm::new(
+                            AlarmKind::Link,
+                            Severity::Warning,
+                            "port-lost",
+                            format!("serial port lost ({reason}); reconnecting, then resyncing from capture {}", self.lowest_unseen()),
+                        ),
+                    );
+                }
+                self.connected = false;
+                self.subscribed = false;
+                self.outstanding_resync = None;
+            }
+            Input::Restart => {
+                self.stats.restarts += 1;
+                self.connected = false;
+                self.subscribed = false;
+                self.outstanding_resync = None;
+                self.expect_seq = None;
+                self.alarm(
+                    &mut out,
+                    Alarm::new(
+                        AlarmKind::Link,
+                        Severity::Info,
+                        "daemon-restart",
+                        format!(
+                            "goniowatch restarted on this session; {} captures already checked",
+                            self.next_check
+                        ),
+                    ),
+                );
+            }
+            Input::RxBad { reason } => {
+                self.stats.framing_errors += 1;
+                self.note_crc(&mut out, true, reason);
+            }
+            Input::Rx { line } => self.rx(&mut out, line),
+            Input::Outcome { idx, outcome } => {
+                if self.announced.contains_key(idx) && *idx >= self.next_check {
+                    self.outcomes.insert(*idx, outcome.clone());
+                    self.drain(&mut out);
+                }
+            }
+            Input::Unannounced { files } => {
+                if !files.is_empty() {
+                    self.alarm(
+                        &mut out,
+                        Alarm::new(
+                            AlarmKind::CaptureQuality,
+                            Severity::Warning,
+                            "unannounced-files",
+                            format!(
+                                "{} file(s) in the capture folder were never announced by the controller: {}",
+                                files.len(),
+                                files.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
+                            ),
+                        )
+                        .with(json!({ "files": files })),
+                    );
+                }
+            }
+        }
+        out
+    }
+
+    fn note_crc(&mut self, out: &mut Vec<Output>, bad: bool, what: &str) {
+        self.crc_recent.push_back(bad);
+        while self.crc_recent.len() > self.spec.crc_window {
+            self.crc_recent.pop_front();
+        }
+        let n_bad = self.crc_recent.iter().filter(|b| **b).count();
+        if !self.crc_alarm_active && n_bad >= self.spec.crc_errors_alarm {
+            self.crc_alarm_active = true;
+            let window = self.crc_recent.len();
+            self.alarm(
+                out,
+                Alarm::new(
+                    AlarmKind::Link,
+                    Severity::Warning,
+                    "crc-errors",
+                    format!(
+                        "{n_bad} of the last {window} lines from the controller were corrupt (threshold {}); latest: {what}",
+                        self.spec.crc_errors_alarm
+                    ),
+                )
+                .with(json!({"bad_lines": n_bad, "window": window})),
+            );
+        } else if self.crc_alarm_active && n_bad == 0 {
+            self.crc_alarm_active = false;
+        }
+    }
+
+    fn rx(&mut self, out: &mut Vec<Output>, line: &str) {
+        self.stats.lines += 1;
+        self.stats.bytes += line.len() as u64 + 1;
+        let m = match protocol::parse(line) {
+            Ok(m) => m,
+            Err(e) => {
+                if matches!(e, protocol::FrameError::BadCrc { .. }) {
+                    self.stats.crc_errors += 1;
+                } else {
+                    self.stats.framing_errors += 1;
+                }
+                self.note_crc(out, true, &e.to_string());
+                return;
+            }
+        };
+        self.note_crc(out, false, "");
+        // sequence check (an IDENT with seq 0 starts a new count: reboot or first contact)
+        let restart = m.verb == "IDENT" && m.seq == 0;
+        if let Some(e) = self.expect_seq {
+            if m.seq != e && !restart {
+                self.stats.sequence_gaps += 1;
+                if self.outstanding_resync.is_some() {
+                    self.gap_during_resync = true;
+                }
+                self.expect_seq = Some((m.seq + 1) % protocol::SEQ_MOD);
+                self.handle_message(out, &m);
+                self.request_resync(out);
+                return;
+            }
+        }
+        self.expect_seq = Some((m.seq + 1) % protocol::SEQ_MOD);
+        self.handle_message(out, &m);
+    }
+
+    fn handle_message(&mut self, out: &mut Vec<Output>, m: &Message) {
+        match m.verb.as_str() {
+            "IDENT" => self.ident(out, m),
+            "ACK" => {
+                let r = m.get("ref").and_then(|r| r.parse::<u32>().ok());
+                if r.is_some() && r == self.outstanding_resync {
+                    self.outstanding_resync = None;
+                    if let Some(next) = m.get_u64("next") {
+                        self.controller_next = self.controller_next.max(next);
+                        if !self.gap_during_resync {
+                            // the controller's log has nothing else below `next`
+                            let mut i = self.next_check;
+                            while i < next {
+                                if !self.announced.contains_key(&i)
+                                    && self.missing_announcements.insert(i)
+                                {
+                                    self.alarm(
+                                        out,
+                                        Alarm::new(
+                                            AlarmKind::CaptureQuality,
+                                            Severity::Warning,
+                                            "capture-never-announced",
+                                            format!("capture {i} is not in the controller's capture log (resync reports next = {next})"),
+                                        )
+                                        .at(Some(i), None),
+                                    );
+                                }
+                                i += 1;
+                            }
+                        } else {
+                            self.resync_needed = true;
+                        }
+                    }
+                    self.drain(out);
+                    if self.resync_needed {
+                        self.request_resync(out);
+                    }
+                }
+            }
+            "NAK" => {
+                self.stats.naks += 1;
+                match m.get("reason") {
+                    Some("unsupported-version") => {
+                        self.version_refused = true;
+                        let supported = m.get("supported").unwrap_or("?").to_string();
+                        self.alarm(
+                            out,
+                            Alarm::new(
+                                AlarmKind::Link,
+                                Severity::Critical,
+                                "unsupported-version",
+                                format!("the controller refuses protocol version {PROTO_VERSION} (it speaks {supported}); goniowatch keeps listening but cannot check this run"),
+                            ),
+                        );
+                    }
+                    // one of our lines was corrupted: resend the resync if one is pending
+                    Some("bad-crc") if self.outstanding_resync.take().is_some() => self.request_resync(out),
+                    _ => {}
+                }
+            }
+            "STATUS" => {
+                if let Some(next) = m.get_u64("next") {
+                    self.controller_next = self.controller_next.max(next);
+                }
+                match m.get("state") {
+                    Some("done") => {
+                        self.done = true;
+                        // make sure nothing before `next` is unseen
+                        if self.lowest_unseen() < self.controller_next {
+                            self.request_resync(out);
+                        }
+                        self.drain(out);
+                    }
+                    Some("fault") => {
+                        let reason = m.get("reason").unwrap_or("no reason given").to_string();
+                        let t = m.get_f64("t");
+                        self.alarm(
+                            out,
+                            Alarm::new(
+                                AlarmKind::Link,
+                                Severity::Critical,
+                                "controller-fault",
+                                format!("the controller reports a fault: {reason}"),
+                            )
+                            .at(None, t),
+                        );
+                    }
+                    _ => {}
+                }
+            }
+            "CAPTURE" => match announcement(m) {
+                Ok((idx, a)) => self.announce(out, idx, a),
+                Err(e) => {
+                    self.stats.framing_errors += 1;
+                    self.alarm(
+                        out,
+                        Alarm::new(
+                            AlarmKind::Link,
+                            Severity::Warning,
+                            "bad-announcement",
+                            format!(
+                                "a CAPTURE line was malformed ({e}): {}",
+                                m.fields
+                                    .iter()
+                                    .map(|(k, v)| format!("{k}={v}"))
+                                    .collect::<Vec<_>>()
+                                    .join(" ")
+                            ),
+                        ),
+                    );
+                    self.request_resync(out);
+                }
+            },
+            "POSE" | "ERR" => {}
+            _ => self.stats.unknown_verbs += 1,
+        }
+    }
+
+    fn ident(&mut self, out: &mut Vec<Output>, m: &Message) {
+        // the unsolicited IDENT after boot and the reply to HELLO say the same: subscribe once
+        if self.subscribed && m.get_u64("boot") == self.boot && self.boot.is_some() {
+            return;
+        }
+        let proto_ok = m
+            .get("proto")
+            .map(|p| p == PROTO_VERSION.to_string())
+            .unwrap_or(false);
+        if !proto_ok {
+            self.version_refused = true;
+            self.alarm(
+                out,
+                Alarm::new(
+                    AlarmKind::Link,
+                    Severity::Critical,
+                    "unsupported-version",
+                    format!(
+                        "the controller speaks protocol {:?}, goniowatch speaks {PROTO_VERSION}",
+                        m.get("proto")
+                    ),
+                ),
+            );
+            return;
+        }
+        if let Some(n) = m.get_u64("captures") {
+            self.captures_planned = n;
+        }
+        let boot = m.get_u64("boot");
+        if let (Some(old), Some(new)) = (self.boot, boot) {
+            if new != old {
+                self.stats.reboots += 1;
+                self.alarm(
+                    out,
+                    Alarm::new(
+                        AlarmKind::Link,
+                        Severity::Warning,
+                        "controller-reboot",
+                        format!("the controller restarted (boot {old} → {new}); re-subscribing and resyncing from capture {}", self.lowest_unseen()),
+                    ),
+                );
+            }
+        }
+        self.boot = boot.or(self.boot);
+        let session = m.get("session").map(str::to_string);
+        match (&self.session, &session) {
+            (Some(a), Some(b)) if a != b => {
+                self.alarm(
+                    out,
+                    Alarm::new(
+                        AlarmKind::Link,
+                        Severity::Critical,
+                        "session-changed",
+                        format!("the controller now reports session '{b}', but this goniowatch session belongs to '{a}'"),
+                    ),
+                );
+            }
+            (None, Some(_)) => self.session = session,
+            _ => {}
+        }
+        self.rig_id = m.get("rig").map(str::to_string).or(self.rig_id.take());
+        self.subscribed = true;
+        self.outstanding_resync = None;
+        self.send(out, "SUBSCRIBE", &[]);
+        self.request_resync(out);
+    }
+
+    fn announce(&mut self, out: &mut Vec<Output>, idx: u64, a: Announcement) {
+        if let Some(prev) = self.announced.get(&idx) {
+            self.stats.duplicate_announcements += 1;
+            if prev.file != a.file || prev.entry != a.entry {
+                let msg = format!(
+                    "capture index {idx} was announced twice: first {} (entry {}), now {} (entry {}); the first is kept",
+                    prev.file, prev.entry, a.file, a.entry
+                );
+                self.alarm(
+                    out,
+                    Alarm::new(
+                        AlarmKind::CaptureQuality,
+                        Severity::Warning,
+                        "duplicate-index",
+                        msg,
+                    )
+                    .at(Some(idx), Some(a.t))
+                    .with(json!({"kept": prev.file, "ignored": a.file})),
+                );
+            }
+            return;
+        }
+        if idx < self.next_check {
+            return; // already checked (e.g. replayed after a restart)
+        }
+        let expected = self
+            .announced
+            .keys()
+            .next_back()
+            .map(|k| k + 1)
+            .unwrap_or(0)
+            .max(self.next_check);
+        out.push(Output::Ingest {
+            idx,
+            file: a.file.clone(),
+        });
+        self.missing_announcements.remove(&idx);
+        self.announced.insert(idx, a);
+        self.controller_next = self.controller_next.max(idx + 1);
+        if idx > expected && self.lowest_unseen() < idx {
+            self.request_resync(out);
+        }
+    }
+
+    fn drain(&mut self, out: &mut Vec<Output>) {
+        loop {
+            let i = self.next_check;
+            if let Some(a) = self.announced.get(&i) {
+                let Some(outcome) = self.outcomes.remove(&i) else {
+                    break;
+                };
+                let input = CaptureInput {
+                    idx: i,
+                    entry: a.entry,
+                    file: a.file.clone(),
+                    t: a.t,
+                    cmd: a.cmd,
+                    enc: a.enc,
+                    substitute: a.substitute,
+                    probe: a.probe,
+                    outcome: outcome.clone(),
+                };
+                let (status, size, sha, error) = match &outcome {
+                    Outcome::Ok { size, sha256, .. } => {
+                        ("ok", Some(*size), Some(sha256.clone()), None)
+                    }
+                    Outcome::Failed { error } => ("failed", None, None, Some(error.clone())),
+                    Outcome::Missing { reason } => ("missing", None, None, Some(reason.clone())),
+                };
+                out.push(Output::Manifest(ManifestRecord {
+                    idx: i,
+                    file: a.file.clone(),
+                    status: status.into(),
+                    size,
+                    sha256: sha,
+                    error,
+                }));
+                let res = self.checker.check(&input);
+                if let Some(c) = res.capture {
+                    out.push(Output::Capture(c));
+                }
+                for p in res.pairs {
+                    out.push(Output::Pair(p));
+                }
+                for r in res.isotropy {
+                    out.push(Output::Isotropy(r));
+                }
+                for al in res.alarms {
+                    self.alarm(out, al);
+                }
+                self.next_check += 1;
+            } else if self.missing_announcements.contains(&i) {
+                self.next_check += 1;
+            } else {
+                break;
+            }
+        }
+        if self.done
+            && !self.finished
+            && self.next_check >= self.controller_next
+            && self.outstanding_resync.is_none()
+        {
+            self.finished = true;
+            out.push(Output::Finished);
+        }
+    }
+}

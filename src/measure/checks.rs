@@ -1,0 +1,713 @@
+//! The per-capture checks of a session, incremental and in capture order: measured geometry from
+//! the encoder pose, colour, capture quality, reciprocal pairs (the paper's Section 6.1, exact
+//! partners only), isotropy classes, reciprocity outliers and the running Table 2 summary.
+//!
+//! Pure: a `Checker` is a deterministic function of the sequence of `CaptureInput`s it is given.
+//! Partner look-up is O(1) (captures are stored by plan entry); isotropy classes are a hash map.
+
+use super::alarm::{Alarm, AlarmKind, Severity};
+use super::averaging::CaptureStats;
+use super::colour::{colour_difference, xyz_to_lab, ColourDifference, Lab, RgbToXyz, White, Xyz};
+use super::geometry::{angle_between, Spherical, Vec3};
+use super::kinematics::{Angles, Incidence, Rig};
+use super::plan::{IsotropyKey, SamplingPlan};
+use super::reciprocity::{pair_residual, PairError};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use std::collections::HashMap;
+
+/// Thresholds of the checks (`[checks]` in the config).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CheckSpec {
+    /// A pair is exact when each capture's ωi is within this of the partner's ωo (degrees).
+    pub pair_tolerance_deg: f64,
+    /// Measured (encoder) directions further than this from the plan raise a positioning alarm.
+    pub pose_tolerance_deg: f64,
+    /// |encoder − commanded| above this on any axis raises a positioning alarm (degrees).
+    pub encoder_tolerance_deg: f64,
+    /// A pair is an outlier when its ΔE00 exceeds median + k · 1.4826 · MAD of the pairs so far …
+    pub outlier_k: f64,
+    /// … and this floor …
+    pub outlier_floor_de2000: f64,
+    /// … once this many exact pairs are in.
+    pub outlier_min_pairs: usize,
+    /// More non-finite pixels than this in a capture raise a capture-quality alarm.
+    pub nonfinite_max: u64,
+    /// A larger fraction of clipped pixels raises a capture-quality alarm.
+    pub clipped_fraction_max: f64,
+    /// A capture whose mean Y (configured XYZ scale) is at or below this is dark.
+    pub dark_y: f64,
+    /// This many failed captures in a row is critical.
+    pub failures_critical: u32,
+}
+
+impl Default for CheckSpec {
+    fn default() -> Self {
+        CheckSpec {
+            pair_tolerance_deg: 0.5,
+            pose_tolerance_deg: 0.25,
+            encoder_tolerance_deg: 0.1,
+            outlier_k: 6.0,
+            outlier_floor_de2000: 5.0,
+            outlier_min_pairs: 30,
+            nonfinite_max: 0,
+            clipped_fraction_max: 0.001,
+            dark_y: 0.05,
+            failures_critical: 5,
+        }
+    }
+}
+
+/// What the ingestion made of one announced capture.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "status", rename_all = "kebab-case")]
+pub enum Outcome {
+    Ok {
+        stats: CaptureStats,
+        width: usize,
+        height: usize,
+        size: u64,
+        sha256: String,
+    },
+    Failed {
+        error: String,
+    },
+    Missing {
+        reason: String,
+    },
+}
+
+/// One announced capture with its outcome, as the checker sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CaptureInput {
+    pub idx: u64,
+    pub entry: usize,
+    pub file: String,
+    pub t: f64,
+    pub cmd: [f64; 4],
+    pub enc: [f64; 4],
+    pub substitute: Option<f64>,
+    pub probe: bool,
+    pub outcome: Outcome,
+}
+
+/// One line of `captures.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CaptureRecord {
+    pub idx: u64,
+    pub entry: usize,
+    pub light: usize,
+    pub camera: usize,
+    pub probe: bool,
+    pub t: f64,
+    pub file: String,
+    pub status: String,
+    pub error: Option<String>,
+    pub mean_rgb: Option<[f64; 3]>,
+    pub xyz: Option<Xyz>,
+    pub lab: Option<Lab>,
+    pub pixels: Option<u64>,
+    pub nonfinite: Option<u64>,
+    pub clipped: Option<u64>,
+    pub negative: Option<u64>,
+    /// Angles measured from the encoder pose.
+    pub angles: Option<Angles>,
+    /// θi the rig used instead of the plan's (occlusion substitute).
+    pub substitute: Option<f64>,
+    /// Largest angle between a measured and a planned direction (degrees).
+    pub pose_error_deg: Option<f64>,
+}
+
+/// One line of `pairs.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PairRecord {
+    /// Capture indices, earlier first.
+    pub a: u64,
+    pub b: u64,
+    pub entries: [usize; 2],
+    /// `exact`, `needs-resampling` (a partner is not at the mirrored pose), `grazing`.
+    pub status: String,
+    /// Largest angle between one capture's ωi and the other's ωo (degrees).
+    pub mismatch_deg: f64,
+    pub t: f64,
+    pub xyz_a: Option<Xyz>,
+    pub xyz_b: Option<Xyz>,
+    pub diff: Option<ColourDifference>,
+}
+
+/// One line of `isotropy.jsonl`: a capture against the mean of its class's earlier members.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct IsotropyRecord {
+    pub idx: u64,
+    pub entry: usize,
+    pub class: [f64; 3],
+    pub earlier_members: usize,
+    pub diff: ColourDifference,
+}
+
+/// Running means in the form of the paper's Table 2.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Table2 {
+    pub pairs: u64,
+    pub abs_dx: f64,
+    pub abs_dy: f64,
+    pub abs_dz: f64,
+    pub de76: f64,
+    pub dc: f64,
+    pub dh: f64,
+    pub de2000: f64,
+}
+
+impl Table2 {
+    fn add(&mut self, d: &ColourDifference) {
+        let n = self.pairs as f64;
+        let upd = |m: &mut f64, v: f64| *m = (*m * n + v) / (n + 1.0);
+        upd(&mut self.abs_dx, d.abs_dxyz[0]);
+        upd(&mut self.abs_dy, d.abs_dxyz[1]);
+        upd(&mut self.abs_dz, d.abs_dxyz[2]);
+        upd(&mut self.de76, d.de76);
+        upd(&mut self.dc, d.dc);
+        upd(&mut self.dh, d.dh);
+        upd(&mut self.de2000, d.de2000);
+        self.pairs += 1;
+    }
+}
+
+/// Counters for the summary.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CheckCounts {
+    pub captures: u64,
+    pub ok: u64,
+    pub failed: u64,
+    pub missing: u64,
+    pub probes: u64,
+    pub pairs_exact: u64,
+    pub pairs_needs_resampling: u64,
+    pub pairs_grazing: u64,
+    pub isotropy_comparisons: u64,
+    pub alarms: u64,
+}
+
+/// Everything the checker produced for one capture.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CheckOutput {
+    pub capture: Option<CaptureRecord>,
+    pub pairs: Vec<PairRecord>,
+    pub isotropy: Vec<IsotropyRecord>,
+    pub alarms: Vec<Alarm>,
+}
+
+#[derive(Debug, Clone)]
+struct Checked {
+    idx: u64,
+    xyz: Xyz,
+    theta_i_deg: f64,
+    omega_i: Vec3,
+    omega_o: Vec3,
+    exact_pose: bool,
+    dark: bool,
+}
+
+#[derive(Debug, Clone, Default)]
+struct ClassAcc {
+    n: usize,
+    sum: [f64; 3],
+}
+
+/// The colour settings the checker needs.
+#[derive(Debug, Clone)]
+pub struct ColourSettings {
+    pub to_xyz: RgbToXyz,
+    pub rgb_scale: f64,
+    pub white: White,
+    pub min_cos: f64,
+}
+
+pub struct Checker {
+    plan: SamplingPlan,
+    rig: Rig,
+    colour: ColourSettings,
+    spec: CheckSpec,
+    isotropic: bool,
+    by_entry: Vec<Option<Checked>>,
+    classes: HashMap<IsotropyKey, ClassAcc>,
+    table2: Table2,
+    isotropy_table: Table2,
+    sorted_de2000: Vec<f64>,
+    counts: CheckCounts,
+    consecutive_failures: u32,
+}
+
+impl Checker {
+    pub fn new(
+        plan: SamplingPlan,
+        rig: Rig,
+        colour: ColourSettings,
+        spec: CheckSpec,
+        isotropic: bool,
+    ) -> Self {
+        let n = plan.capture_count();
+        Checker {
+            plan,
+            rig,
+            colour,
+            spec,
+            isotropic,
+            by_entry: vec![None; n],
+            classes: HashMap::new(),
+            table2: Table2::default(),
+            isotropy_table: Table2::default(),
+            sorted_de2000: Vec::new(),
+            counts: CheckCounts::default(),
+            consecutive_failures: 0,
+        }
+    }
+
+    pub fn plan(&self) -> &SamplingPlan {
+        &self.plan
+    }
+    pub fn table2(&self) -> &Table2 {
+        &self.table2
+    }
+    pub fn isotropy_table(&self) -> &Table2 {
+        &self.isotropy_table
+    }
+    pub fn counts(&self) -> &CheckCounts {
+        &self.counts
+    }
+
+    fn nominal(&self, entry: usize, substitute: Option<f64>) -> Option<(Incidence, usize, usize)> {
+        let e = self.plan.entry(entry).ok()?;
+        let dirs = self.plan.directions();
+        let (l, c) = (dirs[e.light], dirs[e.camera]);
+        let theta_i = substitute.unwrap_or(l.theta_deg);
+        Some((
+            Incidence {
+                omega_i: Spherical::from_deg(theta_i, l.phi_deg).to_vector(),
+                omega_o: c.spherical().to_vector(),
+            },
+            e.light,
+            e.camera,
+        ))
+    }
+
+    fn xyz_of(&self, rgb: [f64; 3]) -> Xyz {
+        let s = self.colour.rgb_scale;
+        self.colour
+            .to_xyz
+            .convert([rgb[0] * s, rgb[1] * s, rgb[2] * s])
+    }
+
+    /// Check one capture. Captures must come in index order.
+    pub fn check(&mut self, input: &CaptureInput) -> CheckOutput {
+        let mut out = CheckOutput::default();
+        self.counts.captures += 1;
+        let at = (Some(input.idx), Some(input.t));
+        let Some((nominal, light, camera)) = self.nominal(input.entry, input.substitute) else {
+            out.alarms.push(
+                Alarm::new(
+                    AlarmKind::CaptureQuality,
+                    Severity::Warning,
+                    "bad-entry",
+                    format!(
+                        "capture {} names plan entry {}, which is not in the {}-capture plan",
+                        input.idx,
+                        input.entry,
+                        self.plan.capture_count()
+                    ),
+                )
+                .at(at.0, at.1),
+            );
+            self.counts.alarms += out.alarms.len() as u64;
+            return out;
+        };
+        let mut rec = CaptureRecord {
+            idx: input.idx,
+            entry: input.entry,
+            light,
+            camera,
+            probe: input.probe,
+            t: input.t,
+            file: input.file.clone(),
+            status: String::new(),
+            error: None,
+            mean_rgb: None,
+            xyz: None,
+            lab: None,
+            pixels: None,
+            nonfinite: None,
+            clipped: None,
+            negative: None,
+            angles: None,
+            substitute: input.substitute,
+            pose_error_deg: None,
+        };
+        if input.probe {
+            self.counts.probes += 1;
+        }
+
+        // geometry from the encoder pose
+        let measured = match self.rig.forward(&crate::measure::kinematics::Pose {
+            joints_deg: [input.enc[0], input.enc[1], input.enc[2]],
+            wagon_deg: input.enc[3],
+        }) {
+            Ok(m) => m,
+            Err(e) => {
+                out.alarms.push(
+                    Alarm::new(
+                        AlarmKind::Positioning,
+                        Severity::Warning,
+                        "bad-pose",
+                        format!("capture {}: encoder pose {:?} unusable ({e}); the plan's pose is assumed", input.idx, input.enc),
+                    )
+                    .at(at.0, at.1),
+                );
+                nominal
+            }
+        };
+        let pose_err = angle_between(&measured.omega_i, &nominal.omega_i)
+            .max(angle_between(&measured.omega_o, &nominal.omega_o))
+            .to_degrees();
+        rec.angles = Some(measured.angles());
+        rec.pose_error_deg = Some(pose_err);
+        if pose_err > self.spec.pose_tolerance_deg {
+            out.alarms.push(
+                Alarm::new(
+                    AlarmKind::Positioning,
+                    Severity::Warning,
+                    "pose-off-plan",
+                    format!(
+                        "capture {}: the encoders put the lamp/camera {:.3}° from plan entry {} (tolerance {}°)",
+                        input.idx, pose_err, input.entry, self.spec.pose_tolerance_deg
+                    ),
+                )
+                .at(at.0, at.1)
+                .with(json!({"pose_error_deg": pose_err, "enc": input.enc, "cmd": input.cmd})),
+            );
+        }
+        let enc_err = (0..4)
+            .map(|k| (input.enc[k] - input.cmd[k]).abs())
+            .fold(0.0, f64::max);
+        if enc_err > self.spec.encoder_tolerance_deg {
+            let axis = (0..4)
+                .max_by(|&a, &b| {
+                    (input.enc[a] - input.cmd[a])
+                        .abs()
+                        .total_cmp(&(input.enc[b] - input.cmd[b]).abs())
+                })
+                .unwrap_or(0);
+            let name = ["joint 1", "joint 2", "joint 3", "wagon"][axis];
+            out.alarms.push(
+                Alarm::new(
+                    AlarmKind::Positioning,
+                    Severity::Warning,
+                    "encoder-mismatch",
+                    format!(
+                        "capture {}: {name} encoder reads {:.4}° but {:.4}° was commanded (|Δ| {:.4}° > {}°)",
+                        input.idx, input.enc[axis], input.cmd[axis], enc_err, self.spec.encoder_tolerance_deg
+                    ),
+                )
+                .at(at.0, at.1)
+                .with(json!({"axis": name, "enc": input.enc, "cmd": input.cmd})),
+            );
+        }
+
+        let stats = match &input.outcome {
+            Outcome::Ok { stats, .. } => *stats,
+            Outcome::Failed { error } | Outcome::Missing { reason: error } => {
+                let missing = matches!(input.outcome, Outcome::Missing { .. });
+                rec.status = if missing { "missing" } else { "failed" }.to_string();
+                rec.error = Some(error.clone());
+                if missing {
+                    self.counts.missing += 1;
+                } else {
+                    self.counts.failed += 1;
+                }
+                self.consecutive_failures += 1;
+                let critical = self.consecutive_failures >= self.spec.failures_critical;
+                out.alarms.push(
+                    Alarm::new(
+                        AlarmKind::CaptureQuality,
+                        if critical { Severity::Critical } else { Severity::Warning },
+                        if missing { "missing-capture" } else { "capture-failed" },
+                        format!(
+                            "capture {} ({}) {}: {error}{}",
+                            input.idx,
+                            input.file,
+                            if missing { "is missing" } else { "could not be used" },
+                            if critical {
+                                format!("; {} captures in a row have failed", self.consecutive_failures)
+                            } else {
+                                String::new()
+                            }
+                        ),
+                    )
+                    .at(at.0, at.1)
+                    .with(json!({"file": input.file, "consecutive_failures": self.consecutive_failures})),
+                );
+                out.capture = Some(rec);
+                self.counts.alarms += out.alarms.len() as u64;
+                return out;
+            }
+        };
+        self.consecutive_failures = 0;
+        self.counts.ok += 1;
+        let xyz = self.xyz_of(stats.mean_rgb);
+        rec.status = "ok".into();
+        rec.mean_rgb = Some(stats.mean_rgb);
+        rec.xyz = Some(xyz);
+        rec.lab = Some(xyz_to_lab(xyz, self.colour.white));
+        rec.pixels = Some(stats.pixels);
+        rec.nonfinite = Some(stats.nonfinite);
+        rec.clipped = Some(stats.clipped);
+        rec.negative = Some(stats.negative);
+
+        // capture quality
+        if stats.nonfinite > self.spec.nonfinite_max {
+            out.alarms.push(
+                Alarm::new(
+                    AlarmKind::CaptureQuality,
+                    Severity::Warning,
+                    "non-finite-pixels",
+                    format!(
+                        "capture {}: {} of {} pixels are NaN or infinite (allowed {}); they are left out of the mean",
+                        input.idx, stats.nonfinite, stats.pixels, self.spec.nonfinite_max
+                    ),
+                )
+                .at(at.0, at.1)
+                .with(json!({"nonfinite": stats.nonfinite, "pixels": stats.pixels})),
+            );
+        }
+        let clipped_fraction = stats.clipped as f64 / stats.pixels.max(1) as f64;
+        if clipped_fraction > self.spec.clipped_fraction_max {
+            out.alarms.push(
+                Alarm::new(
+                    AlarmKind::CaptureQuality,
+                    Severity::Warning,
+                    "clipped-pixels",
+                    format!(
+                        "capture {}: {:.2} % of the pixels are clipped (allowed {:.2} %)",
+                        input.idx,
+                        100.0 * clipped_fraction,
+                        100.0 * self.spec.clipped_fraction_max
+                    ),
+                )
+                .at(at.0, at.1)
+                .with(json!({"clipped": stats.clipped, "pixels": stats.pixels, "max_value": stats.max_value})),
+            );
+        }
+        if xyz[1] <= self.spec.dark_y {
+            out.alarms.push(
+                Alarm::new(
+                    AlarmKind::CaptureQuality,
+                    Severity::Warning,
+                    "dark-capture",
+                    format!(
+                        "capture {}: mean Y = {:.4} is at or below the dark level {} (lamp off or shutter closed?)",
+                        input.idx, xyz[1], self.spec.dark_y
+                    ),
+                )
+                .at(at.0, at.1)
+                .with(json!({"y": xyz[1]})),
+            );
+        }
+        let dark = xyz[1] <= self.spec.dark_y;
+
+        if input.probe {
+            out.capture = Some(rec);
+            self.counts.alarms += out.alarms.len() as u64;
+            return out;
+        }
+
+        let exact_pose = pose_err <= self.spec.pair_tolerance_deg;
+        let checked = Checked {
+            idx: input.idx,
+            xyz,
+            theta_i_deg: Spherical::from_vector(&measured.omega_i).theta_deg(),
+            omega_i: measured.omega_i,
+            omega_o: measured.omega_o,
+            exact_pose,
+            dark,
+        };
+
+        // reciprocal partner
+        if let Ok(partner_entry) = self.plan.reciprocal_of(input.entry) {
+            if partner_entry != input.entry && !dark {
+                if let Some(p) = self
+                    .by_entry
+                    .get(partner_entry)
+                    .and_then(|p| p.as_ref())
+                    .filter(|p| !p.dark)
+                {
+                    let pair = self.score_pair(p, &checked, [partner_entry, input.entry], input.t);
+                    if let Some(d) = &pair.diff {
+                        if pair.status == "exact" {
+                            self.table2.add(d);
+                            if let Some(a) = self.outlier(d.de2000, &pair, at) {
+                                out.alarms.push(a);
+                            }
+                        }
+                    }
+                    match pair.status.as_str() {
+                        "exact" => self.counts.pairs_exact += 1,
+                        "grazing" => self.counts.pairs_grazing += 1,
+                        _ => self.counts.pairs_needs_resampling += 1,
+                    }
+                    out.pairs.push(pair);
+                }
+            }
+        }
+
+        // isotropy class (isotropic samples only; exact poses only)
+        if self.isotropic && exact_pose && input.substitute.is_none() && !dark {
+            if let Ok(e) = self.plan.entry(input.entry) {
+                let key = self.plan.isotropy_key(&e);
+                let c_lo = (key.theta_lo_mdeg as f64 / 1000.0).to_radians().cos();
+                let c_hi = (key.theta_hi_mdeg as f64 / 1000.0).to_radians().cos();
+                let ci = checked.theta_i_deg.to_radians().cos();
+                if ci >= self.colour.min_cos && c_lo * c_hi > 0.0 {
+                    let f = (c_lo * c_hi).sqrt() / ci;
+                    let v = [xyz[0] * f, xyz[1] * f, xyz[2] * f];
+                    let acc = self.classes.entry(key).or_default();
+                    if acc.n > 0 {
+                        let n = acc.n as f64;
+                        let mean = [acc.sum[0] / n, acc.sum[1] / n, acc.sum[2] / n];
+                        let diff = colour_difference(mean, v, self.colour.white);
+                        self.isotropy_table.add(&diff);
+                        self.counts.isotropy_comparisons += 1;
+                        out.isotropy.push(IsotropyRecord {
+                            idx: input.idx,
+                            entry: input.entry,
+                            class: [
+                                key.theta_lo_mdeg as f64 / 1000.0,
+                                key.theta_hi_mdeg as f64 / 1000.0,
+                                key.dphi_mdeg as f64 / 1000.0,
+                            ],
+                            earlier_members: acc.n,
+                            diff,
+                        });
+                    }
+                    acc.n += 1;
+                    for c in 0..3 {
+                        acc.sum[c] += v[c];
+                    }
+                }
+            }
+        }
+
+        if let Some(slot) = self.by_entry.get_mut(input.entry) {
+            if slot.is_none() {
+                *slot = Some(checked);
+            } else {
+                out.alarms.push(
+                    Alarm::new(
+                        AlarmKind::CaptureQuality,
+                        Severity::Info,
+                        "entry-repeated",
+                        format!(
+                            "capture {} repeats plan entry {}; the first capture of it is kept for the checks",
+                            input.idx, input.entry
+                        ),
+                    )
+                    .at(at.0, at.1),
+                );
+            }
+        }
+        out.capture = Some(rec);
+        self.counts.alarms += out.alarms.len() as u64;
+        out
+    }
+
+    fn score_pair(
+        &self,
+        first: &Checked,
+        second: &Checked,
+        entries: [usize; 2],
+        t: f64,
+    ) -> PairRecord {
+        let mismatch = angle_between(&first.omega_i, &second.omega_o)
+            .max(angle_between(&first.omega_o, &second.omega_i))
+            .to_degrees();
+        let mut rec = PairRecord {
+            a: first.idx,
+            b: second.idx,
+            entries,
+            status: String::new(),
+            mismatch_deg: mismatch,
+            t,
+            xyz_a: None,
+            xyz_b: None,
+            diff: None,
+        };
+        match pair_residual(
+            first.xyz,
+            first.theta_i_deg,
+            second.xyz,
+            second.theta_i_deg,
+            self.colour.white,
+            self.colour.min_cos,
+        ) {
+            Ok(r) => {
+                rec.xyz_a = Some(r.xyz1);
+                rec.xyz_b = Some(r.xyz2);
+                rec.diff = Some(r.diff);
+                let exact = mismatch <= self.spec.pair_tolerance_deg
+                    && first.exact_pose
+                    && second.exact_pose;
+                rec.status = if exact { "exact" } else { "needs-resampling" }.into();
+            }
+            Err(PairError::Grazing { .. }) | Err(PairError::NotFinite(_)) => {
+                rec.status = "grazing".into()
+            }
+        }
+        rec
+    }
+
+    fn outlier(
+        &mut self,
+        de: f64,
+        pair: &PairRecord,
+        at: (Option<u64>, Option<f64>),
+    ) -> Option<Alarm> {
+        let pos = self.sorted_de2000.partition_point(|v| *v < de);
+        let n = self.sorted_de2000.len();
+        let result = if n >= self.spec.outlier_min_pairs {
+            let med = median_sorted(&self.sorted_de2000);
+            let mut dev: Vec<f64> = self.sorted_de2000.iter().map(|v| (v - med).abs()).collect();
+            dev.sort_by(f64::total_cmp);
+            let mad = median_sorted(&dev);
+            let limit =
+                (med + self.spec.outlier_k * 1.4826 * mad).max(self.spec.outlier_floor_de2000);
+            (de > limit).then(|| {
+                Alarm::new(
+                    AlarmKind::ReciprocityOutlier,
+                    Severity::Warning,
+                    "reciprocity-outlier",
+                    format!(
+                        "pair of captures {} and {} (entries {} ↔ {}) differs by ΔE00 = {:.2}, above the limit {:.2} (median {:.2} + {}·MAD over {} pairs)",
+                        pair.a, pair.b, pair.entries[0], pair.entries[1], de, limit, med, self.spec.outlier_k, n
+                    ),
+                )
+                .at(at.0, at.1)
+                .with(json!({"de2000": de, "limit": limit, "median": med, "mad": mad, "pairs": n, "a": pair.a, "b": pair.b}))
+            })
+        } else {
+            None
+        };
+        self.sorted_de2000.insert(pos, de);
+        result
+    }
+}
+
+fn median_sorted(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
