@@ -36,6 +36,10 @@ pub enum Input {
     Unannounced { files: Vec<String> },
     /// The daemon restarted on an existing session (after a crash or a stop).
     Restart,
+    /// Nothing arrived from the controller for a while (the shell's clock decides how long);
+    /// the engine asks again where the controller stands, in case a reply or the final STATUS
+    /// was lost.
+    Idle,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -142,6 +146,8 @@ pub struct Engine {
     subscribed: bool,
     version_refused: bool,
     outstanding_resync: Option<u32>,
+    /// Lines received since the outstanding RESYNC was sent (its ACK may have been lost).
+    resync_age: u32,
     resync_needed: bool,
     gap_during_resync: bool,
     stats: LinkStats,
@@ -158,6 +164,9 @@ pub struct Engine {
     paused_for: BTreeSet<String>,
     captures_planned: u64,
 }
+
+/// An outstanding RESYNC whose ACK has not come after this many received lines is sent again.
+const RESYNC_LINES: u32 = 64;
 
 fn announcement(m: &Message) -> Result<(u64, Announcement), String> {
     let idx = m.get_u64("idx").ok_or("missing or bad idx")?;
@@ -214,6 +223,7 @@ impl Engine {
             subscribed: false,
             version_refused: false,
             outstanding_resync: None,
+            resync_age: 0,
             resync_needed: false,
             gap_during_resync: false,
             stats: LinkStats::default(),
@@ -260,6 +270,11 @@ impl Engine {
             .filter(|(i, _)| !self.outcomes.contains_key(i))
             .map(|(i, a)| (*i, a.file.clone()))
             .collect()
+    }
+
+    /// Every file name the controller announced in this session.
+    pub fn announced_files(&self) -> impl Iterator<Item = &str> {
+        self.announced.values().map(|a| a.file.as_str())
     }
 
     /// Alarm conditions that hold right now (evaluated on start and resume).
@@ -359,6 +374,7 @@ impl Engine {
         let from = self.lowest_unseen();
         let seq = self.send(out, "RESYNC", &[("from", from.to_string())]);
         self.outstanding_resync = Some(seq);
+        self.resync_age = 0;
         self.stats.resyncs += 1;
     }
 
@@ -444,6 +460,12 @@ impl Engine {
                     self.drain(&mut out);
                 }
             }
+            Input::Idle => {
+                if self.connected && self.subscribed && !self.finished {
+                    self.outstanding_resync = None;
+                    self.request_resync(&mut out);
+                }
+            }
             Input::Unannounced { files } => {
                 if !files.is_empty() {
                     self.alarm(
@@ -496,6 +518,14 @@ impl Engine {
     fn rx(&mut self, out: &mut Vec<Output>, line: &str) {
         self.stats.lines += 1;
         self.stats.bytes += line.len() as u64 + 1;
+        if self.outstanding_resync.is_some() {
+            self.resync_age += 1;
+            if self.resync_age > RESYNC_LINES {
+                // the reply was lost on the wire: ask again
+                self.outstanding_resync = None;
+                self.resync_needed = true;
+            }
+        }
         let m = match protocol::parse(line) {
             Ok(m) => m,
             Err(e) => {
@@ -525,6 +555,9 @@ impl Engine {
         }
         self.expect_seq = Some((m.seq + 1) % protocol::SEQ_MOD);
         self.handle_message(out, &m);
+        if self.resync_needed && self.outstanding_resync.is_none() {
+            self.request_resync(out);
+        }
     }
 
     fn handle_message(&mut self, out: &mut Vec<Output>, m: &Message) {
@@ -534,6 +567,9 @@ impl Engine {
                 let r = m.get("ref").and_then(|r| r.parse::<u32>().ok());
                 if r.is_some() && r == self.outstanding_resync {
                     self.outstanding_resync = None;
+                    if m.get("state") == Some("done") {
+                        self.done = true;
+                    }
                     if let Some(next) = m.get_u64("next") {
                         self.controller_next = self.controller_next.max(next);
                         if !self.gap_during_resync {
@@ -583,7 +619,9 @@ impl Engine {
                         );
                     }
                     // one of our lines was corrupted: resend the resync if one is pending
-                    Some("bad-crc") if self.outstanding_resync.take().is_some() => self.request_resync(out),
+                    Some("bad-crc") if self.outstanding_resync.take().is_some() => {
+                        self.request_resync(out)
+                    }
                     _ => {}
                 }
             }

@@ -112,7 +112,7 @@ class Controller:
                     f["replay"] = 1
                     self.send("CAPTURE", f)
                     n += 1
-            self.send("ACK", {"ref": ref, "count": n, "next": self.next_idx})
+            self.send("ACK", {"ref": ref, "count": n, "next": self.next_idx, "state": self.state})
         elif m.verb == "POSE?":
             cmd = self.prev_cmd or [0.0, 0.0, 0.0, 0.0]
             self.send("POSE", {"t": f"{self.t:.3f}", "cmd": P.fmt_pose(cmd), "enc": P.fmt_pose(cmd), "ref": ref})

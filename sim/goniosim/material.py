@@ -85,8 +85,9 @@ class Realism:
     """Non-reciprocal deviations of real averaged BTF data (border and footprint effects).
 
     footprint: the lamp's spot is not uniform; across the sample along the light's azimuth the
-      irradiance falls off as 1 - footprint * k_c * tan^2(theta_i) * s^2 (s in [-1/2, 1/2], k_c the
-      channel's footprint_rgb factor), so the mean drops with theta_i only.
+      irradiance falls off as exp(-footprint * k_c * tan^2(theta_i) * s^2) (s the position along the
+      light's azimuth, |s| <= 1/sqrt(2); k_c the channel's footprint_rgb factor), so the mean drops
+      with theta_i only.
     bleed_px: at grazing view the holder bleeds into the rectified image by bleed_px * tan(theta_o)
       pixels on the two edges across the view azimuth, so the mean depends on theta_o only.
     """
@@ -99,5 +100,5 @@ class Realism:
 
 REALISM = {
     "clean": Realism(),
-    "realistic": Realism(footprint=0.65, bleed_px=2.4, footprint_rgb=(0.96, 1.0, 1.07)),
+    "realistic": Realism(footprint=1.6, bleed_px=3.2, footprint_rgb=(0.96, 1.0, 1.07)),
 }

@@ -42,7 +42,7 @@ def render(
         s = u * math.cos(pi_az) + v * math.sin(pi_az)
         ti2 = (1.0 - ci * ci) / max(ci * ci, 1e-6)
         k = np.asarray(realism.footprint_rgb)
-        img = img * (1.0 - realism.footprint * min(ti2, 20.0) * (s**2)[..., None] * k)
+        img = img * np.exp(-realism.footprint * min(ti2, 20.0) * (s**2)[..., None] * k)
     if realism.bleed_px > 0.0:
         co = max(float(wo[2]), 1e-6)
         to = math.sqrt(max(1.0 - co * co, 0.0)) / co

@@ -55,7 +55,7 @@ def session(tmp_path_factory):
     )
     import threading
 
-    from conftest import Client
+    from simtest import Client
 
     sc.speed = 7.0 / 0.03  # 30 ms per capture
     ctl = Controller(sc, log=None, linger_s=0.5)

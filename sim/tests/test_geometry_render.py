@@ -5,7 +5,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import REPO, goniowatch_binary
+from simtest import REPO, goniowatch_binary
 
 from goniosim.geometry import Plan, Rig, angle_between, sph_to_vec
 from goniosim.material import PRESETS, REALISM, albedo_texture

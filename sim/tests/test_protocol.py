@@ -2,7 +2,7 @@ import os
 import re
 
 import pytest
-from conftest import REPO
+from simtest import REPO
 
 from goniosim import protocol as P
 

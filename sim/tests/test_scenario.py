@@ -1,7 +1,7 @@
 import os
 
 import pytest
-from conftest import REPO
+from simtest import REPO
 
 from goniosim import scenario as S
 

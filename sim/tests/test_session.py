@@ -5,7 +5,7 @@ import os
 import time
 
 import pytest
-from conftest import Client
+from simtest import Client
 
 from goniosim import protocol as P
 from goniosim.render import decode_hdr

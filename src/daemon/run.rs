@@ -18,6 +18,9 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, watch};
 
+/// After this long without a line from the controller, ask where it stands (`Input::Idle`).
+const IDLE_AFTER: Duration = Duration::from_secs(5);
+
 pub struct RunOptions {
     pub session_dir: PathBuf,
     pub config: Option<PathBuf>,
@@ -47,7 +50,6 @@ struct Live {
     capture_root: PathBuf,
     finished: bool,
     critical: bool,
-    announced_files: BTreeSet<String>,
     last_plain_report: Instant,
 }
 
@@ -89,7 +91,6 @@ impl Live {
                     let _ = self.link_tx.send(line.clone());
                 }
                 Output::Ingest { idx, file } => {
-                    self.announced_files.insert(file.clone());
                     self.pending_jobs.push_back(Job {
                         idx: *idx,
                         file: file.clone(),
@@ -139,8 +140,9 @@ impl Live {
 
     /// Files in the folders of announced captures that were never announced.
     fn unannounced(&self) -> Vec<String> {
+        let announced: BTreeSet<&str> = self.engine.announced_files().collect();
         let mut dirs = BTreeSet::new();
-        for f in &self.announced_files {
+        for f in &announced {
             if let Some(parent) = Path::new(f).parent() {
                 dirs.insert(parent.to_path_buf());
             }
@@ -156,7 +158,7 @@ impl Live {
                 .filter_map(|e| e.file_name().to_str().map(str::to_string))
                 .filter(|n| !n.starts_with('.'))
                 .map(|n| d.join(n).to_string_lossy().into_owned())
-                .filter(|n| !self.announced_files.contains(n))
+                .filter(|n| !announced.contains(n.as_str()))
                 .collect();
             names.sort();
             out.extend(names);
@@ -232,14 +234,12 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         capture_root: session.info.capture_root.clone(),
         finished: false,
         critical: false,
-        announced_files: BTreeSet::new(),
         last_plain_report: Instant::now(),
     };
 
     if session.resumed {
         live.process(Input::Restart)?;
         for (idx, file) in live.engine.pending_ingest() {
-            live.announced_files.insert(file.clone());
             live.pending_jobs.push_back(Job { idx, file });
         }
         live.submit_pending();
@@ -257,10 +257,14 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
     let mut sigterm = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
         .context("cannot install SIGTERM handler")?;
     let mut tick = tokio::time::interval(Duration::from_secs(2));
+    let mut last_input = Instant::now();
     let end = loop {
         tokio::select! {
             ev = ev_rx.recv() => {
                 let Some(ev) = ev else { break RunEnd::Signal(0) };
+                if matches!(ev, Input::Rx { .. }) {
+                    last_input = Instant::now();
+                }
                 live.process(ev)?;
                 if live.finished && !opts.keep_running {
                     let files = live.unannounced();
@@ -271,6 +275,10 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
             _ = tokio::signal::ctrl_c() => break RunEnd::Signal(2),
             _ = sigterm.recv() => break RunEnd::Signal(15),
             _ = tick.tick() => {
+                if last_input.elapsed() >= IDLE_AFTER {
+                    last_input = Instant::now();
+                    live.process(Input::Idle)?;
+                }
                 live.submit_pending();
                 live.update_progress();
                 live.results.write_summary(&live.engine.summary())?;

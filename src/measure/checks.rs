@@ -26,7 +26,8 @@ pub struct CheckSpec {
     pub pose_tolerance_deg: f64,
     /// |encoder − commanded| above this on any axis raises a positioning alarm (degrees).
     pub encoder_tolerance_deg: f64,
-    /// A pair is an outlier when its ΔE00 exceeds median + k · 1.4826 · MAD of the pairs so far …
+    /// A pair is an outlier when its ΔE00 exceeds median + k · 1.4826 · MAD of the pairs so far
+    /// with the same two nominal θ …
     pub outlier_k: f64,
     /// … and this floor …
     pub outlier_floor_de2000: f64,
@@ -53,7 +54,7 @@ impl Default for CheckSpec {
             outlier_min_pairs: 30,
             nonfinite_max: 0,
             clipped_fraction_max: 0.001,
-            dark_y: 0.05,
+            dark_y: 0.5,
             failures_critical: 5,
         }
     }
@@ -234,7 +235,10 @@ pub struct Checker {
     classes: HashMap<IsotropyKey, ClassAcc>,
     table2: Table2,
     isotropy_table: Table2,
-    sorted_de2000: Vec<f64>,
+    /// ΔE00 of exact pairs so far, sorted, per geometry bucket (the pair's two nominal θ):
+    /// realistic data are less reciprocal toward grazing angles, so an outlier is judged
+    /// against pairs of the same geometry.
+    sorted_de2000: HashMap<(i64, i64), Vec<f64>>,
     counts: CheckCounts,
     consecutive_failures: u32,
 }
@@ -258,7 +262,7 @@ impl Checker {
             classes: HashMap::new(),
             table2: Table2::default(),
             isotropy_table: Table2::default(),
-            sorted_de2000: Vec::new(),
+            sorted_de2000: HashMap::new(),
             counts: CheckCounts::default(),
             consecutive_failures: 0,
         }
@@ -670,32 +674,51 @@ impl Checker {
         pair: &PairRecord,
         at: (Option<u64>, Option<f64>),
     ) -> Option<Alarm> {
-        let pos = self.sorted_de2000.partition_point(|v| *v < de);
-        let n = self.sorted_de2000.len();
-        let result = if n >= self.spec.outlier_min_pairs {
-            let med = median_sorted(&self.sorted_de2000);
-            let mut dev: Vec<f64> = self.sorted_de2000.iter().map(|v| (v - med).abs()).collect();
+        let bucket = self
+            .plan
+            .entry(pair.entries[0])
+            .map(|e| {
+                let k = self.plan.isotropy_key(&e);
+                (k.theta_lo_mdeg, k.theta_hi_mdeg)
+            })
+            .unwrap_or((0, 0));
+        let spec = self.spec.clone();
+        let sorted = self.sorted_de2000.entry(bucket).or_default();
+        let pos = sorted.partition_point(|v| *v < de);
+        let n = sorted.len();
+        let result = if n >= spec.outlier_min_pairs {
+            let med = median_sorted(sorted);
+            let mut dev: Vec<f64> = sorted.iter().map(|v| (v - med).abs()).collect();
             dev.sort_by(f64::total_cmp);
             let mad = median_sorted(&dev);
-            let limit =
-                (med + self.spec.outlier_k * 1.4826 * mad).max(self.spec.outlier_floor_de2000);
+            let limit = (med + spec.outlier_k * 1.4826 * mad).max(spec.outlier_floor_de2000);
             (de > limit).then(|| {
                 Alarm::new(
                     AlarmKind::ReciprocityOutlier,
                     Severity::Warning,
                     "reciprocity-outlier",
                     format!(
-                        "pair of captures {} and {} (entries {} ↔ {}) differs by ΔE00 = {:.2}, above the limit {:.2} (median {:.2} + {}·MAD over {} pairs)",
-                        pair.a, pair.b, pair.entries[0], pair.entries[1], de, limit, med, self.spec.outlier_k, n
+                        "pair of captures {} and {} (entries {} ↔ {}) differs by ΔE00 = {:.2}, above the limit {:.2} (median {:.2} + {}·MAD over {} pairs at θ {}°/{}°)",
+                        pair.a,
+                        pair.b,
+                        pair.entries[0],
+                        pair.entries[1],
+                        de,
+                        limit,
+                        med,
+                        spec.outlier_k,
+                        n,
+                        bucket.0 as f64 / 1000.0,
+                        bucket.1 as f64 / 1000.0
                     ),
                 )
                 .at(at.0, at.1)
-                .with(json!({"de2000": de, "limit": limit, "median": med, "mad": mad, "pairs": n, "a": pair.a, "b": pair.b}))
+                .with(json!({"de2000": de, "limit": limit, "median": med, "mad": mad, "pairs": n, "a": pair.a, "b": pair.b, "theta_pair_deg": [bucket.0 as f64 / 1000.0, bucket.1 as f64 / 1000.0]}))
             })
         } else {
             None
         };
-        self.sorted_de2000.insert(pos, de);
+        sorted.insert(pos, de);
         result
     }
 }

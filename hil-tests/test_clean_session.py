@@ -1,0 +1,53 @@
+"""A clean full 6,561-capture session at small resolution, as fast as the simulator goes."""
+
+import os
+
+from hil import REAL_PORT, assert_replay_identical, daemon_config, read_jsonl, run_daemon
+
+
+def test_clean_full_session(hil, tmp_path):
+    rig = hil("clean", realism="clean")
+    session = tmp_path / "clean-session"
+    code, out, err = run_daemon(rig, session, daemon_config(tmp_path, "clean"), timeout=600)
+    assert code == 0, out + err[-3000:]
+    caps = read_jsonl(session / "captures.jsonl")
+    pairs = read_jsonl(session / "pairs.jsonl")
+    alarms = read_jsonl(session / "alarms.jsonl")
+    n = 6561 if not REAL_PORT else len(caps)
+    assert len(caps) == n and [c["idx"] for c in caps] == list(range(n))
+    assert all(c["status"] == "ok" for c in caps)
+    if not REAL_PORT:
+        # every reciprocal pair of distinct directions is exact; self pairs are not pairs
+        exact = [p for p in pairs if p["status"] == "exact"]
+        assert len(exact) == 3240
+        assert alarms == [], alarms[:5]
+        # the clean preset is reciprocal up to noise
+        s = __import__("json").load(open(session / "summary.json"))
+        assert s["finished"] and s["table2"]["pairs"] == 3240
+        assert s["table2"]["de76"] < 0.5, s["table2"]
+        assert s["checked"]["isotropy_comparisons"] > 1000
+        subs = [c for c in caps if c["substitute"] is not None]
+        assert len(subs) == 81
+    assert "Table 2" in out
+    assert_replay_identical(session, tmp_path)
+
+
+def test_a_second_daemon_on_the_same_session_is_refused(hil, tmp_path):
+    from hil import needs_simulator, start_daemon
+
+    needs_simulator()
+    rig = hil("busy", captures=400, speed=7.0 / 0.01)
+    session = tmp_path / "busy-session"
+    cfg = daemon_config(tmp_path, "busy")
+    first = start_daemon(rig, session, cfg)
+    try:
+        import time
+
+        deadline = time.monotonic() + 10
+        while not os.path.exists(session / "journal.jsonl") and time.monotonic() < deadline:
+            time.sleep(0.05)
+        code, out, err = run_daemon(rig, session, cfg, timeout=30)
+        assert code == 3 and "in use" in err, (code, err)
+    finally:
+        first.wait(timeout=120)
+    assert first.returncode == 0
