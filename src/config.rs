@@ -17,6 +17,11 @@ use thiserror::Error;
 
 #[derive(Debug, Error)]
 pub enum ConfigError {
+    #[error("cannot read config {path}: {source}")]
+    Read {
+        path: String,
+        source: std::io::Error,
+    },
     #[error("config: {0}")]
     Parse(String),
     #[error("config: {0}")]
@@ -208,6 +213,15 @@ pub struct Config {
 }
 
 impl Config {
+    /// Read, parse and validate a config file; also returns its text.
+    pub fn load(path: &std::path::Path) -> Result<(Config, String), ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Ok((Self::from_toml_str(&text)?, text))
+    }
+
     /// Parse and validate a config file's text.
     pub fn from_toml_str(text: &str) -> Result<Config, ConfigError> {
         let cfg: Config = toml::from_str(text).map_err(|e| ConfigError::Parse(e.to_string()))?;

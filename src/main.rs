@@ -88,14 +88,24 @@ const EXIT_FILE_FAILED: u8 = 1;
 const EXIT_CRITICAL: u8 = 4;
 const EXIT_REPLAY_MISMATCH: u8 = 5;
 
+/// A mistake in how the command was called (exit status 2).
+#[derive(Debug)]
+struct UsageError(String);
+
+impl std::fmt::Display for UsageError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for UsageError {}
+
 fn load_config(path: Option<&Path>) -> Result<Config> {
     match path {
         None => Ok(Config::default()),
-        Some(p) => {
-            let text = std::fs::read_to_string(p)
-                .with_context(|| format!("cannot read config {}", p.display()))?;
-            Config::from_toml_str(&text).with_context(|| format!("invalid config {}", p.display()))
-        }
+        Some(p) => Ok(Config::load(p)
+            .with_context(|| format!("invalid config {}", p.display()))?
+            .0),
     }
 }
 
@@ -119,12 +129,13 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
-            // configuration problems are 2, anything else at run time is 3
-            let config_error = e.chain().any(|c| {
+            // usage and configuration problems are 2, anything else at run time is 3
+            let usage = e.chain().any(|c| {
                 c.downcast_ref::<goniowatch::config::ConfigError>()
                     .is_some()
-            }) || format!("{e:#}").contains("config");
-            ExitCode::from(if config_error { 2 } else { 3 })
+                    || c.downcast_ref::<UsageError>().is_some()
+            });
+            ExitCode::from(if usage { 2 } else { 3 })
         }
     }
 }
@@ -142,9 +153,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let cfg = load_config(config.as_deref())?;
             let mut opts = cfg.capture;
             if let Some(r) = roi {
-                opts.roi = Roi::parse(&r)
-                    .map_err(anyhow::Error::msg)
-                    .context("--roi")?;
+                opts.roi = Roi::parse(&r).map_err(|e| UsageError(format!("--roi: {e}")))?;
             }
             let mut failed = 0usize;
             for f in &files {

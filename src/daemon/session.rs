@@ -89,9 +89,7 @@ impl Session {
                 dir.display()
             );
         };
-        let text = std::fs::read_to_string(config_path)
-            .with_context(|| format!("cannot read config {}", config_path.display()))?;
-        let config = Config::from_toml_str(&text)
+        let (config, text) = Config::load(config_path)
             .with_context(|| format!("invalid config {}", config_path.display()))?;
         config
             .live_white()
