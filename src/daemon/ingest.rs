@@ -278,11 +278,11 @@ mod tests {
     }
 
     #[test]
-    fn links_leaving_the_root_are_refused() {
+    fn links_leaving_the_root_are_refused() -> std::io::Result<()> {
         let base = std::env::temp_dir().join(format!("gw-resolve-{}", std::process::id()));
         let root = base.join("root");
-        std::fs::create_dir_all(&root).unwrap();
-        std::fs::write(base.join("secret.hdr"), b"x").unwrap();
+        std::fs::create_dir_all(&root)?;
+        std::fs::write(base.join("secret.hdr"), b"x")?;
         let _ = std::os::unix::fs::symlink(base.join("secret.hdr"), root.join("evil.hdr"));
         assert!(matches!(
             resolve(&root, "evil.hdr"),

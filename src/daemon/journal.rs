@@ -264,18 +264,19 @@ mod tests {
     use super::*;
 
     #[test]
-    fn torn_lines_are_cut() {
+    fn torn_lines_are_cut() -> Result<()> {
         let dir = std::env::temp_dir().join(format!("gw-journal-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::create_dir_all(&dir)?;
         let p = dir.join("j.jsonl");
-        std::fs::write(&p, b"{\"a\":1}\n{\"a\":2}\n{\"a\":").unwrap();
-        assert_eq!(repair_jsonl(&p).unwrap(), 1);
-        assert_eq!(std::fs::read(&p).unwrap(), b"{\"a\":1}\n{\"a\":2}\n");
-        std::fs::write(&p, b"{\"a\":1}\n{\"a\"::}\n").unwrap();
-        assert_eq!(repair_jsonl(&p).unwrap(), 1);
-        assert_eq!(std::fs::read(&p).unwrap(), b"{\"a\":1}\n");
-        std::fs::write(&p, b"{\"a\":1}\n").unwrap();
-        assert_eq!(repair_jsonl(&p).unwrap(), 0);
+        std::fs::write(&p, b"{\"a\":1}\n{\"a\":2}\n{\"a\":")?;
+        assert_eq!(repair_jsonl(&p)?, 1);
+        assert_eq!(std::fs::read(&p)?, b"{\"a\":1}\n{\"a\":2}\n");
+        std::fs::write(&p, b"{\"a\":1}\n{\"a\"::}\n")?;
+        assert_eq!(repair_jsonl(&p)?, 1);
+        assert_eq!(std::fs::read(&p)?, b"{\"a\":1}\n");
+        std::fs::write(&p, b"{\"a\":1}\n")?;
+        assert_eq!(repair_jsonl(&p)?, 0);
         std::fs::remove_dir_all(&dir).ok();
+        Ok(())
     }
 }
