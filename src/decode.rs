@@ -269,7 +269,7 @@ fn decode_exr(bytes: &[u8], limits: &DecodeLimits) -> Result<DecodedImage, Decod
     if limits.threads <= 1 {
         decode_exr_sequential(bytes, layer)
     } else {
-        decode_exr_blocks(bytes, limits)
+        decode_exr_blocks(bytes, limits, layer)
     }
 }
 
@@ -338,26 +338,19 @@ fn decode_exr_sequential(bytes: &[u8], layer_index: usize) -> Result<DecodedImag
 }
 
 /// Several threads: read the chunks, decompress them on our own scoped threads.
-fn decode_exr_blocks(bytes: &[u8], limits: &DecodeLimits) -> Result<DecodedImage, DecodeError> {
+fn decode_exr_blocks(
+    bytes: &[u8],
+    limits: &DecodeLimits,
+    layer: usize,
+) -> Result<DecodedImage, DecodeError> {
     use exr::block::reader::Reader;
     let exr_err = |e: exr::error::Error| DecodeError::Exr(e.to_string());
     let reader = Reader::read_from_buffered(Cursor::new(bytes), false).map_err(exr_err)?;
     let meta = reader.meta_data().clone();
-    let has =
-        |hd: &exr::meta::header::Header, n: &str| hd.channels.list.iter().any(|c| c.name.eq(n));
-    let Some(layer) = meta
+    let header = meta
         .headers
-        .iter()
-        .position(|hd| has(hd, "R") && has(hd, "G") && has(hd, "B"))
-    else {
-        let names: Vec<String> = meta
-            .headers
-            .iter()
-            .flat_map(|hd| hd.channels.list.iter().map(|c| c.name.to_string()))
-            .collect();
-        return Err(DecodeError::NoRgbLayer(names.join(", ")));
-    };
-    let header = &meta.headers[layer];
+        .get(layer)
+        .ok_or_else(|| DecodeError::Exr("RGB layer missing".into()))?;
     let (w, h) = (header.layer_size.0, header.layer_size.1);
     // channel index in the header → R/G/B slot
     let mut slot_of = Vec::with_capacity(header.channels.list.len());

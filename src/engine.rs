@@ -606,17 +606,8 @@ impl Engine {
                 self.stats.naks += 1;
                 match m.get("reason") {
                     Some("unsupported-version") => {
-                        self.version_refused = true;
                         let supported = m.get("supported").unwrap_or("?").to_string();
-                        self.alarm(
-                            out,
-                            Alarm::new(
-                                AlarmKind::Link,
-                                Severity::Critical,
-                                "unsupported-version",
-                                format!("the controller refuses protocol version {PROTO_VERSION} (it speaks {supported}); goniowatch keeps listening but cannot check this run"),
-                            ),
-                        );
+                        self.version_refused(out, &supported);
                     }
                     // one of our lines was corrupted: resend the resync if one is pending
                     Some("bad-crc") if self.outstanding_resync.take().is_some() => {
@@ -693,19 +684,8 @@ impl Engine {
             .map(|p| p == PROTO_VERSION.to_string())
             .unwrap_or(false);
         if !proto_ok {
-            self.version_refused = true;
-            self.alarm(
-                out,
-                Alarm::new(
-                    AlarmKind::Link,
-                    Severity::Critical,
-                    "unsupported-version",
-                    format!(
-                        "the controller speaks protocol {:?}, goniowatch speaks {PROTO_VERSION}",
-                        m.get("proto")
-                    ),
-                ),
-            );
+            let theirs = m.get("proto").unwrap_or("?").to_string();
+            self.version_refused(out, &theirs);
             return;
         }
         if let Some(n) = m.get_u64("captures") {
@@ -748,6 +728,19 @@ impl Engine {
         self.outstanding_resync = None;
         self.send(out, "SUBSCRIBE", &[]);
         self.request_resync(out);
+    }
+
+    fn version_refused(&mut self, out: &mut Vec<Output>, theirs: &str) {
+        self.version_refused = true;
+        self.alarm(
+            out,
+            Alarm::new(
+                AlarmKind::Link,
+                Severity::Critical,
+                "unsupported-version",
+                format!("the controller speaks protocol version {theirs}, goniowatch speaks {PROTO_VERSION}; goniowatch keeps listening but cannot check this run"),
+            ),
+        );
     }
 
     fn announce(&mut self, out: &mut Vec<Output>, idx: u64, a: Announcement) {

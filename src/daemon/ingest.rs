@@ -289,5 +289,6 @@ mod tests {
             Err(PathError::OutsideRoot(_))
         ));
         std::fs::remove_dir_all(&base).ok();
+        Ok(())
     }
 }
