@@ -1,0 +1,342 @@
+//! The session engine on scripted traffic: negotiation, gaps, reboots, garbled and malformed
+//! lines, lost replies, duplicates, and the ordering of outcomes.
+
+use goniowatch::config::Config;
+use goniowatch::engine::{Engine, Input, Output};
+use goniowatch::measure::averaging::CaptureStats;
+use goniowatch::measure::checks::Outcome;
+use goniowatch::protocol::{format, parse};
+
+fn engine() -> Engine {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
+    Config::from_toml_str(&text).unwrap().engine().unwrap()
+}
+
+struct Ctl {
+    seq: u32,
+}
+
+impl Ctl {
+    fn line(&mut self, verb: &str, fields: &[(&str, String)]) -> Input {
+        let l = format(self.seq, verb, fields);
+        self.seq += 1;
+        Input::Rx { line: l }
+    }
+    fn ident(&mut self, boot: u64) -> Input {
+        self.line(
+            "IDENT",
+            &[
+                ("rig", "r".into()),
+                ("fw", "1".into()),
+                ("proto", "1".into()),
+                ("session", "s".into()),
+                ("captures", "6561".into()),
+                ("boot", boot.to_string()),
+            ],
+        )
+    }
+    fn capture(&mut self, idx: u64) -> Input {
+        self.line(
+            "CAPTURE",
+            &[
+                ("idx", idx.to_string()),
+                ("entry", (idx + 1).to_string()),
+                ("file", format!("s/cap_{idx}.hdr")),
+                ("t", format!("{}", idx as f64 * 7.0)),
+                ("cmd", "0,90,-90,15".into()),
+                ("enc", "0,90,-90,15".into()),
+                ("exp", "x".into()),
+            ],
+        )
+    }
+}
+
+fn sent(out: &[Output]) -> Vec<String> {
+    out.iter()
+        .filter_map(|o| match o {
+            Output::Send(l) => Some(
+                parse(l).unwrap().verb
+                    + &parse(l)
+                        .unwrap()
+                        .fields
+                        .iter()
+                        .map(|(k, v)| format!(" {k}={v}"))
+                        .collect::<String>(),
+            ),
+            _ => None,
+        })
+        .collect()
+}
+
+fn alarms(out: &[Output]) -> Vec<String> {
+    out.iter()
+        .filter_map(|o| match o {
+            Output::Alarm(a) => Some(a.code.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+fn ok_outcome() -> Outcome {
+    Outcome::Ok {
+        stats: CaptureStats {
+            mean_rgb: [0.3, 0.3, 0.3],
+            pixels: 100,
+            nonfinite: 0,
+            negative: 0,
+            clipped: 0,
+            dark: 0,
+            max_value: 1.0,
+        },
+        width: 10,
+        height: 10,
+        size: 1000,
+        sha256: "x".into(),
+    }
+}
+
+fn connected(e: &mut Engine, c: &mut Ctl) -> Vec<Output> {
+    let mut out = e.handle(&Input::Connected);
+    assert_eq!(sent(&out), vec!["HELLO proto=1 client=goniowatch/0.1.0"]);
+    out.extend(e.handle(&c.ident(1)));
+    out
+}
+
+#[test]
+fn handshake_subscribes_and_resyncs_from_zero() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let out = connected(&mut e, &mut c);
+    assert_eq!(
+        sent(&out)[1..],
+        ["SUBSCRIBE".to_string(), "RESYNC from=0".to_string()]
+    );
+    // the unsolicited IDENT after boot says the same: no second subscription
+    let out = e.handle(&c.ident(1));
+    assert!(sent(&out).is_empty());
+}
+
+#[test]
+fn unsupported_version_is_critical() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    e.handle(&Input::Connected);
+    let out = e.handle(&c.line(
+        "NAK",
+        &[
+            ("ref", "0".into()),
+            ("reason", "unsupported-version".into()),
+            ("supported", "2".into()),
+        ],
+    ));
+    assert_eq!(alarms(&out), ["unsupported-version"]);
+    let out = e.handle(&c.line("IDENT", &[("proto", "2".into()), ("boot", "1".into())]));
+    assert_eq!(alarms(&out), ["unsupported-version"]);
+    assert!(
+        sent(&out).is_empty(),
+        "nothing is subscribed on a version we do not speak"
+    );
+}
+
+#[test]
+fn garbled_lines_are_counted_and_never_fatal() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    connected(&mut e, &mut c);
+    let mut out = Vec::new();
+    for bad in [
+        "",
+        "garbage",
+        "1 CAPTURE idx=1*FFFF",
+        "\u{0}\u{1}\u{2}",
+        &"x".repeat(2000),
+        "12 CAPTURE idx=1 file=a*12G4",
+    ] {
+        out.extend(e.handle(&Input::Rx {
+            line: bad.to_string(),
+        }));
+    }
+    out.extend(e.handle(&Input::RxBad {
+        reason: "line is not UTF-8".into(),
+    }));
+    assert_eq!(
+        alarms(&out),
+        ["crc-errors"],
+        "a burst of bad lines is one link alarm"
+    );
+    let s = e.summary().link;
+    assert_eq!(s.crc_errors + s.framing_errors, 7);
+    // a CRC-valid CAPTURE with missing or bad fields is an alarm and a resync, not a crash
+    let out = e.handle(&c.line("CAPTURE", &[("idx", "0".into()), ("entry", "zero".into())]));
+    assert!(alarms(&out).contains(&"bad-announcement".to_string()));
+    let out = e.handle(&c.line(
+        "CAPTURE",
+        &[
+            ("idx", "0".into()),
+            ("entry", "1".into()),
+            ("file", "a".into()),
+            ("t", "0".into()),
+            ("cmd", "1,2,3".into()),
+            ("enc", "1,2,3,4".into()),
+        ],
+    ));
+    assert!(alarms(&out).contains(&"bad-announcement".to_string()));
+    // unknown verbs are counted and ignored
+    e.handle(&c.line("FROB", &[]));
+    assert_eq!(e.summary().link.unknown_verbs, 1);
+}
+
+#[test]
+fn sequence_gap_and_index_gap_trigger_resync_and_outcomes_go_in_order() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    connected(&mut e, &mut c);
+    let ack = e.handle(&c.line(
+        "ACK",
+        &[
+            ("ref", "2".into()),
+            ("count", "0".into()),
+            ("next", "0".into()),
+        ],
+    ));
+    assert!(sent(&ack).is_empty());
+    let out = e.handle(&c.capture(0));
+    assert!(matches!(out[0], Output::Ingest { idx: 0, .. }));
+    c.seq += 1; // a lost line
+    let out = e.handle(&c.capture(2)); // and an index gap
+    assert_eq!(sent(&out), ["RESYNC from=1"]);
+    assert_eq!(e.summary().link.sequence_gaps, 1);
+    // outcome of 2 first: nothing is checked until 0 and 1 are in
+    let out = e.handle(&Input::Outcome {
+        idx: 2,
+        outcome: ok_outcome(),
+    });
+    assert!(out.iter().all(|o| !matches!(o, Output::Capture(_))));
+    e.handle(&c.capture(1));
+    let out = e.handle(&Input::Outcome {
+        idx: 1,
+        outcome: ok_outcome(),
+    });
+    assert!(out.iter().all(|o| !matches!(o, Output::Capture(_))));
+    let out = e.handle(&Input::Outcome {
+        idx: 0,
+        outcome: ok_outcome(),
+    });
+    let order: Vec<u64> = out
+        .iter()
+        .filter_map(|o| match o {
+            Output::Capture(c) => Some(c.idx),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(order, [0, 1, 2]);
+}
+
+#[test]
+fn lost_ack_is_asked_again_after_64_lines_and_on_idle() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    connected(&mut e, &mut c); // RESYNC outstanding, its ACK never comes
+    let mut resent = 0;
+    for _ in 0..70 {
+        let out = e.handle(&c.line(
+            "POSE",
+            &[
+                ("t", "0".into()),
+                ("cmd", "0,0,0,0".into()),
+                ("enc", "0,0,0,0".into()),
+            ],
+        ));
+        resent += sent(&out)
+            .iter()
+            .filter(|s| s.starts_with("RESYNC"))
+            .count();
+    }
+    assert_eq!(resent, 1);
+    let out = e.handle(&Input::Idle);
+    assert_eq!(sent(&out), ["RESYNC from=0"]);
+    // the ACK carries the state: a lost final STATUS is recovered
+    let out = e.handle(&c.line(
+        "ACK",
+        &[
+            ("ref", "4".into()),
+            ("count", "0".into()),
+            ("next", "0".into()),
+            ("state", "done".into()),
+        ],
+    ));
+    assert!(out.contains(&Output::Finished));
+}
+
+#[test]
+fn reboot_resubscribes_and_duplicates_are_handled() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    connected(&mut e, &mut c);
+    e.handle(&c.capture(0));
+    let mut c2 = Ctl { seq: 0 };
+    let out = e.handle(&c2.ident(2));
+    assert_eq!(alarms(&out), ["controller-reboot"]);
+    assert_eq!(sent(&out), ["SUBSCRIBE", "RESYNC from=1"]);
+    // a replayed announcement is harmless; a conflicting one is an alarm and the first is kept
+    let again = e.handle(&c2.capture(0));
+    assert!(again.is_empty());
+    let conflicting = e.handle(&c2.line(
+        "CAPTURE",
+        &[
+            ("idx", "0".into()),
+            ("entry", "5".into()),
+            ("file", "s/other.hdr".into()),
+            ("t", "0".into()),
+            ("cmd", "0,0,0,0".into()),
+            ("enc", "0,0,0,0".into()),
+        ],
+    ));
+    assert_eq!(alarms(&conflicting), ["duplicate-index"]);
+    assert_eq!(e.summary().link.duplicate_announcements, 2);
+}
+
+#[test]
+fn captures_missing_from_the_controller_log_are_reported_once() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    connected(&mut e, &mut c);
+    e.handle(&c.capture(0));
+    e.handle(&c.capture(2));
+    let out = e.handle(&c.line(
+        "ACK",
+        &[
+            ("ref", "2".into()),
+            ("count", "0".into()),
+            ("next", "3".into()),
+        ],
+    ));
+    assert_eq!(alarms(&out), ["capture-never-announced"]);
+    e.handle(&Input::Outcome {
+        idx: 0,
+        outcome: ok_outcome(),
+    });
+    let out = e.handle(&Input::Outcome {
+        idx: 2,
+        outcome: ok_outcome(),
+    });
+    assert!(
+        out.iter()
+            .any(|o| matches!(o, Output::Capture(c) if c.idx == 2)),
+        "1 is skipped, 2 is checked"
+    );
+}
+
+#[test]
+fn disconnect_and_restart_are_link_events() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    connected(&mut e, &mut c);
+    let out = e.handle(&Input::Disconnected {
+        reason: "EIO".into(),
+    });
+    assert_eq!(alarms(&out), ["port-lost"]);
+    assert!(e.active_conditions().iter().any(|a| a.code == "port-lost"));
+    let out = e.handle(&Input::Connected);
+    assert_eq!(alarms(&out), ["port-back"]);
+    let out = e.handle(&Input::Restart);
+    assert_eq!(alarms(&out), ["daemon-restart"]);
+    // nothing is sent while disconnected
+    e.handle(&Input::Disconnected {
+        reason: "EOF".into(),
+    });
+    assert!(sent(&e.handle(&Input::Idle)).is_empty());
+}
