@@ -1,6 +1,7 @@
 """Each capture and link fault of the simulator: the right alarm, the run goes on, nothing lost."""
 
 import json
+import os
 import re
 
 from hil import assert_replay_identical, daemon_config, needs_simulator, read_jsonl, run_daemon
@@ -28,7 +29,12 @@ def test_capture_faults(hil, tmp_path):
     ]
     rig = hil("capf", faults, captures=160, speed=7.0 / 0.02)
     session = tmp_path / "capf-session"
-    code, out, err = run_daemon(rig, session, daemon_config(tmp_path, "capf", give_up_s=3.0), timeout=180)
+    # a stray file nobody announced, and a hook that records every alarm it is given
+    os.makedirs(os.path.join(rig.capture_root, "capf"), exist_ok=True)
+    open(os.path.join(rig.capture_root, "capf", "stray.hdr"), "wb").write(b"#?RADIANCE\n")
+    hooked = tmp_path / "hook.jsonl"
+    cfg = daemon_config(tmp_path, "capf", give_up_s=3.0, hook=["sh", "-c", f'x=$(cat); printf "%s\\n" "$x" >> {hooked}'])
+    code, out, err = run_daemon(rig, session, cfg, timeout=180)
     assert code == 0, out + err[-3000:]
     caps = {c["idx"]: c for c in read_jsonl(session / "captures.jsonl")}
     assert sorted(caps) == list(range(160)), "every capture is accounted for"
@@ -44,6 +50,18 @@ def test_capture_faults(hil, tmp_path):
     assert caps[80]["status"] == "ok", "a slowly written file is accepted once complete"
     assert [a["idx"] for a in al["duplicate-index"]] == [89]
     assert caps[90]["status"] == "ok" and caps[90]["entry"] == 90, "the mis-announced capture is recovered by resync"
+    assert "capf/stray.hdr" in al["unannounced-files"][0]["message"]
+    # the hook got every alarm as JSON (it runs in the background: give it a moment)
+    import time
+
+    deadline = time.monotonic() + 10
+    want = sum(len(v) for v in al.values())
+    while time.monotonic() < deadline:
+        got = [json.loads(l) for l in open(hooked).read().splitlines() if l.strip()] if hooked.exists() else []
+        if len(got) >= want:
+            break
+        time.sleep(0.1)
+    assert len(got) == want and {g["code"] for g in got} == set(al) and all("wall_ms" in g for g in got)
     # the NaN capture's mean is over the finite pixels and matches the truth
     truth = rig.truth()
     assert caps[20]["nonfinite"] >= 1
@@ -100,6 +118,13 @@ def test_encoder_mismatch_and_backlash_are_positioning_alarms(hil, tmp_path):
     assert [a["idx"] for a in al["encoder-mismatch"]] == [30, 31]
     assert "wagon encoder reads" in al["encoder-mismatch"][0]["message"]
     assert_replay_identical(session, tmp_path)
+    # replay paced by the recorded times (here 50× real time) gives the same results
+    import subprocess
+    from hil import binary
+
+    r = subprocess.run([binary(), "replay", str(session), "--out", str(tmp_path / "paced"), "--speed", "50", "--quiet"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert open(session / "pairs.jsonl").read() == open(tmp_path / "paced" / "pairs.jsonl").read()
 
 
 def test_bad_config_is_refused_with_the_field_name(tmp_path):

@@ -340,3 +340,31 @@ fn disconnect_and_restart_are_link_events() {
     });
     assert!(sent(&e.handle(&Input::Idle)).is_empty());
 }
+
+#[test]
+fn pause_on_critical_only_when_enabled() {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
+    let text = text.replace("pause_on_critical = false", "pause_on_critical = true");
+    let mut e = Config::from_toml_str(&text).unwrap().engine().unwrap();
+    let mut c = Ctl { seq: 0 };
+    connected(&mut e, &mut c);
+    let fault = c.line(
+        "STATUS",
+        &[
+            ("state", "fault".into()),
+            ("t", "1".into()),
+            ("reason", "arm%20stall".into()),
+        ],
+    );
+    let out = e.handle(&fault);
+    assert_eq!(alarms(&out), ["controller-fault"]);
+    assert_eq!(sent(&out), ["PAUSE"]);
+    // off by default
+    let mut e = engine();
+    let mut c = Ctl { seq: 0 };
+    connected(&mut e, &mut c);
+    let out = e.handle(&c.line("STATUS", &[("state", "fault".into()), ("t", "1".into())]));
+    assert_eq!(alarms(&out), ["controller-fault"]);
+    assert!(sent(&out).is_empty());
+}

@@ -51,6 +51,7 @@ struct Live {
     finished: bool,
     critical: bool,
     last_plain_report: Instant,
+    hooks: Vec<tokio::task::JoinHandle<()>>,
 }
 
 impl Live {
@@ -103,7 +104,8 @@ impl Live {
                         self.critical = true;
                     }
                     log_alarm(a, self.bar.as_ref(), false);
-                    run_hook(&self.hook, a, false);
+                    self.hooks.retain(|h| !h.is_finished());
+                    self.hooks.extend(run_hook(&self.hook, a, false));
                     self.results.record(&o)?;
                 }
                 _ => self.results.record(&o)?,
@@ -235,6 +237,7 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         finished: false,
         critical: false,
         last_plain_report: Instant::now(),
+        hooks: Vec::new(),
     };
 
     if session.resumed {
@@ -247,7 +250,7 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
     // alarm states are evaluated on start and resume, not only on transitions
     for a in live.engine.active_conditions() {
         log_alarm(&a, live.bar.as_ref(), true);
-        run_hook(&live.hook, &a, true);
+        live.hooks.extend(run_hook(&live.hook, &a, true));
     }
 
     let mut link_spec = cfg.link.clone();
@@ -290,6 +293,10 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
     // captures are redone on resume)
     let _ = stop_tx.send(true);
     let _ = tokio::time::timeout(Duration::from_secs(2), link).await;
+    // alarm hooks still running get their time (each has its own 10 s limit)
+    for h in live.hooks.drain(..) {
+        let _ = tokio::time::timeout(Duration::from_secs(11), h).await;
+    }
     live.results.sync()?;
     live.journal.sync()?;
     let summary = live.engine.summary();

@@ -35,11 +35,14 @@ pub fn log_alarm(a: &Alarm, bar: Option<&indicatif::ProgressBar>, still_active: 
     }
 }
 
-/// Run the hook command for one alarm, in the background, with a time limit.
-pub fn run_hook(hook: &[String], a: &Alarm, still_active: bool) {
-    let Some((prog, args)) = hook.split_first() else {
-        return;
-    };
+/// Run the hook command for one alarm, in the background, with a time limit. The caller keeps
+/// the handle and waits for it before exiting, so the last alarm's hook is not cut short.
+pub fn run_hook(
+    hook: &[String],
+    a: &Alarm,
+    still_active: bool,
+) -> Option<tokio::task::JoinHandle<()>> {
+    let (prog, args) = hook.split_first()?;
     let mut value = serde_json::to_value(a).unwrap_or_default();
     if let Some(obj) = value.as_object_mut() {
         obj.insert("wall_ms".into(), super::journal::now_ms().into());
@@ -53,7 +56,7 @@ pub fn run_hook(hook: &[String], a: &Alarm, still_active: bool) {
         .stderr(Stdio::null())
         .kill_on_drop(true);
     let prog = prog.clone();
-    tokio::spawn(async move {
+    Some(tokio::spawn(async move {
         let mut child = match cmd.spawn() {
             Ok(c) => c,
             Err(e) => {
@@ -73,5 +76,5 @@ pub fn run_hook(hook: &[String], a: &Alarm, still_active: bool) {
             }
             _ => {}
         }
-    });
+    }))
 }
