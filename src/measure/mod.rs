@@ -14,3 +14,4 @@ pub mod geometry;
 pub mod kinematics;
 pub mod plan;
 pub mod reciprocity;
+pub mod shepard;
