@@ -2,7 +2,7 @@
 
 mod common;
 use common::{csv_rows, reference};
-use goniowatch::measure::shepard::{CubicShepard2, ShepardError};
+use goniowatch::measure::shepard::{Shepard, ShepardError};
 
 /// A constant as Renka's Fortran has it: a single-precision literal in a double expression.
 fn single(v: f32) -> f64 {
@@ -94,13 +94,13 @@ fn renka_published_error_table() {
         );
         let (x, y) = nodeset(set);
         let f: Vec<f64> = x.iter().zip(&y).map(|(&x, &y)| tstfn(k, x, y)).collect();
-        let cs = CubicShepard2::new(&x, &y, &f, nc, nw).unwrap();
+        let cs = Shepard::cubic_2d(&x, &y, &f, nc, nw).unwrap();
         let (mut emax, mut esum, mut sse, mut fs) = (0.0f64, 0.0, 0.0, Vec::new());
         for j in 0..33 {
             for i in 0..33 {
                 let (px, py) = (i as f64 / 32.0, j as f64 / 32.0);
                 // Renka's driver: a point outside every radius evaluates to 0
-                let v = match cs.value(px, py) {
+                let v = match cs.value(&[px, py]) {
                     Ok(v) => v,
                     Err(ShepardError::Outside { .. }) => 0.0,
                     Err(e) => panic!("{e}"),
@@ -145,12 +145,12 @@ fn reproduces_a_cubic_to_rounding() {
             f.push(((px + 2.0 * py) / 3.0).powi(3));
         }
     }
-    let cs = CubicShepard2::new(&x, &y, &f, 17, 30).unwrap();
+    let cs = Shepard::cubic_2d(&x, &y, &f, 17, 30).unwrap();
     let mut emax: f64 = 0.0;
     for j in 0..20 {
         for i in 0..20 {
             let (px, py) = (i as f64 / 19.0, j as f64 / 19.0);
-            emax = emax.max((cs.value(px, py).unwrap() - ((px + 2.0 * py) / 3.0).powi(3)).abs());
+            emax = emax.max((cs.value(&[px, py]).unwrap() - ((px + 2.0 * py) / 3.0).powi(3)).abs());
         }
     }
     assert!(emax < 1e-14, "{emax}");
@@ -162,11 +162,11 @@ fn bad_node_sets_are_typed_errors() {
     let y: Vec<f64> = (0..12).map(|i| (i * 7 % 5) as f64).collect();
     let f = vec![1.0; 12];
     assert_eq!(
-        CubicShepard2::new(&x[..9], &y[..9], &f[..9], 9, 5).unwrap_err(),
+        Shepard::cubic_2d(&x[..9], &y[..9], &f[..9], 9, 5).unwrap_err(),
         ShepardError::TooFewNodes(9)
     );
     assert!(matches!(
-        CubicShepard2::new(&x, &y, &f, 8, 5),
+        Shepard::cubic_2d(&x, &y, &f, 8, 5),
         Err(ShepardError::BadParameters { .. })
     ));
     let mut xd = x.clone();
@@ -174,27 +174,118 @@ fn bad_node_sets_are_typed_errors() {
     xd[3] = xd[7];
     yd[3] = yd[7];
     assert_eq!(
-        CubicShepard2::new(&xd, &yd, &f, 9, 5).unwrap_err(),
+        Shepard::cubic_2d(&xd, &yd, &f, 9, 5).unwrap_err(),
         ShepardError::DuplicateNodes(3, 7)
     );
     // all nodes on one line: no unique cubic
     let yl = vec![0.5; 12];
     assert!(matches!(
-        CubicShepard2::new(&x, &yl, &f, 9, 5),
+        Shepard::cubic_2d(&x, &yl, &f, 9, 5),
         Err(ShepardError::Collinear(_))
     ));
     let mut fnan = f.clone();
     fnan[2] = f64::NAN;
     assert_eq!(
-        CubicShepard2::new(&x, &y, &fnan, 9, 5).unwrap_err(),
+        Shepard::cubic_2d(&x, &y, &fnan, 9, 5).unwrap_err(),
         ShepardError::NotFinite(2)
     );
     // far away: no value, not a silent 0
     let (gx, gy): (Vec<f64>, Vec<f64>) = (0..25).map(|i| ((i % 5) as f64, (i / 5) as f64)).unzip();
-    let cs = CubicShepard2::new(&gx, &gy, &[1.0; 25], 11, 10).unwrap();
-    assert_eq!(cs.value(2.2, 1.7), Ok(1.0));
+    let cs = Shepard::cubic_2d(&gx, &gy, &[1.0; 25], 11, 10).unwrap();
+    assert_eq!(cs.value(&[2.2, 1.7]), Ok(1.0));
     assert!(matches!(
-        cs.value(1e6, 1e6),
+        cs.value(&[1e6, 1e6]),
         Err(ShepardError::Outside { .. })
+    ));
+}
+
+#[test]
+fn quadratic_2d_reproduces_a_quadratic() {
+    // TOMS 660 QS2TEST: 6×6 grid x = (i−1)/5, y = (6−j)/5, NQ 13, NW 19, F = ((x + 2y)/3)²
+    let (mut x, mut y, mut f) = (Vec::new(), Vec::new(), Vec::new());
+    for j in 1..=6 {
+        for i in 1..=6 {
+            let (px, py) = ((i - 1) as f64 / 5.0, (6 - j) as f64 / 5.0);
+            x.push(px);
+            y.push(py);
+            f.push(((px + 2.0 * py) / 3.0).powi(2));
+        }
+    }
+    let q = Shepard::quadratic_2d(&x, &y, &f, 13, 19).unwrap();
+    let mut emax: f64 = 0.0;
+    for j in 0..10 {
+        for i in 0..10 {
+            let (px, py) = (i as f64 / 9.0, j as f64 / 9.0);
+            emax = emax.max((q.value(&[px, py]).unwrap() - ((px + 2.0 * py) / 3.0).powi(2)).abs());
+        }
+    }
+    assert!(emax < 1e-14, "{emax}");
+}
+
+#[test]
+fn quadratic_3d_reproduces_a_quadratic() {
+    // TOMS 661 QS3TEST: 4×4×4 grid (i−1)/3, NQ 17, NW 32, F = ((x + 2y + 3z)/6)², 5×5×5 points
+    let (mut x, mut y, mut z, mut f) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for k in 0..4 {
+        for j in 0..4 {
+            for i in 0..4 {
+                let (px, py, pz) = (i as f64 / 3.0, j as f64 / 3.0, k as f64 / 3.0);
+                x.push(px);
+                y.push(py);
+                z.push(pz);
+                f.push(((px + 2.0 * py + 3.0 * pz) / 6.0).powi(2));
+            }
+        }
+    }
+    let q = Shepard::quadratic_3d(&x, &y, &z, &f, 17, 32).unwrap();
+    let mut emax: f64 = 0.0;
+    for k in 0..5 {
+        for j in 0..5 {
+            for i in 0..5 {
+                let (px, py, pz) = (i as f64 / 4.0, j as f64 / 4.0, k as f64 / 4.0);
+                let want = ((px + 2.0 * py + 3.0 * pz) / 6.0).powi(2);
+                emax = emax.max((q.value(&[px, py, pz]).unwrap() - want).abs());
+            }
+        }
+    }
+    assert!(emax < 1e-14, "{emax}");
+}
+
+#[test]
+fn near_duplicate_and_coplanar_nodes() {
+    // two nodes 1e-13 apart are duplicates (their data difference is rounding noise) ...
+    let (mut x, mut y): (Vec<f64>, Vec<f64>) = (0..36)
+        .map(|i| ((i % 6) as f64 / 5.0, (i / 6) as f64 / 5.0))
+        .unzip();
+    x[7] = x[8] - 1e-13;
+    y[7] = y[8];
+    let f: Vec<f64> = x.iter().zip(&y).map(|(a, b)| a + b).collect();
+    assert_eq!(
+        Shepard::quadratic_2d(&x, &y, &f, 13, 19).unwrap_err(),
+        ShepardError::DuplicateNodes(7, 8)
+    );
+    // ... two nodes 1e-6 apart are not: the fit stays accurate on a linear function
+    x[7] = x[8] - 1e-6;
+    let f: Vec<f64> = x.iter().zip(&y).map(|(a, b)| a + b).collect();
+    let q = Shepard::quadratic_2d(&x, &y, &f, 13, 19).unwrap();
+    let v = q.value(&[0.5, 0.5]).unwrap();
+    assert!((v - 1.0).abs() < 1e-6, "{v}");
+    // all nodes in one plane: no unique 3-D quadratic
+    let (mut x3, mut y3, mut z3) = (Vec::new(), Vec::new(), Vec::new());
+    for j in 0..5 {
+        for i in 0..5 {
+            x3.push(i as f64);
+            y3.push(j as f64);
+            z3.push(0.0);
+        }
+    }
+    let f3 = vec![1.0; 25];
+    assert!(matches!(
+        Shepard::quadratic_3d(&x3, &y3, &z3, &f3, 17, 20),
+        Err(ShepardError::Collinear(_))
+    ));
+    assert!(matches!(
+        Shepard::quadratic_2d(&x[..5], &y[..5], &f[..5], 5, 4),
+        Err(ShepardError::TooFewNodes(5))
     ));
 }

@@ -1,14 +1,15 @@
-//! Renka's modified cubic Shepard interpolation in 2-D (the method of ACM TOMS Algorithm 790,
-//! CSHEP2D), written from the algorithm's description: groundwork for issue 6 (the quadratic
-//! 2-D/3-D variants, the cell grid for the neighbour search and the resampling around it are
-//! open).
+//! Renka's modified Shepard interpolation, written from the algorithms' descriptions
+//! (ACM TOMS 660 QSHEP2D, 661 QSHEP3D, 790 CSHEP2D): groundwork for issue 6 (the cell grid for
+//! the neighbour search and the resampling built on it are open).
 //!
-//! The interpolant is C(p) = Σ W_k(p) C_k(p) / Σ W_k(p) with
-//! - nodal cubics C_k interpolating f_k, fitted by weighted least squares to the NC nearest nodes
-//!   (row weights (R_c − d)/(R_c d), R_c just large enough to include them; columns scaled by the
-//!   inverse RMS distance; a QR solve; an ill-conditioned fit takes more nodes, and at the limit
-//!   of 40 is damped towards a quadratic);
-//! - weights W_k = ((R_k − d)₊ / (R_k d))³ with R_k the distance that includes NW nodes.
+//! The interpolant is Q(p) = Σ W_k(p) Q_k(p) / Σ W_k(p) with
+//! - nodal polynomials Q_k (quadratic in 2-D or 3-D, or cubic in 2-D) interpolating f_k, fitted
+//!   by weighted least squares to the NQ (NC) nearest nodes: row weights (R_q − d)/(R_q d) with
+//!   R_q just large enough to include them, columns scaled by the inverse RMS distance, a QR
+//!   solve; an ill-conditioned fit takes more nodes, and at the limit of 40 the highest-order
+//!   terms are damped (the fit tends to the next lower degree);
+//! - weights W_k = ((R_k − d)₊ / (R_k d))^p with R_k the distance that includes NW nodes, p = 2
+//!   for the quadratic methods and 3 for the cubic one.
 //!
 //! A point within no node's radius has no value (`ShepardError::Outside`), never a silent 0.
 
@@ -19,9 +20,9 @@ use thiserror::Error;
 pub enum ShepardError {
     #[error("need at least 10 nodes, got {0}")]
     TooFewNodes(usize),
-    #[error("nc must be 9..=min(40, n−1) and nw 1..=min(40, n−1) (nc {nc}, nw {nw}, n {n})")]
+    #[error("the fit needs at least as many nodes as coefficients and nq, nw ≤ min(40, n − 1) (nq {nc}, nw {nw}, n {n})")]
     BadParameters { nc: usize, nw: usize, n: usize },
-    #[error("nodes {0} and {1} coincide")]
+    #[error("nodes {0} and {1} coincide (closer than 1e-9 of the data's extent)")]
     DuplicateNodes(usize, usize),
     #[error("the nodes around node {0} are (nearly) collinear: no unique cubic fit")]
     Collinear(usize),
@@ -37,128 +38,247 @@ const RTOL: f64 = 1e-5;
 // expressions; we keep their exact values so the published error table is reproduced.
 const DTOL: f64 = 0.01f32 as f64;
 const WIDEN: f64 = 1.1f32 as f64;
+/// Nodes closer than this fraction of the data's extent are duplicates.
+pub const DUPLICATE_TOL: f64 = 1e-9;
 
-/// A fitted cubic Shepard interpolant.
+/// Which modified Shepard method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// QSHEP2D: quadratic nodal functions in 2-D, weights squared. Renka: NQ 13, NW 19.
+    Quadratic2,
+    /// QSHEP3D: quadratic nodal functions in 3-D, weights squared. Renka: NQ 17, NW 32.
+    Quadratic3,
+    /// CSHEP2D: cubic nodal functions in 2-D, weights cubed. Renka: NC 17, NW 30.
+    Cubic2,
+}
+
+impl Method {
+    fn dims(self) -> usize {
+        match self {
+            Method::Quadratic2 | Method::Cubic2 => 2,
+            Method::Quadratic3 => 3,
+        }
+    }
+    /// Number of coefficients of a nodal function.
+    fn terms(self) -> usize {
+        match self {
+            Method::Quadratic2 => 5,
+            Method::Quadratic3 | Method::Cubic2 => 9,
+        }
+    }
+    /// Number of highest-order terms (they come first) damped at the limit.
+    fn damped(self) -> usize {
+        match self {
+            Method::Quadratic2 => 3,
+            Method::Quadratic3 => 6,
+            Method::Cubic2 => 4,
+        }
+    }
+    fn min_nodes(self) -> usize {
+        match self {
+            Method::Quadratic2 => 6,
+            Method::Quadratic3 | Method::Cubic2 => 10,
+        }
+    }
+    /// The fit's row for a neighbour at offset d, without the row weight; `sf` = 1/RMS distance.
+    fn terms_at(self, d: &[f64; 3], sf: f64, out: &mut Vec<f64>) {
+        let (dx, dy, dz) = (d[0], d[1], d[2]);
+        let (s1, s2, s3) = (sf, sf * sf, sf * sf * sf);
+        out.clear();
+        match self {
+            Method::Quadratic2 => {
+                out.extend([dx * dx * s2, dx * dy * s2, dy * dy * s2, dx * s1, dy * s1])
+            }
+            Method::Quadratic3 => out.extend([
+                dx * dx * s2,
+                dx * dy * s2,
+                dy * dy * s2,
+                dx * dz * s2,
+                dy * dz * s2,
+                dz * dz * s2,
+                dx * s1,
+                dy * s1,
+                dz * s1,
+            ]),
+            Method::Cubic2 => out.extend([
+                dx * dx * dx * s3,
+                dx * dx * dy * s3,
+                dx * dy * dy * s3,
+                dy * dy * dy * s3,
+                dx * dx * s2,
+                dx * dy * s2,
+                dy * dy * s2,
+                dx * s1,
+                dy * s1,
+            ]),
+        }
+    }
+    /// The column scale of each coefficient (to undo after the solve).
+    fn scales(self, sf: f64) -> Vec<f64> {
+        let (s1, s2, s3) = (sf, sf * sf, sf * sf * sf);
+        match self {
+            Method::Quadratic2 => vec![s2, s2, s2, s1, s1],
+            Method::Quadratic3 => vec![s2, s2, s2, s2, s2, s2, s1, s1, s1],
+            Method::Cubic2 => vec![s3, s3, s3, s3, s2, s2, s2, s1, s1],
+        }
+    }
+    /// The damping added to each damped term: 1 for the quadratic methods, 1/R for the cubic.
+    fn damping(self, rq: f64) -> f64 {
+        match self {
+            Method::Quadratic2 | Method::Quadratic3 => 1.0,
+            Method::Cubic2 => 1.0 / rq,
+        }
+    }
+    /// Which diagonal entries of R decide conditioning after damping.
+    fn checked_after_damping(self) -> std::ops::Range<usize> {
+        match self {
+            Method::Quadratic2 | Method::Quadratic3 => 0..self.terms(),
+            Method::Cubic2 => 4..9,
+        }
+    }
+}
+
+/// A fitted modified Shepard interpolant.
 #[derive(Debug, Clone)]
-pub struct CubicShepard2 {
-    x: Vec<f64>,
-    y: Vec<f64>,
+pub struct Shepard {
+    method: Method,
+    p: Vec<[f64; 3]>,
     f: Vec<f64>,
-    /// Nodal cubic coefficients: dx³, dx²dy, dxdy², dy³, dx², dxdy, dy², dx, dy.
-    a: Vec<[f64; 9]>,
+    /// Nodal coefficients, in the order of `Method::terms_at` (unscaled).
+    a: Vec<Vec<f64>>,
     rw: Vec<f64>,
     rmax: f64,
 }
 
-#[allow(clippy::too_many_arguments)] // node k, node i and the fit parameters
-fn row(
-    xk: f64,
-    yk: f64,
-    fk: f64,
-    xi: f64,
-    yi: f64,
-    fi: f64,
-    s: (f64, f64, f64),
-    rc: f64,
-) -> ([f64; 9], f64) {
-    let (dx, dy) = (xi - xk, yi - yk);
-    let d = dx.hypot(dy);
-    if d <= 0.0 || d >= rc {
-        return ([0.0; 9], 0.0);
-    }
-    let w = (rc - d) / rc / d;
-    let (w1, w2, w3) = (s.0 * w, s.1 * w, s.2 * w);
-    (
-        [
-            dx * dx * dx * w3,
-            dx * dx * dy * w3,
-            dx * dy * dy * w3,
-            dy * dy * dy * w3,
-            dx * dx * w2,
-            dx * dy * w2,
-            dy * dy * w2,
-            dx * w1,
-            dy * w1,
-        ],
-        (fi - fk) * w,
-    )
-}
-
-/// Solve the (possibly augmented) least-squares system; returns the solution and min |R_ii|
-/// over `check` diagonal entries.
+/// Solve the least-squares system; returns the solution and min |R_ii| over `check`.
 fn qr_solve(
-    rows: &[([f64; 9], f64)],
+    rows: &[Vec<f64>],
+    rhs: &[f64],
+    m: usize,
     check: std::ops::Range<usize>,
 ) -> Option<(DVector<f64>, f64)> {
-    let m = rows.len().max(9);
-    let mut a = DMatrix::<f64>::zeros(m, 9);
-    let mut b = DVector::<f64>::zeros(m);
-    for (i, (r, rhs)) in rows.iter().enumerate() {
-        for j in 0..9 {
+    let nrows = rows.len().max(m);
+    let mut a = DMatrix::<f64>::zeros(nrows, m);
+    let mut b = DVector::<f64>::zeros(nrows);
+    for (i, (r, y)) in rows.iter().zip(rhs).enumerate() {
+        for j in 0..m {
             a[(i, j)] = r[j];
         }
-        b[i] = *rhs;
+        b[i] = *y;
     }
     let qr = a.qr();
     let r = qr.r();
     let dmin = check.map(|i| r[(i, i)].abs()).fold(f64::INFINITY, f64::min);
     let qtb = qr.q().transpose() * b;
-    let rt = r.fixed_view::<9, 9>(0, 0).into_owned();
-    let sol = rt.solve_upper_triangular(&qtb.rows(0, 9).into_owned())?;
-    Some((DVector::from_iterator(9, sol.iter().copied()), dmin))
+    let sol = r.solve_upper_triangular(&qtb.rows(0, m).into_owned())?;
+    sol.iter().all(|v| v.is_finite()).then_some((sol, dmin))
 }
 
-impl CubicShepard2 {
-    /// Fit the interpolant. `nc`: nodes in each least-squares fit (Renka: 17, 11 near a grid);
-    /// `nw`: nodes within each radius of influence (Renka: 30).
-    pub fn new(
+fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
+}
+
+impl Shepard {
+    /// QSHEP2D: quadratic Shepard in the plane.
+    pub fn quadratic_2d(
+        x: &[f64],
+        y: &[f64],
+        f: &[f64],
+        nq: usize,
+        nw: usize,
+    ) -> Result<Self, ShepardError> {
+        let p: Vec<[f64; 3]> = x.iter().zip(y).map(|(&x, &y)| [x, y, 0.0]).collect();
+        Self::fit(Method::Quadratic2, &p, f, nq, nw)
+    }
+    /// QSHEP3D: quadratic Shepard in space.
+    pub fn quadratic_3d(
+        x: &[f64],
+        y: &[f64],
+        z: &[f64],
+        f: &[f64],
+        nq: usize,
+        nw: usize,
+    ) -> Result<Self, ShepardError> {
+        let p: Vec<[f64; 3]> = x
+            .iter()
+            .zip(y)
+            .zip(z)
+            .map(|((&x, &y), &z)| [x, y, z])
+            .collect();
+        Self::fit(Method::Quadratic3, &p, f, nq, nw)
+    }
+    /// CSHEP2D: cubic Shepard in the plane.
+    pub fn cubic_2d(
         x: &[f64],
         y: &[f64],
         f: &[f64],
         nc: usize,
         nw: usize,
     ) -> Result<Self, ShepardError> {
-        let n = x.len().min(y.len()).min(f.len());
-        if n < 10 {
+        let p: Vec<[f64; 3]> = x.iter().zip(y).map(|(&x, &y)| [x, y, 0.0]).collect();
+        Self::fit(Method::Cubic2, &p, f, nc, nw)
+    }
+
+    /// Fit with `nq` nodes in each nodal least-squares fit and `nw` nodes in each radius.
+    pub fn fit(
+        method: Method,
+        p: &[[f64; 3]],
+        f: &[f64],
+        nq: usize,
+        nw: usize,
+    ) -> Result<Self, ShepardError> {
+        let n = p.len().min(f.len());
+        if n < method.min_nodes() {
             return Err(ShepardError::TooFewNodes(n));
         }
         for k in 0..n {
-            if !(x[k].is_finite() && y[k].is_finite() && f[k].is_finite()) {
+            if !(p[k].iter().all(|v| v.is_finite()) && f[k].is_finite()) {
                 return Err(ShepardError::NotFinite(k));
             }
         }
+        let m = method.terms();
         let lmax = LMAX.min(n - 1);
-        if nc < 9 || nw < 1 || nc.max(nw) > lmax {
-            return Err(ShepardError::BadParameters { nc, nw, n });
+        if nq < m || nw < 1 || nq.max(nw) > lmax {
+            return Err(ShepardError::BadParameters { nc: nq, nw, n });
         }
-        let ncw = nc.max(nw);
-        let mut a = vec![[0.0; 9]; n];
+        let nqw = nq.max(nw);
+        // nodes closer than this (relative to the data's extent) count as duplicates: their data
+        // differences are rounding noise, and a fit through them is meaningless
+        let extent = (0..3)
+            .map(|c| {
+                let (lo, hi) = p[..n]
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
+                        (lo.min(q[c]), hi.max(q[c]))
+                    });
+                hi - lo
+            })
+            .fold(0.0, f64::max);
+        let dup2 = (DUPLICATE_TOL * extent).powi(2);
+        let mut a = vec![Vec::new(); n];
         let mut rw = vec![0.0; n];
         let mut rsmx: f64 = 0.0;
         let mut order: Vec<(f64, usize)> = Vec::with_capacity(n);
+        let mut terms = Vec::with_capacity(m);
         for k in 0..n {
-            let (xk, yk, fk) = (x[k], y[k], f[k]);
-            // the lmax nearest other nodes, by squared distance (ties by index)
+            let (pk, fk) = (p[k], f[k]);
+            // the lmax nearest other nodes by squared distance (ties by index)
             order.clear();
-            order.extend(
-                (0..n)
-                    .filter(|&j| j != k)
-                    .map(|j| ((x[j] - xk).powi(2) + (y[j] - yk).powi(2), j)),
-            );
-            let cmp = |p: &(f64, usize), q: &(f64, usize)| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1));
+            order.extend((0..n).filter(|&j| j != k).map(|j| (dist2(&p[j], &pk), j)));
+            let cmp = |u: &(f64, usize), v: &(f64, usize)| u.0.total_cmp(&v.0).then(u.1.cmp(&v.1));
             if order.len() > lmax {
                 order.select_nth_unstable_by(lmax, cmp);
                 order.truncate(lmax);
             }
             order.sort_by(cmp);
             if let Some(&(d0, j)) = order.first() {
-                if d0 == 0.0 {
+                if d0 <= dup2 {
                     return Err(ShepardError::DuplicateNodes(k.min(j), k.max(j)));
                 }
             }
             let nb = |i: usize| order[i];
-            // choose the fit's nodes (neq), its radius rc, the weight radius rw and the scale
-            let (mut rs, mut sum, mut rws, mut rc) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+            // choose the fit's nodes (neq), its radius rq, the weight radius and the scale
+            let (mut rs, mut sum, mut rws, mut rq) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
             let (mut lnp, mut neq, mut sfs) = (0usize, 0usize, 0.0f64);
             loop {
                 sum += rs;
@@ -166,9 +286,9 @@ impl CubicShepard2 {
                     if rws == 0.0 {
                         rws = WIDEN * rs;
                     }
-                    if rc == 0.0 {
+                    if rq == 0.0 {
                         neq = lmax;
-                        rc = (WIDEN * rs).sqrt();
+                        rq = (WIDEN * rs).sqrt();
                         sfs = neq as f64 / sum;
                     }
                     break;
@@ -182,51 +302,61 @@ impl CubicShepard2 {
                 if rws == 0.0 && lnp > nw {
                     rws = rs;
                 }
-                if rc == 0.0 && lnp > nc {
+                if rq == 0.0 && lnp > nq {
                     neq = lnp - 1;
-                    rc = rs.sqrt();
+                    rq = rs.sqrt();
                     sfs = neq as f64 / sum;
                 }
-                if lnp > ncw {
+                if lnp > nqw {
                     break;
                 }
             }
             rw[k] = rws.sqrt();
             rsmx = rsmx.max(rws);
             let sf = sfs.sqrt();
-            let scale = (sf, sfs, sf * sfs);
             let sol = loop {
-                let rows: Vec<([f64; 9], f64)> = (0..neq)
-                    .map(|i| {
-                        let j = nb(i).1;
-                        row(xk, yk, fk, x[j], y[j], f[j], scale, rc)
-                    })
-                    .collect();
-                let (sol, dmin) = qr_solve(&rows, 0..9).ok_or(ShepardError::Collinear(k))?;
-                if dmin * rc >= DTOL {
+                let mut rows = Vec::with_capacity(neq + m);
+                let mut rhs = Vec::with_capacity(neq + m);
+                for i in 0..neq {
+                    let j = nb(i).1;
+                    let d = [p[j][0] - pk[0], p[j][1] - pk[1], p[j][2] - pk[2]];
+                    let dist = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                    if dist <= 0.0 || dist >= rq {
+                        rows.push(vec![0.0; m]);
+                        rhs.push(0.0);
+                        continue;
+                    }
+                    let w = (rq - dist) / rq / dist;
+                    method.terms_at(&d, sf, &mut terms);
+                    rows.push(terms.iter().map(|t| t * w).collect());
+                    rhs.push((f[j] - fk) * w);
+                }
+                let (sol, dmin) =
+                    qr_solve(&rows, &rhs, m, 0..m).ok_or(ShepardError::Collinear(k))?;
+                if dmin * rq >= DTOL {
                     break sol;
                 }
                 if neq == lmax {
-                    // damp the third partials: the fit tends to a quadratic
-                    let stf = 1.0 / rc;
-                    let mut damped = rows.clone();
-                    for i in 0..4 {
-                        let mut e = [0.0; 9];
-                        e[i] = stf;
-                        damped.push((e, 0.0));
+                    // damp the highest-order terms: the fit tends to the next lower degree
+                    for i in 0..method.damped() {
+                        let mut e = vec![0.0; m];
+                        e[i] = method.damping(rq);
+                        rows.push(e);
+                        rhs.push(0.0);
                     }
-                    let (sol, dmin) = qr_solve(&damped, 4..9).ok_or(ShepardError::Collinear(k))?;
-                    if dmin * rc < DTOL {
+                    let (sol, dmin) = qr_solve(&rows, &rhs, m, method.checked_after_damping())
+                        .ok_or(ShepardError::Collinear(k))?;
+                    if dmin * rq < DTOL {
                         return Err(ShepardError::Collinear(k));
                     }
                     break sol;
                 }
-                // take one more node (all of a tie) and widen rc to just beyond it
+                // take one more node (all of a tie) and widen rq to just beyond it
                 loop {
                     let rsold = rs;
                     neq += 1;
                     if neq == lmax {
-                        rc = (WIDEN * rs).sqrt();
+                        rq = (WIDEN * rs).sqrt();
                         break;
                     }
                     if neq < lnp {
@@ -236,27 +366,20 @@ impl CubicShepard2 {
                         rs = nb(lnp - 1).0;
                     }
                     if (rs - rsold) / rs >= RTOL {
-                        rc = rs.sqrt();
+                        rq = rs.sqrt();
                         break;
                     }
                 }
             };
-            let sfc = sf * sfs;
-            a[k] = [
-                sol[0] * sfc,
-                sol[1] * sfc,
-                sol[2] * sfc,
-                sol[3] * sfc,
-                sol[4] * sfs,
-                sol[5] * sfs,
-                sol[6] * sfs,
-                sol[7] * sf,
-                sol[8] * sf,
-            ];
+            a[k] = sol
+                .iter()
+                .zip(method.scales(sf))
+                .map(|(c, s)| c * s)
+                .collect();
         }
-        Ok(CubicShepard2 {
-            x: x[..n].to_vec(),
-            y: y[..n].to_vec(),
+        Ok(Shepard {
+            method,
+            p: p[..n].to_vec(),
             f: f[..n].to_vec(),
             a,
             rw,
@@ -269,34 +392,48 @@ impl CubicShepard2 {
         self.rmax
     }
 
-    /// The interpolant at (px, py).
-    pub fn value(&self, px: f64, py: f64) -> Result<f64, ShepardError> {
-        let (mut sw, mut swc) = (0.0, 0.0);
-        for k in 0..self.x.len() {
-            let (dx, dy) = (px - self.x[k], py - self.y[k]);
-            if dx.abs() >= self.rmax || dy.abs() >= self.rmax {
+    /// The interpolant at `q` (2 or 3 coordinates as the method has).
+    pub fn value(&self, q: &[f64]) -> Result<f64, ShepardError> {
+        let dims = self.method.dims();
+        let mut pq = [0.0; 3];
+        for (i, v) in q.iter().take(dims).enumerate() {
+            pq[i] = *v;
+        }
+        let outside = || ShepardError::Outside { x: pq[0], y: pq[1] };
+        let power = if self.method == Method::Cubic2 { 3 } else { 2 };
+        let (mut sw, mut swq) = (0.0, 0.0);
+        let mut terms = Vec::with_capacity(self.method.terms());
+        for k in 0..self.p.len() {
+            let d = [
+                pq[0] - self.p[k][0],
+                pq[1] - self.p[k][1],
+                pq[2] - self.p[k][2],
+            ];
+            if d.iter().any(|c| c.abs() >= self.rmax) {
                 continue;
             }
-            let d = dx.hypot(dy);
+            let dist = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
             let r = self.rw[k];
-            if d >= r {
+            if dist >= r {
                 continue;
             }
-            if d == 0.0 {
+            if dist == 0.0 {
                 return Ok(self.f[k]);
             }
-            let a = &self.a[k];
-            let t = 1.0 / d - 1.0 / r;
-            let w = t * t * t;
-            let ck = ((a[0] * dx + a[1] * dy + a[4]) * dx + (a[2] * dy + a[5]) * dy + a[7]) * dx
-                + ((a[3] * dy + a[6]) * dy + a[8]) * dy
+            self.method.terms_at(&d, 1.0, &mut terms);
+            let qk: f64 = terms
+                .iter()
+                .zip(&self.a[k])
+                .map(|(t, c)| t * c)
+                .sum::<f64>()
                 + self.f[k];
+            let w = (1.0 / dist - 1.0 / r).powi(power);
             sw += w;
-            swc += w * ck;
+            swq += w * qk;
         }
         if sw == 0.0 {
-            return Err(ShepardError::Outside { x: px, y: py });
+            return Err(outside());
         }
-        Ok(swc / sw)
+        Ok(swq / sw)
     }
 }
