@@ -8,7 +8,8 @@ from hil import REAL_PORT, assert_replay_identical, daemon_config, read_jsonl, r
 def test_clean_full_session(hil, tmp_path):
     rig = hil("clean", realism="clean")
     session = tmp_path / "clean-session"
-    code, out, err = run_daemon(rig, session, daemon_config(tmp_path, "clean"), timeout=600)
+    cfg = daemon_config(tmp_path, "clean")
+    code, out, err = run_daemon(rig, session, cfg, timeout=600)
     assert code == 0, out + err[-3000:]
     caps = read_jsonl(session / "captures.jsonl")
     pairs = read_jsonl(session / "pairs.jsonl")
@@ -30,6 +31,11 @@ def test_clean_full_session(hil, tmp_path):
         assert len(subs) == 81
     assert "Table 2" in out
     assert_replay_identical(session, tmp_path)
+    # run again on the finished session: it resumes, sees it is done, and exits unchanged
+    before = open(session / "captures.jsonl", "rb").read()
+    code, out, err = run_daemon(rig, session, cfg, timeout=60)
+    assert code == 0 and "Table 2" in out, err[-2000:]
+    assert open(session / "captures.jsonl", "rb").read() == before
 
 
 def test_a_second_daemon_on_the_same_session_is_refused(hil, tmp_path):

@@ -168,8 +168,17 @@ pub struct Engine {
 /// An outstanding RESYNC whose ACK has not come after this many received lines is sent again.
 const RESYNC_LINES: u32 = 64;
 
-fn announcement(m: &Message) -> Result<(u64, Announcement), String> {
+/// Capture indices beyond the plan's count by more than this are refused as garbage (probes
+/// add captures beyond the plan, but not millions).
+const INDEX_ALLOWANCE: u64 = 100_000;
+
+fn announcement(m: &Message, limit: u64) -> Result<(u64, Announcement), String> {
     let idx = m.get_u64("idx").ok_or("missing or bad idx")?;
+    if idx >= limit {
+        return Err(format!(
+            "idx {idx} is beyond any plausible capture index (limit {limit})"
+        ));
+    }
     let entry = m.get_u64("entry").ok_or("missing or bad entry")? as usize;
     let file = m
         .get("file")
@@ -338,6 +347,15 @@ impl Engine {
         seq
     }
 
+    fn hello(&mut self, out: &mut Vec<Output>) {
+        let client = format!("goniowatch/{}", env!("CARGO_PKG_VERSION"));
+        self.send(
+            out,
+            "HELLO",
+            &[("proto", PROTO_VERSION.to_string()), ("client", client)],
+        );
+    }
+
     fn alarm(&mut self, out: &mut Vec<Output>, a: Alarm) {
         let key = serde_json::to_value(a.kind)
             .ok()
@@ -353,6 +371,11 @@ impl Engine {
             self.send(out, "PAUSE", &[]);
         }
         out.push(Output::Alarm(a));
+    }
+
+    /// Capture indices at or above this are garbage.
+    fn index_limit(&self) -> u64 {
+        self.captures_planned.saturating_add(INDEX_ALLOWANCE)
     }
 
     /// The lowest capture index neither announced nor known to be missing.
@@ -401,17 +424,7 @@ impl Engine {
                         ),
                     );
                 }
-                self.send(
-                    &mut out,
-                    "HELLO",
-                    &[
-                        ("proto", PROTO_VERSION.to_string()),
-                        (
-                            "client",
-                            format!("goniowatch/{}", env!("CARGO_PKG_VERSION")),
-                        ),
-                    ],
-                );
+                self.hello(&mut out);
             }
             Input::Disconnected { reason } => {
                 if self.connected {
@@ -461,9 +474,14 @@ impl Engine {
                 }
             }
             Input::Idle => {
-                if self.connected && self.subscribed && !self.finished {
-                    self.outstanding_resync = None;
-                    self.request_resync(&mut out);
+                if self.connected && !self.finished && !self.version_refused {
+                    if self.subscribed {
+                        self.outstanding_resync = None;
+                        self.request_resync(&mut out);
+                    } else {
+                        // the HELLO or its IDENT was lost: ask again
+                        self.hello(&mut out);
+                    }
                 }
             }
             Input::Unannounced { files } => {
@@ -518,7 +536,8 @@ impl Engine {
     fn rx(&mut self, out: &mut Vec<Output>, line: &str) {
         self.stats.lines += 1;
         self.stats.bytes += line.len() as u64 + 1;
-        if self.outstanding_resync.is_some() {
+        // replayed CAPTURE lines are the answer arriving, not silence
+        if self.outstanding_resync.is_some() && !line.contains(" replay=1") {
             self.resync_age += 1;
             if self.resync_age > RESYNC_LINES {
                 // the reply was lost on the wire: ask again
@@ -570,15 +589,19 @@ impl Engine {
                     if m.get("state") == Some("done") {
                         self.done = true;
                     }
-                    if let Some(next) = m.get_u64("next") {
+                    if let Some(next) = m.get_u64("next").filter(|n| *n <= self.index_limit()) {
                         self.controller_next = self.controller_next.max(next);
                         if !self.gap_during_resync {
                             // the controller's log has nothing else below `next`
-                            let mut i = self.next_check;
-                            while i < next {
-                                if !self.announced.contains_key(&i)
-                                    && self.missing_announcements.insert(i)
-                                {
+                            let lost: Vec<u64> = (self.next_check..next)
+                                .filter(|i| {
+                                    !self.announced.contains_key(i)
+                                        && !self.missing_announcements.contains(i)
+                                })
+                                .collect();
+                            self.missing_announcements.extend(lost.iter().copied());
+                            if lost.len() <= 20 {
+                                for i in lost {
                                     self.alarm(
                                         out,
                                         Alarm::new(
@@ -590,7 +613,18 @@ impl Engine {
                                         .at(Some(i), None),
                                     );
                                 }
-                                i += 1;
+                            } else {
+                                let (first, last) = (lost[0], lost[lost.len() - 1]);
+                                self.alarm(
+                                    out,
+                                    Alarm::new(
+                                        AlarmKind::CaptureQuality,
+                                        Severity::Critical,
+                                        "capture-never-announced",
+                                        format!("{} captures between {first} and {last} are not in the controller's capture log (resync reports next = {next})", lost.len()),
+                                    )
+                                    .with(json!({"count": lost.len(), "first": first, "last": last})),
+                                );
                             }
                         } else {
                             self.resync_needed = true;
@@ -609,15 +643,22 @@ impl Engine {
                         let supported = m.get("supported").unwrap_or("?").to_string();
                         self.version_refused(out, &supported);
                     }
-                    // one of our lines was corrupted: resend the resync if one is pending
+                    // one of our lines was corrupted: resend what is pending
                     Some("bad-crc") if self.outstanding_resync.take().is_some() => {
                         self.request_resync(out)
+                    }
+                    Some("bad-crc") if !self.subscribed && !self.version_refused => self.hello(out),
+                    Some("not-subscribed") => {
+                        self.subscribed = false;
+                        self.send(out, "SUBSCRIBE", &[]);
+                        self.subscribed = true;
+                        self.request_resync(out);
                     }
                     _ => {}
                 }
             }
             "STATUS" => {
-                if let Some(next) = m.get_u64("next") {
+                if let Some(next) = m.get_u64("next").filter(|n| *n <= self.index_limit()) {
                     self.controller_next = self.controller_next.max(next);
                 }
                 match m.get("state") {
@@ -646,7 +687,7 @@ impl Engine {
                     _ => {}
                 }
             }
-            "CAPTURE" => match announcement(m) {
+            "CAPTURE" => match announcement(m, self.index_limit()) {
                 Ok((idx, a)) => self.announce(out, idx, a),
                 Err(e) => {
                     self.stats.framing_errors += 1;
@@ -772,7 +813,7 @@ impl Engine {
             .announced
             .keys()
             .next_back()
-            .map(|k| k + 1)
+            .map(|k| k.saturating_add(1))
             .unwrap_or(0)
             .max(self.next_check);
         out.push(Output::Ingest {
@@ -781,7 +822,7 @@ impl Engine {
         });
         self.missing_announcements.remove(&idx);
         self.announced.insert(idx, a);
-        self.controller_next = self.controller_next.max(idx + 1);
+        self.controller_next = self.controller_next.max(idx.saturating_add(1));
         if idx > expected && self.lowest_unseen() < idx {
             self.request_resync(out);
         }

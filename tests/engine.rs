@@ -368,3 +368,199 @@ fn pause_on_critical_only_when_enabled() {
     assert_eq!(alarms(&out), ["controller-fault"]);
     assert!(sent(&out).is_empty());
 }
+
+fn capture_at(c: &mut Ctl, idx: u64, entry: usize, pose: &str, replay: bool) -> Input {
+    let mut f = vec![
+        ("idx", idx.to_string()),
+        ("entry", entry.to_string()),
+        ("file", format!("s/cap_{idx}.hdr")),
+        ("t", format!("{}", idx as f64 * 7.0)),
+        ("cmd", pose.to_string()),
+        ("enc", pose.to_string()),
+        ("exp", "x".into()),
+    ];
+    if replay {
+        f.push(("replay", "1".into()));
+    }
+    c.line("CAPTURE", &f)
+}
+
+#[test]
+fn a_lost_hello_or_ident_is_asked_again() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    e.handle(&Input::Connected);
+    // the HELLO arrived corrupted
+    let out = e.handle(&c.line("NAK", &[("ref", "-1".into()), ("reason", "bad-crc".into())]));
+    assert_eq!(sent(&out), ["HELLO proto=1 client=goniowatch/0.1.0"]);
+    // the IDENT was lost: the idle poll says HELLO again
+    let out = e.handle(&Input::Idle);
+    assert_eq!(sent(&out), ["HELLO proto=1 client=goniowatch/0.1.0"]);
+    // the controller says we are not subscribed: subscribe again
+    e.handle(&c.ident(1));
+    let out = e.handle(&c.line(
+        "NAK",
+        &[("ref", "5".into()), ("reason", "not-subscribed".into())],
+    ));
+    assert_eq!(sent(&out)[0], "SUBSCRIBE");
+}
+
+#[test]
+fn absurd_indices_from_the_wire_are_refused() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    connected(&mut e, &mut c);
+    let t = std::time::Instant::now();
+    let out = e.handle(&c.line(
+        "ACK",
+        &[
+            ("ref", "2".into()),
+            ("next", "3000000".into()),
+            ("state", "running".into()),
+        ],
+    ));
+    assert!(alarms(&out).is_empty(), "an implausible next is ignored");
+    assert!(t.elapsed() < std::time::Duration::from_secs(1));
+    let out = e.handle(&capture_at(
+        &mut c,
+        1_000_000_000_000,
+        1,
+        "0,90,-90,15",
+        false,
+    ));
+    assert_eq!(alarms(&out), ["bad-announcement"]);
+    let out = e.handle(&capture_at(&mut c, u64::MAX, 1, "0,90,-90,15", false));
+    assert_eq!(alarms(&out), ["bad-announcement"]);
+    // the session can still finish
+    e.handle(&c.capture(0));
+    e.handle(&Input::Outcome {
+        idx: 0,
+        outcome: ok_outcome(),
+    });
+    let mut out = e.handle(&c.line(
+        "STATUS",
+        &[
+            ("state", "done".into()),
+            ("t", "9".into()),
+            ("next", "1".into()),
+        ],
+    ));
+    out.extend(e.handle(&Input::Idle));
+    let r = out.iter().rev().find_map(|o| match o {
+        Output::Send(l) => parse(l).ok().filter(|m| m.verb == "RESYNC").map(|m| m.seq),
+        _ => None,
+    });
+    if let Some(r) = r {
+        e.handle(&c.line(
+            "ACK",
+            &[
+                ("ref", r.to_string()),
+                ("next", "1".into()),
+                ("state", "done".into()),
+            ],
+        ));
+    }
+    assert!(e.is_finished());
+    // many captures missing from the log make one alarm, not thousands
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    connected(&mut e, &mut c);
+    let out = e.handle(&c.line(
+        "ACK",
+        &[
+            ("ref", "2".into()),
+            ("next", "5000".into()),
+            ("state", "running".into()),
+        ],
+    ));
+    assert_eq!(alarms(&out), ["capture-never-announced"]);
+}
+
+#[test]
+fn a_long_resync_reply_is_not_asked_again_midway() {
+    // a controller like goniosim: RESYNC → every logged capture (replay=1), then the ACK
+    let n_log = 1000u64;
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let mut wire: std::collections::VecDeque<Input> = Default::default();
+    let mut pending = e.handle(&Input::Connected);
+    let mut resyncs = 0;
+    loop {
+        for o in pending.drain(..) {
+            if let Output::Send(l) = o {
+                let m = parse(&l).unwrap();
+                match m.verb.as_str() {
+                    "HELLO" => wire.push_back(c.ident(1)),
+                    "SUBSCRIBE" => wire.push_back(c.line("ACK", &[("ref", m.seq.to_string())])),
+                    "RESYNC" => {
+                        resyncs += 1;
+                        for i in m.get_u64("from").unwrap()..n_log {
+                            wire.push_back(capture_at(
+                                &mut c,
+                                i,
+                                i as usize + 1,
+                                "0,90,-90,15",
+                                true,
+                            ));
+                        }
+                        wire.push_back(c.line(
+                            "ACK",
+                            &[
+                                ("ref", m.seq.to_string()),
+                                ("count", "0".into()),
+                                ("next", n_log.to_string()),
+                                ("state", "running".into()),
+                            ],
+                        ));
+                    }
+                    _ => {}
+                }
+            }
+        }
+        let Some(inp) = wire.pop_front() else { break };
+        pending = e.handle(&inp);
+    }
+    assert_eq!(resyncs, 1);
+}
+
+#[test]
+fn a_retaken_entry_is_not_paired_twice() {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
+    let cfg = Config::from_toml_str(&text).unwrap();
+    let (plan, rig) = (cfg.plan().unwrap(), cfg.rig().unwrap());
+    let a = 1usize;
+    let b = plan.reciprocal_of(a).unwrap();
+    let pose = |entry: usize| {
+        let en = plan.entry(entry).unwrap();
+        let d = plan.directions();
+        let p = rig
+            .plan_pose(d[en.light].spherical(), d[en.camera].spherical())
+            .unwrap()
+            .pose;
+        format!(
+            "{},{},{},{}",
+            p.joints_deg[0], p.joints_deg[1], p.joints_deg[2], p.wagon_deg
+        )
+    };
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    connected(&mut e, &mut c);
+    e.handle(&c.line(
+        "ACK",
+        &[
+            ("ref", "2".into()),
+            ("next", "0".into()),
+            ("state", "running".into()),
+        ],
+    ));
+    let mut out = vec![];
+    for (idx, entry) in [(0u64, a), (1, b), (2, b)] {
+        out.extend(e.handle(&capture_at(&mut c, idx, entry, &pose(entry), false)));
+        out.extend(e.handle(&Input::Outcome {
+            idx,
+            outcome: ok_outcome(),
+        }));
+    }
+    assert_eq!(
+        out.iter().filter(|o| matches!(o, Output::Pair(_))).count(),
+        1
+    );
+    assert_eq!(e.table2().pairs, 1);
+    assert!(alarms(&out).contains(&"entry-repeated".to_string()));
+}

@@ -102,6 +102,17 @@ pub fn measure_file(
     if !before.is_file() {
         return Err(("not a regular file".into(), None));
     }
+    // a capture can hardly be larger than its pixels as uncompressed f32 RGBA plus headers;
+    // refuse before reading so a huge file cannot exhaust memory
+    let max_bytes = (limits.max_pixels as u64)
+        .saturating_mul(16)
+        .saturating_add(64 << 20);
+    if before.len() > max_bytes {
+        return Err((
+            format!("file of {} bytes is larger than any capture within the decode limits ({max_bytes} bytes)", before.len()),
+            Some(before.len()),
+        ));
+    }
     let bytes = std::fs::read(path).map_err(|e| (format!("cannot read: {e}"), None))?;
     let size = bytes.len() as u64;
     let after = std::fs::metadata(path).map_err(|e| (format!("cannot stat: {e}"), Some(size)))?;

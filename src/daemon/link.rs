@@ -102,7 +102,7 @@ pub async fn run(
                 }
                 tracing::info!("serial port {port} open");
                 logged_failure = false;
-                backoff = Duration::from_millis(spec.reconnect_min_ms.max(1));
+                let mut seen_line = false;
                 // lines queued for a previous connection are stale
                 while lines.try_recv().is_ok() {}
                 if events.send(Input::Connected).is_err() {
@@ -112,7 +112,15 @@ pub async fn run(
                 let reason = loop {
                     tokio::select! {
                         frame = source.next() => match frame {
-                            Some(Ok(Ok(line))) => { if events.send(Input::Rx { line }).is_err() { return; } }
+                            Some(Ok(Ok(line))) => {
+                                // a port that opens but never carries a line is flapping: keep
+                                // backing off until one arrives
+                                if !seen_line {
+                                    seen_line = true;
+                                    backoff = Duration::from_millis(spec.reconnect_min_ms.max(1));
+                                }
+                                if events.send(Input::Rx { line }).is_err() { return; }
+                            }
                             Some(Ok(Err(reason))) => { if events.send(Input::RxBad { reason }).is_err() { return; } }
                             Some(Err(e)) => break e.to_string(),
                             None => break "end of stream".to_string(),

@@ -144,7 +144,11 @@ impl Live {
     fn unannounced(&self) -> Vec<String> {
         let announced: BTreeSet<&str> = self.engine.announced_files().collect();
         let mut dirs = BTreeSet::new();
-        for f in &announced {
+        // only names the ingestion accepts: an absolute or climbing name must not steer the scan
+        for f in announced
+            .iter()
+            .filter(|f| super::ingest::resolve(&self.capture_root, f).is_ok())
+        {
             if let Some(parent) = Path::new(f).parent() {
                 dirs.insert(parent.to_path_buf());
             }
@@ -247,6 +251,9 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         }
         live.submit_pending();
     }
+    // a session that had already finished (and reported its unannounced files) has nothing
+    // left to wait for
+    let already_finished = live.engine.is_finished();
     // alarm states are evaluated on start and resume, not only on transitions
     for a in live.engine.active_conditions() {
         log_alarm(&a, live.bar.as_ref(), true);
@@ -262,6 +269,18 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
     let mut tick = tokio::time::interval(Duration::from_secs(2));
     let mut last_input = Instant::now();
     let end = loop {
+        if already_finished && !opts.keep_running {
+            break RunEnd::Finished {
+                critical: live.critical,
+            };
+        }
+        if live.finished && !opts.keep_running {
+            let files = live.unannounced();
+            live.process(Input::Unannounced { files })?;
+            break RunEnd::Finished {
+                critical: live.critical,
+            };
+        }
         tokio::select! {
             ev = ev_rx.recv() => {
                 let Some(ev) = ev else { break RunEnd::Signal(0) };
@@ -269,11 +288,6 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
                     last_input = Instant::now();
                 }
                 live.process(ev)?;
-                if live.finished && !opts.keep_running {
-                    let files = live.unannounced();
-                    live.process(Input::Unannounced { files })?;
-                    break RunEnd::Finished { critical: live.critical };
-                }
             }
             _ = tokio::signal::ctrl_c() => break RunEnd::Signal(2),
             _ = sigterm.recv() => break RunEnd::Signal(15),

@@ -65,7 +65,8 @@ pub fn run_hook(
             }
         };
         if let Some(mut stdin) = child.stdin.take() {
-            let _ = stdin.write_all(&payload).await;
+            // a hook that does not read its input must not hold us up
+            let _ = tokio::time::timeout(Duration::from_secs(10), stdin.write_all(&payload)).await;
         }
         match tokio::time::timeout(Duration::from_secs(10), child.wait()).await {
             Ok(Ok(s)) if !s.success() => tracing::warn!("alarm hook {prog} exited with {s}"),

@@ -535,9 +535,16 @@ impl Checker {
             dark,
         };
 
+        // a retake of an entry already checked is reported, not paired or classed again
+        let retake = self
+            .by_entry
+            .get(input.entry)
+            .map(|s| s.is_some())
+            .unwrap_or(false);
+
         // reciprocal partner
         if let Ok(partner_entry) = self.plan.reciprocal_of(input.entry) {
-            if partner_entry != input.entry && !dark {
+            if partner_entry != input.entry && !dark && !retake {
                 if let Some(p) = self
                     .by_entry
                     .get(partner_entry)
@@ -564,7 +571,7 @@ impl Checker {
         }
 
         // isotropy class (isotropic samples only; exact poses only)
-        if self.isotropic && exact_pose && input.substitute.is_none() && !dark {
+        if self.isotropic && exact_pose && input.substitute.is_none() && !dark && !retake {
             if let Ok(e) = self.plan.entry(input.entry) {
                 let key = self.plan.isotropy_key(&e);
                 let c_lo = (key.theta_lo_mdeg as f64 / 1000.0).to_radians().cos();
