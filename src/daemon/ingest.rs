@@ -94,11 +94,29 @@ impl Default for IngestSpec {
 
 /// Read, decode and average one file once. `Err` carries the reason and the size seen.
 pub fn measure_file(
+    root: &Path,
     path: &Path,
     opts: &AverageOptions,
     limits: &DecodeLimits,
 ) -> Result<Outcome, (String, Option<u64>)> {
-    let before = std::fs::metadata(path).map_err(|e| (format!("cannot stat: {e}"), None))?;
+    use std::io::Read;
+    // open once, then check where the open file really is: a link swapped in after `resolve`
+    // cannot take us out of the root, since the checks and the read use the same descriptor
+    let mut file = std::fs::File::open(path).map_err(|e| (format!("cannot open: {e}"), None))?;
+    if let (Some(real), Ok(real_root)) = (opened_path(&file), root.canonicalize()) {
+        if !real.starts_with(&real_root) {
+            return Err((
+                format!(
+                    "refused: the file opened is {} (outside the capture root)",
+                    real.display()
+                ),
+                None,
+            ));
+        }
+    }
+    let before = file
+        .metadata()
+        .map_err(|e| (format!("cannot stat: {e}"), None))?;
     if !before.is_file() {
         return Err(("not a regular file".into(), None));
     }
@@ -113,7 +131,9 @@ pub fn measure_file(
             Some(before.len()),
         ));
     }
-    let bytes = std::fs::read(path).map_err(|e| (format!("cannot read: {e}"), None))?;
+    let mut bytes = Vec::with_capacity(before.len() as usize);
+    file.read_to_end(&mut bytes)
+        .map_err(|e| (format!("cannot read: {e}"), None))?;
     let size = bytes.len() as u64;
     let after = std::fs::metadata(path).map_err(|e| (format!("cannot stat: {e}"), Some(size)))?;
     if after.len() != size || before.len() != size {
@@ -136,6 +156,12 @@ pub fn measure_file(
         size,
         sha256,
     })
+}
+
+/// The path of an open file as the kernel sees it (Linux: /proc/self/fd). None elsewhere.
+fn opened_path(file: &std::fs::File) -> Option<PathBuf> {
+    use std::os::fd::AsRawFd;
+    std::fs::read_link(format!("/proc/self/fd/{}", file.as_raw_fd())).ok()
 }
 
 fn hex(b: &[u8]) -> String {
@@ -170,7 +196,7 @@ pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions)
                 error: e.to_string(),
             };
         }
-        match measure_file(&path, opts, &limits) {
+        match measure_file(root, &path, opts, &limits) {
             Ok(o) => return o,
             Err((reason, size)) => {
                 let exists = size.is_some();
@@ -299,6 +325,17 @@ mod tests {
             resolve(&root, "evil.hdr"),
             Err(PathError::OutsideRoot(_))
         ));
+        // even when handed the link directly (a swap after `resolve`), the read refuses it
+        let r = measure_file(
+            &root,
+            &root.join("evil.hdr"),
+            &AverageOptions::default(),
+            &DecodeLimits::default(),
+        );
+        assert!(
+            matches!(&r, Err((e, _)) if e.contains("outside the capture root")),
+            "{r:?}"
+        );
         std::fs::remove_dir_all(&base).ok();
         Ok(())
     }

@@ -108,7 +108,7 @@ pub fn replay(
                 let r = resolve(&root, &file)
                     .map_err(|e| e.to_string())
                     .and_then(|p| {
-                        measure_file(&p, &opts, &DecodeLimits::default()).map_err(|(e, _)| e)
+                        measure_file(&root, &p, &opts, &DecodeLimits::default()).map_err(|(e, _)| e)
                     });
                 if tx.send((n, r)).is_err() {
                     return;
