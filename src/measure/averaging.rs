@@ -175,18 +175,28 @@ pub struct RgbView<'a> {
     pub layout: Layout<'a>,
 }
 
+fn check_len(got: usize, expected: usize, width: usize, height: usize) -> Result<(), AverageError> {
+    if got == expected {
+        Ok(())
+    } else {
+        Err(AverageError::BufferSize {
+            got,
+            expected,
+            width,
+            height,
+        })
+    }
+}
+
 impl<'a> RgbView<'a> {
     /// An interleaved RGB buffer of exactly `width × height × 3` floats.
     pub fn new(width: usize, height: usize, data: &'a [f32]) -> Result<Self, AverageError> {
-        let expected = width.saturating_mul(height).saturating_mul(3);
-        if data.len() != expected {
-            return Err(AverageError::BufferSize {
-                got: data.len(),
-                expected,
-                width,
-                height,
-            });
-        }
+        check_len(
+            data.len(),
+            width.saturating_mul(height).saturating_mul(3),
+            width,
+            height,
+        )?;
         Ok(RgbView {
             width,
             height,
@@ -202,16 +212,8 @@ impl<'a> RgbView<'a> {
         g: &'a [f32],
         b: &'a [f32],
     ) -> Result<Self, AverageError> {
-        let expected = width.saturating_mul(height);
         for p in [r, g, b] {
-            if p.len() != expected {
-                return Err(AverageError::BufferSize {
-                    got: p.len(),
-                    expected,
-                    width,
-                    height,
-                });
-            }
+            check_len(p.len(), width.saturating_mul(height), width, height)?;
         }
         Ok(RgbView {
             width,
