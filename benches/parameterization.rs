@@ -86,7 +86,7 @@ fn main() {
                 ),
             ];
             for (name, coord) in coords.iter() {
-                let pts: Vec<[f64; 2]> = dirs.iter().map(|d| coord(d)).collect();
+                let pts: Vec<[f64; 2]> = dirs.iter().map(coord).collect();
                 let (x, y): (Vec<f64>, Vec<f64>) = pts.iter().map(|p| (p[0], p[1])).unzip();
                 let s = match Shepard::cubic_2d(&x, &y, &f, 17, 30) {
                     Ok(s) => s,
