@@ -1,6 +1,6 @@
 //! Renka's modified Shepard interpolation, written from the algorithms' descriptions
-//! (ACM TOMS 660 QSHEP2D, 661 QSHEP3D, 790 CSHEP2D): groundwork for issue 6 (the cell grid for
-//! the neighbour search and the resampling built on it are open).
+//! (ACM TOMS 660 QSHEP2D, 661 QSHEP3D, 790 CSHEP2D), with a uniform cell grid for the
+//! neighbour and radius searches: groundwork for issue 6 (the resampling built on it is open).
 //!
 //! The interpolant is Q(p) = Σ W_k(p) Q_k(p) / Σ W_k(p) with
 //! - nodal polynomials Q_k (quadratic in 2-D or 3-D, or cubic in 2-D) interpolating f_k, fitted
@@ -148,6 +148,7 @@ pub struct Shepard {
     a: Vec<Vec<f64>>,
     rw: Vec<f64>,
     rmax: f64,
+    grid: Grid,
 }
 
 /// Solve the least-squares system; returns the solution and min |R_ii| over `check`.
@@ -172,6 +173,118 @@ fn qr_solve(
     let qtb = qr.q().transpose() * b;
     let sol = r.solve_upper_triangular(&qtb.rows(0, m).into_owned())?;
     sol.iter().all(|v| v.is_finite()).then_some((sol, dmin))
+}
+
+/// A uniform cell grid over the nodes (about 3 nodes per cell, as Renka recommends) for the
+/// nearest-neighbour and radius searches.
+#[derive(Debug, Clone)]
+struct Grid {
+    dims: usize,
+    lo: [f64; 3],
+    cell: [f64; 3],
+    nr: [usize; 3],
+    /// Node indices per cell, cells in x-fastest order.
+    cells: Vec<Vec<usize>>,
+}
+
+impl Grid {
+    fn new(p: &[[f64; 3]], dims: usize) -> Grid {
+        let n = p.len().max(1);
+        let per_axis = ((n as f64 / 3.0).powf(1.0 / dims as f64).floor() as usize).max(1);
+        let mut lo = [0.0; 3];
+        let mut hi = [0.0; 3];
+        let mut nr = [1usize; 3];
+        let mut cell = [1.0; 3];
+        for c in 0..dims {
+            lo[c] = p.iter().map(|q| q[c]).fold(f64::INFINITY, f64::min);
+            hi[c] = p.iter().map(|q| q[c]).fold(f64::NEG_INFINITY, f64::max);
+            let span = hi[c] - lo[c];
+            if span > 0.0 {
+                nr[c] = per_axis;
+                cell[c] = span / per_axis as f64;
+            }
+        }
+        let mut g = Grid {
+            dims,
+            lo,
+            cell,
+            nr,
+            cells: vec![Vec::new(); nr[0] * nr[1] * nr[2]],
+        };
+        for (i, q) in p.iter().enumerate() {
+            let c = g.cell_of(q);
+            let id = g.id(c);
+            g.cells[id].push(i);
+        }
+        g
+    }
+    fn coord(&self, v: f64, c: usize) -> isize {
+        ((v - self.lo[c]) / self.cell[c]).floor() as isize
+    }
+    fn cell_of(&self, q: &[f64; 3]) -> [usize; 3] {
+        let mut out = [0; 3];
+        for c in 0..self.dims {
+            out[c] = self.coord(q[c], c).clamp(0, self.nr[c] as isize - 1) as usize;
+        }
+        out
+    }
+    fn id(&self, c: [usize; 3]) -> usize {
+        c[0] + self.nr[0] * (c[1] + self.nr[1] * c[2])
+    }
+    /// Visit every node in the cells that meet the box `q ± r`.
+    fn within(&self, q: &[f64; 3], r: f64, mut visit: impl FnMut(usize)) {
+        let mut lo = [0usize; 3];
+        let mut hi = [0usize; 3];
+        for c in 0..3 {
+            if c >= self.dims {
+                continue;
+            }
+            let a = self.coord(q[c] - r, c);
+            let b = self.coord(q[c] + r, c);
+            if b < 0 || a >= self.nr[c] as isize {
+                return;
+            }
+            lo[c] = a.max(0) as usize;
+            hi[c] = b.min(self.nr[c] as isize - 1) as usize;
+        }
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                for x in lo[0]..=hi[0] {
+                    for &i in &self.cells[self.id([x, y, z])] {
+                        visit(i);
+                    }
+                }
+            }
+        }
+    }
+    /// The `k` nearest nodes to node `me` by (squared distance, index), excluding `me`.
+    fn nearest(&self, p: &[[f64; 3]], me: usize, k: usize, out: &mut Vec<(f64, usize)>) {
+        let q = p[me];
+        let min_cell = (0..self.dims)
+            .map(|c| self.cell[c])
+            .fold(f64::INFINITY, f64::min);
+        let mut r = min_cell;
+        loop {
+            out.clear();
+            self.within(&q, r, |j| {
+                if j != me {
+                    out.push((dist2(&p[j], &q), j));
+                }
+            });
+            // every node within distance r of q has been seen; enough of them means done
+            let inside = out.iter().filter(|(d, _)| *d <= r * r).count();
+            if inside >= k || out.len() + 1 >= p.len() {
+                break;
+            }
+            r *= 2.0;
+        }
+        let cmp = |u: &(f64, usize), v: &(f64, usize)| u.0.total_cmp(&v.0).then(u.1.cmp(&v.1));
+        if out.len() > k {
+            out.select_nth_unstable_by(k, cmp);
+            out.truncate(k);
+        }
+        out.sort_by(cmp);
+    }
 }
 
 fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
@@ -255,6 +368,7 @@ impl Shepard {
             })
             .fold(0.0, f64::max);
         let dup2 = (DUPLICATE_TOL * extent).powi(2);
+        let grid = Grid::new(&p[..n], method.dims());
         let mut a = vec![Vec::new(); n];
         let mut rw = vec![0.0; n];
         let mut rsmx: f64 = 0.0;
@@ -263,14 +377,7 @@ impl Shepard {
         for k in 0..n {
             let (pk, fk) = (p[k], f[k]);
             // the lmax nearest other nodes by squared distance (ties by index)
-            order.clear();
-            order.extend((0..n).filter(|&j| j != k).map(|j| (dist2(&p[j], &pk), j)));
-            let cmp = |u: &(f64, usize), v: &(f64, usize)| u.0.total_cmp(&v.0).then(u.1.cmp(&v.1));
-            if order.len() > lmax {
-                order.select_nth_unstable_by(lmax, cmp);
-                order.truncate(lmax);
-            }
-            order.sort_by(cmp);
+            grid.nearest(&p[..n], k, lmax, &mut order);
             if let Some(&(d0, j)) = order.first() {
                 if d0 <= dup2 {
                     return Err(ShepardError::DuplicateNodes(k.min(j), k.max(j)));
@@ -384,6 +491,7 @@ impl Shepard {
             a,
             rw,
             rmax: rsmx.sqrt(),
+            grid,
         })
     }
 
@@ -403,22 +511,24 @@ impl Shepard {
         let power = if self.method == Method::Cubic2 { 3 } else { 2 };
         let (mut sw, mut swq) = (0.0, 0.0);
         let mut terms = Vec::with_capacity(self.method.terms());
-        for k in 0..self.p.len() {
+        let mut at_node = None;
+        self.grid.within(&pq, self.rmax, |k| {
+            if at_node.is_some() {
+                return;
+            }
             let d = [
                 pq[0] - self.p[k][0],
                 pq[1] - self.p[k][1],
                 pq[2] - self.p[k][2],
             ];
-            if d.iter().any(|c| c.abs() >= self.rmax) {
-                continue;
-            }
             let dist = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
             let r = self.rw[k];
             if dist >= r {
-                continue;
+                return;
             }
             if dist == 0.0 {
-                return Ok(self.f[k]);
+                at_node = Some(self.f[k]);
+                return;
             }
             self.method.terms_at(&d, 1.0, &mut terms);
             let qk: f64 = terms
@@ -430,10 +540,63 @@ impl Shepard {
             let w = (1.0 / dist - 1.0 / r).powi(power);
             sw += w;
             swq += w * qk;
+        });
+        if let Some(v) = at_node {
+            return Ok(v);
         }
         if sw == 0.0 {
             return Err(outside());
         }
         Ok(swq / sw)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn brute(p: &[[f64; 3]], me: usize, k: usize) -> Vec<(f64, usize)> {
+        let mut v: Vec<(f64, usize)> = (0..p.len())
+            .filter(|&j| j != me)
+            .map(|j| (dist2(&p[j], &p[me]), j))
+            .collect();
+        v.sort_by(|u, w| u.0.total_cmp(&w.0).then(u.1.cmp(&w.1)));
+        v.truncate(k);
+        v
+    }
+
+    #[test]
+    fn grid_search_equals_brute_force() {
+        let mut s = 3u64;
+        let mut u = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let random2: Vec<[f64; 3]> = (0..500).map(|_| [u(), u() * 3.0, 0.0]).collect();
+        let grid9: Vec<[f64; 3]> = (0..81)
+            .map(|i| [(i % 9) as f64 / 8.0, (i / 9) as f64 / 8.0, 0.0])
+            .collect();
+        let random3: Vec<[f64; 3]> = (0..400).map(|_| [u(), u(), u() * 0.1]).collect();
+        for (p, dims) in [(random2, 2), (grid9, 2), (random3, 3)] {
+            let g = Grid::new(&p, dims);
+            let mut out = Vec::new();
+            for me in 0..p.len() {
+                for k in [1, 9, 40] {
+                    g.nearest(&p, me, k, &mut out);
+                    assert_eq!(out, brute(&p, me, k), "node {me}, k {k}");
+                }
+            }
+            // the radius search visits every node within r
+            let q = p[p.len() / 2];
+            let mut seen = Vec::new();
+            g.within(&q, 0.2, |j| seen.push(j));
+            for (j, pj) in p.iter().enumerate() {
+                if dist2(pj, &q).sqrt() <= 0.2 {
+                    assert!(seen.contains(&j));
+                }
+            }
+        }
     }
 }
