@@ -9,6 +9,7 @@ pub mod alarm;
 pub mod averaging;
 pub mod checks;
 pub mod colour;
+pub mod crossval;
 pub mod drift;
 pub mod geometry;
 pub mod kinematics;
