@@ -18,3 +18,4 @@ pub mod decode;
 pub mod engine;
 pub mod measure;
 pub mod protocol;
+pub mod reference;
