@@ -205,6 +205,8 @@ pub struct Config {
     #[serde(default)]
     pub checks: CheckSpec,
     #[serde(default)]
+    pub probes: crate::measure::probes::ProbeSpec,
+    #[serde(default)]
     pub alarms: AlarmSpec,
     #[serde(default)]
     pub link: LinkSpec,
@@ -285,6 +287,9 @@ impl Config {
                 ),
             });
         }
+        if self.probes.every > 0 {
+            self.probe_entry()?;
+        }
         if self.alarms.crc_window == 0 {
             return Err(ConfigError::Invalid {
                 field: "alarms.crc_window",
@@ -342,8 +347,43 @@ impl Config {
             },
             self.checks.clone(),
             self.sample.isotropic,
+            self.probes.clone(),
         );
-        Ok(crate::engine::Engine::new(checker, self.alarms.engine()))
+        let mut engine = crate::engine::Engine::new(checker, self.alarms.engine());
+        if self.probes.every > 0 {
+            engine.set_probes(self.probes.every, self.probe_entry()?);
+        }
+        Ok(engine)
+    }
+
+    /// The plan entry re-captured by probes: the configured one, or lamp at the pole and camera
+    /// at the first direction with θ = 45°.
+    pub fn probe_entry(&self) -> Result<usize, ConfigError> {
+        let plan = self.plan()?;
+        if let Some(e) = self.probes.entry {
+            if e < plan.capture_count() {
+                return Ok(e);
+            }
+            return Err(ConfigError::Invalid {
+                field: "probes.entry",
+                message: format!("{e} is not a plan entry (0..{})", plan.capture_count()),
+            });
+        }
+        let dirs = plan.directions();
+        let light = dirs.iter().position(|d| d.theta_deg == 0.0);
+        let camera = dirs.iter().position(|d| (d.theta_deg - 45.0).abs() < 1e-9);
+        match (light, camera) {
+            (Some(l), Some(c)) => plan.index_of(l, c).ok_or(ConfigError::Invalid {
+                field: "probes.entry",
+                message: "no default probe entry in this plan; set one".into(),
+            }),
+            _ => Err(ConfigError::Invalid {
+                field: "probes.entry",
+                message:
+                    "the plan has no θ = 0 and θ = 45° directions for the default probe; set one"
+                        .into(),
+            }),
+        }
     }
 
     pub fn plan(&self) -> Result<SamplingPlan, ConfigError> {

@@ -97,6 +97,8 @@ pub struct Summary {
     pub checked: CheckCounts,
     pub table2: Table2,
     pub isotropy: Table2,
+    /// Gain drift estimate from the probes (%/h), when probes are enabled.
+    pub probe_drift: Option<crate::measure::drift::DriftEstimate>,
     pub alarms: BTreeMap<String, u64>,
     pub link: LinkStats,
     pub finished: bool,
@@ -163,6 +165,10 @@ pub struct Engine {
     alarm_counts: BTreeMap<String, u64>,
     paused_for: BTreeSet<String>,
     captures_planned: u64,
+    /// Ask for a probe of `probe_entry` every this many regular captures checked (0: never).
+    probe_every: u64,
+    probe_entry: usize,
+    regular_checked: u64,
 }
 
 /// An outstanding RESYNC whose ACK has not come after this many received lines is sent again.
@@ -248,7 +254,16 @@ impl Engine {
             alarm_counts: BTreeMap::new(),
             paused_for: BTreeSet::new(),
             captures_planned,
+            probe_every: 0,
+            probe_entry: 0,
+            regular_checked: 0,
         }
+    }
+
+    /// Enable drift probes (operator action): a `PROBE entry=…` every `every` regular captures.
+    pub fn set_probes(&mut self, every: u64, entry: usize) {
+        self.probe_every = every;
+        self.probe_entry = entry;
     }
 
     /// Captures checked so far (the next index to check).
@@ -334,6 +349,7 @@ impl Engine {
             checked: self.checker.counts().clone(),
             table2: self.checker.table2().clone(),
             isotropy: self.checker.isotropy_table().clone(),
+            probe_drift: self.checker.probe_drift(),
             alarms: self.alarm_counts.clone(),
             link: self.stats.clone(),
             finished: self.finished,
@@ -875,6 +891,18 @@ impl Engine {
                     self.alarm(out, al);
                 }
                 self.next_check += 1;
+                if !input.probe {
+                    self.regular_checked += 1;
+                    if self.probe_every > 0
+                        && self.regular_checked.is_multiple_of(self.probe_every)
+                        && self.connected
+                        && self.subscribed
+                        && !self.done
+                    {
+                        let entry = self.probe_entry.to_string();
+                        self.send(out, "PROBE", &[("entry", entry)]);
+                    }
+                }
             } else if self.missing_announcements.contains(&i) {
                 self.next_check += 1;
             } else {

@@ -564,3 +564,54 @@ fn a_retaken_entry_is_not_paired_twice() {
     assert_eq!(e.table2().pairs, 1);
     assert!(alarms(&out).contains(&"entry-repeated".to_string()));
 }
+
+#[test]
+fn probes_are_requested_only_when_enabled() {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
+    let cfg = Config::from_toml_str(&text.replace("every = 0", "every = 2")).unwrap();
+    let entry = cfg.probe_entry().unwrap();
+    let plan = cfg.plan().unwrap();
+    let e0 = plan.entry(entry).unwrap();
+    assert_eq!(plan.directions()[e0.light].theta_deg, 0.0);
+    assert_eq!(plan.directions()[e0.camera].theta_deg, 45.0);
+    for (every, want) in [(2u64, 1usize), (0, 0)] {
+        let mut e = if every > 0 {
+            cfg.engine().unwrap()
+        } else {
+            engine()
+        };
+        let mut c = Ctl { seq: 0 };
+        connected(&mut e, &mut c);
+        e.handle(&c.line(
+            "ACK",
+            &[
+                ("ref", "2".into()),
+                ("next", "0".into()),
+                ("state", "running".into()),
+            ],
+        ));
+        let mut out = Vec::new();
+        for i in 0..2 {
+            out.extend(e.handle(&c.capture(i)));
+            out.extend(e.handle(&Input::Outcome {
+                idx: i,
+                outcome: ok_outcome(),
+            }));
+        }
+        let probes: Vec<String> = sent(&out)
+            .into_iter()
+            .filter(|s| s.starts_with("PROBE"))
+            .collect();
+        assert_eq!(probes.len(), want, "every {every}");
+        if want > 0 {
+            assert_eq!(probes[0], format!("PROBE entry={entry}"));
+        }
+    }
+    let bad = Config::from_toml_str(
+        &text
+            .replace("every = 0", "every = 2")
+            .replace("# entry = 19", "entry = 99999"),
+    );
+    assert!(bad.is_err_and(|e| e.to_string().contains("probes.entry")));
+}

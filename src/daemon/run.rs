@@ -368,6 +368,13 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
             t.de76, t.de2000, t.pairs
         )?;
     }
+    if let Some(d) = &s.probe_drift {
+        writeln!(
+            out,
+            "gain drift from probes: {:+.3} %/h ± {:.3} (standard error, {} probes)",
+            d.rate_pct_per_h, d.se_pct_per_h, d.pairs
+        )?;
+    }
     let alarms: Vec<String> = s.alarms.iter().map(|(k, v)| format!("{k} {v}")).collect();
     writeln!(
         out,

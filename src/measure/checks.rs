@@ -8,9 +8,11 @@
 use super::alarm::{Alarm, AlarmKind, Severity};
 use super::averaging::CaptureStats;
 use super::colour::{colour_difference, xyz_to_lab, ColourDifference, Lab, RgbToXyz, White, Xyz};
+use super::drift::{DriftEstimate, DriftEvent};
 use super::geometry::{angle_between, Spherical, Vec3};
 use super::kinematics::{Angles, Incidence, Rig};
 use super::plan::{IsotropyKey, SamplingPlan};
+use super::probes::{ProbeDrift, ProbeSpec};
 use super::reciprocity::{pair_residual, PairError};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -202,6 +204,7 @@ pub struct CheckOutput {
 #[derive(Debug, Clone)]
 struct Checked {
     idx: u64,
+    t: f64,
     xyz: Xyz,
     theta_i_deg: f64,
     omega_i: Vec3,
@@ -241,6 +244,44 @@ pub struct Checker {
     sorted_de2000: HashMap<(i64, i64), Vec<f64>>,
     counts: CheckCounts,
     consecutive_failures: u32,
+    probes: ProbeDrift,
+}
+
+fn drift_alarm(ev: DriftEvent, source: &str, at: (Option<u64>, Option<f64>)) -> Alarm {
+    match ev {
+        DriftEvent::RateSignificant(e) => Alarm::new(
+            AlarmKind::Drift,
+            Severity::Warning,
+            "gain-drift",
+            format!(
+                "the gain drifts by {:+.2} %/h (± {:.2} %/h standard error, from {} {source}); beyond the tolerance",
+                e.rate_pct_per_h, e.se_pct_per_h, e.pairs
+            ),
+        )
+        .at(at.0, at.1)
+        .with(json!({"rate_pct_per_h": e.rate_pct_per_h, "se_pct_per_h": e.se_pct_per_h, "n": e.pairs, "source": source})),
+        DriftEvent::RateCleared(e) => Alarm::new(
+            AlarmKind::Drift,
+            Severity::Info,
+            "gain-drift-cleared",
+            format!(
+                "the gain drift estimate is back within the tolerance: {:+.2} ± {:.2} %/h ({source})",
+                e.rate_pct_per_h, e.se_pct_per_h
+            ),
+        )
+        .at(at.0, at.1),
+        DriftEvent::Step { direction, statistic, threshold, pairs_since_reset } => Alarm::new(
+            AlarmKind::Drift,
+            Severity::Warning,
+            "gain-step",
+            format!(
+                "the gain stepped {}: the latest of the {source} departs from the trend of the previous {pairs_since_reset} by {statistic:.1} standard deviations (threshold {threshold})",
+                if direction > 0 { "up" } else { "down" }
+            ),
+        )
+        .at(at.0, at.1)
+        .with(json!({"direction": direction, "statistic": statistic, "threshold": threshold, "source": source})),
+    }
 }
 
 impl Checker {
@@ -250,6 +291,7 @@ impl Checker {
         colour: ColourSettings,
         spec: CheckSpec,
         isotropic: bool,
+        probes: ProbeSpec,
     ) -> Self {
         let n = plan.capture_count();
         Checker {
@@ -265,7 +307,13 @@ impl Checker {
             sorted_de2000: HashMap::new(),
             counts: CheckCounts::default(),
             consecutive_failures: 0,
+            probes: ProbeDrift::new(probes),
         }
+    }
+
+    /// The gain drift estimate from the probes, once there are enough.
+    pub fn probe_drift(&self) -> Option<DriftEstimate> {
+        self.probes.estimate()
     }
 
     pub fn plan(&self) -> &SamplingPlan {
@@ -519,6 +567,15 @@ impl Checker {
         let dark = xyz[1] <= self.spec.dark_y;
 
         if input.probe {
+            // a probe re-captures its entry's pose: the luminance ratio is the gain change
+            if !dark {
+                if let Some(orig) = self.by_entry.get(input.entry).and_then(|c| c.as_ref()) {
+                    let (t0, y0) = (orig.t, orig.xyz[1]);
+                    for ev in self.probes.add(t0 / 3600.0, y0, input.t / 3600.0, xyz[1]) {
+                        out.alarms.push(drift_alarm(ev, "probes", at));
+                    }
+                }
+            }
             out.capture = Some(rec);
             self.counts.alarms += out.alarms.len() as u64;
             return out;
@@ -527,6 +584,7 @@ impl Checker {
         let exact_pose = pose_err <= self.spec.pair_tolerance_deg;
         let checked = Checked {
             idx: input.idx,
+            t: input.t,
             xyz,
             theta_i_deg: Spherical::from_vector(&measured.omega_i).theta_deg(),
             omega_i: measured.omega_i,

@@ -14,5 +14,6 @@ pub mod drift;
 pub mod geometry;
 pub mod kinematics;
 pub mod plan;
+pub mod probes;
 pub mod reciprocity;
 pub mod shepard;

@@ -1,0 +1,31 @@
+"""Drift probes (operator-enabled): the daemon asks the rig for re-captures of one pose; a lamp
+step shows up at the next probe, a fault-free run raises nothing, and replay is identical."""
+
+import json
+
+from hil import assert_replay_identical, daemon_config, needs_simulator, read_jsonl, run_daemon
+
+
+def test_probes_catch_a_lamp_step_and_stay_quiet_without_one(hil, tmp_path):
+    needs_simulator()
+    cfg = daemon_config(tmp_path, "probes", every=25)
+    step = hil("pstep", [{"kind": "lamp-step", "at_capture": 200, "step_pct": -3.0}], captures=400, speed=7.0 / 0.004)
+    session = tmp_path / "pstep-session"
+    code, out, err = run_daemon(step, session, cfg, timeout=180)
+    assert code == 0, err[-2000:]
+    caps = read_jsonl(session / "captures.jsonl")
+    probes = [c for c in caps if c["probe"]]
+    assert len(probes) >= 10, len(probes)
+    steps = [a for a in read_jsonl(session / "alarms.jsonl") if a["code"] == "gain-step"]
+    assert len(steps) == 1 and steps[0]["evidence"]["direction"] == -1
+    assert 200 <= steps[0]["idx"] <= 200 + 25 + len(probes), steps[0]
+    assert "gain drift from probes" in out
+    assert_replay_identical(session, tmp_path)
+
+    clean = hil("pclean", (), captures=400, speed=7.0 / 0.004)
+    session = tmp_path / "pclean-session"
+    code, out, err = run_daemon(clean, session, daemon_config(tmp_path, "probes2", every=25), timeout=180)
+    assert code == 0, err[-2000:]
+    assert not [a for a in read_jsonl(session / "alarms.jsonl") if a["kind"] == "drift"]
+    s = json.load(open(session / "summary.json"))
+    assert abs(s["probe_drift"]["rate_pct_per_h"]) < 0.5, s["probe_drift"]
