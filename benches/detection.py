@@ -2,7 +2,8 @@
 seeds per scenario, the daemon with drift probes. Reports the alarm rate on fault-free runs, the
 detection delay after onset (captures and hours), the final drift-rate estimate against the truth.
 
-Run (after `cargo build --release`):  python3 benches/detection.py [--seeds 3] [--every 100]
+Run (after `cargo build --release`):
+  python3 benches/detection.py [--seeds 3] [--every 100] [--presets realistic,clean] [--only "no fault"]
 Prints a Markdown table."""
 
 import argparse
@@ -63,6 +64,7 @@ def main():
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--every", type=int, default=100)
     ap.add_argument("--presets", default="realistic,clean")
+    ap.add_argument("--only", help="run only the scenarios whose name contains this text")
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="gw-detect-")
     print(f"Probes every {a.every} captures, {a.seeds} seeds per row, full 6,561-capture runs.\n")
@@ -70,6 +72,8 @@ def main():
     print("|---|---|---|---|---|")
     for preset in a.presets.split(","):
         for name, faults, truth in SCENARIOS:
+            if a.only and a.only not in name:
+                continue
             hits, delays, rates = 0, [], []
             for seed in range(1, a.seeds + 1):
                 code, alarms, summary = run(tmp, name.split()[0], preset, faults, seed, a.every)
