@@ -6,6 +6,16 @@ use goniowatch::measure::kinematics::*;
 use goniowatch::measure::plan::*;
 use std::collections::HashSet;
 
+/// The incidence with these angles (degrees).
+fn incidence(theta_i_deg: f64, phi_i_deg: f64, theta_o_deg: f64, phi_o_deg: f64) -> Incidence {
+    Incidence::from_angles(&Angles {
+        theta_i_deg,
+        phi_i_deg,
+        theta_o_deg,
+        phi_o_deg,
+    })
+}
+
 fn rig(min_sep: f64) -> Rig {
     Rig::new(RigSpec {
         min_separation_deg: min_sep,
@@ -125,43 +135,23 @@ fn poles_and_occlusion_errors() {
     assert_eq!(planned, 0.0);
     assert!((used - 12.0).abs() < 1e-6);
     // inverse refuses occluded and below-horizon inputs with typed errors
-    let inc = Incidence::from_angles(&Angles {
-        theta_i_deg: 30.0,
-        phi_i_deg: 0.0,
-        theta_o_deg: 30.0,
-        phi_o_deg: 5.0,
-    });
+    let inc = incidence(30.0, 0.0, 30.0, 5.0);
     assert!(matches!(
         rig.inverse(&inc),
         Err(KinematicsError::Occluded { .. })
     ));
-    let inc = Incidence::from_angles(&Angles {
-        theta_i_deg: 95.0,
-        phi_i_deg: 0.0,
-        theta_o_deg: 30.0,
-        phi_o_deg: 90.0,
-    });
+    let inc = incidence(95.0, 0.0, 30.0, 90.0);
     assert!(matches!(
         rig.inverse(&inc),
         Err(KinematicsError::BelowHorizon { .. })
     ));
-    let inc = Incidence::from_angles(&Angles {
-        theta_i_deg: 90.0,
-        phi_i_deg: 0.0,
-        theta_o_deg: 30.0,
-        phi_o_deg: 90.0,
-    });
+    let inc = incidence(90.0, 0.0, 30.0, 90.0);
     assert!(matches!(
         rig.inverse(&inc),
         Err(KinematicsError::BelowHorizon { .. })
     ));
     // grazing but above the horizon still works, and the pole of ωo is handled
-    let inc = Incidence::from_angles(&Angles {
-        theta_i_deg: 89.9,
-        phi_i_deg: 10.0,
-        theta_o_deg: 0.0,
-        phi_o_deg: 0.0,
-    });
+    let inc = incidence(89.9, 10.0, 0.0, 0.0);
     let pose = rig.inverse(&inc).unwrap();
     let back = rig.forward(&pose).unwrap();
     assert!(
@@ -196,12 +186,7 @@ fn poles_and_occlusion_errors() {
 fn a_joint_offset_moves_the_true_directions() {
     // the basis of positioning detection: a reading that is off by 1° on one joint changes ω
     let rig = rig(12.0);
-    let inc = Incidence::from_angles(&Angles {
-        theta_i_deg: 45.0,
-        phi_i_deg: 20.0,
-        theta_o_deg: 30.0,
-        phi_o_deg: 200.0,
-    });
+    let inc = incidence(45.0, 20.0, 30.0, 200.0);
     let pose = rig.inverse(&inc).unwrap();
     for j in 0..3 {
         let mut off = pose;
