@@ -16,4 +16,5 @@ pub mod kinematics;
 pub mod plan;
 pub mod probes;
 pub mod reciprocity;
+pub mod resample;
 pub mod shepard;

@@ -24,7 +24,7 @@ pub enum ShepardError {
     BadParameters { nc: usize, nw: usize, n: usize },
     #[error("nodes {0} and {1} coincide (closer than 1e-9 of the data's extent)")]
     DuplicateNodes(usize, usize),
-    #[error("the nodes around node {0} are (nearly) collinear: no unique cubic fit")]
+    #[error("the nodes around node {0} are (nearly) collinear (2-D) or coplanar (3-D): no unique nodal fit")]
     Collinear(usize),
     #[error("node {0} has a non-finite coordinate or value")]
     NotFinite(usize),
@@ -502,6 +502,14 @@ impl Shepard {
 
     /// The interpolant at `q` (2 or 3 coordinates as the method has).
     pub fn value(&self, q: &[f64]) -> Result<f64, ShepardError> {
+        self.value_with_spread(q).map(|(v, _)| v)
+    }
+
+    /// The interpolant at `q` and the spread of the nodal functions that make it: the standard
+    /// deviation of Q_k(q) about Q(q) under the weights W_k (0 at a node). Where the local fits
+    /// agree the data are well resolved; where they disagree the value is uncertain, so the
+    /// spread is the interpolation's uncertainty at no extra cost.
+    pub fn value_with_spread(&self, q: &[f64]) -> Result<(f64, f64), ShepardError> {
         let dims = self.method.dims();
         let mut pq = [0.0; 3];
         for (i, v) in q.iter().take(dims).enumerate() {
@@ -509,7 +517,8 @@ impl Shepard {
         }
         let outside = || ShepardError::Outside { x: pq[0], y: pq[1] };
         let power = if self.method == Method::Cubic2 { 3 } else { 2 };
-        let (mut sw, mut swq) = (0.0, 0.0);
+        // weighted Welford: no cancellation when the nodal values are large and nearly equal
+        let (mut sw, mut mean, mut m2) = (0.0f64, 0.0f64, 0.0f64);
         let mut terms = Vec::with_capacity(self.method.terms());
         let mut at_node = None;
         self.grid.within(&pq, self.rmax, |k| {
@@ -538,16 +547,19 @@ impl Shepard {
                 .sum::<f64>()
                 + self.f[k];
             let w = (1.0 / dist - 1.0 / r).powi(power);
-            sw += w;
-            swq += w * qk;
+            let sw_new = sw + w;
+            let delta = qk - mean;
+            mean += delta * (w / sw_new);
+            m2 += w * delta * (qk - mean);
+            sw = sw_new;
         });
         if let Some(v) = at_node {
-            return Ok(v);
+            return Ok((v, 0.0));
         }
-        if sw == 0.0 {
+        if sw == 0.0 || !sw.is_finite() {
             return Err(outside());
         }
-        Ok(swq / sw)
+        Ok((mean, (m2 / sw).max(0.0).sqrt()))
     }
 }
 
