@@ -97,6 +97,9 @@ pub struct Summary {
     pub checked: CheckCounts,
     pub table2: Table2,
     pub isotropy: Table2,
+    /// Table 2 over the occlusion substitutes' interpolated pairs.
+    #[serde(default)]
+    pub interpolated: Table2,
     /// Gain drift estimate from the probes (%/h), when probes are enabled.
     pub probe_drift: Option<crate::measure::drift::DriftEstimate>,
     pub alarms: BTreeMap<String, u64>,
@@ -160,6 +163,8 @@ pub struct Engine {
     controller_next: u64,
     done: bool,
     finished: bool,
+    /// Controller time of the last checked capture (the time of end-of-session results).
+    last_t: f64,
     crc_recent: VecDeque<bool>,
     crc_alarm_active: bool,
     alarm_counts: BTreeMap<String, u64>,
@@ -249,6 +254,7 @@ impl Engine {
             controller_next: 0,
             done: false,
             finished: false,
+            last_t: 0.0,
             crc_recent: VecDeque::new(),
             crc_alarm_active: false,
             alarm_counts: BTreeMap::new(),
@@ -349,6 +355,7 @@ impl Engine {
             checked: self.checker.counts().clone(),
             table2: self.checker.table2().clone(),
             isotropy: self.checker.isotropy_table().clone(),
+            interpolated: self.checker.interpolated_table().clone(),
             probe_drift: self.checker.probe_drift(),
             alarms: self.alarm_counts.clone(),
             link: self.stats.clone(),
@@ -878,6 +885,7 @@ impl Engine {
                     error,
                 }));
                 let res = self.checker.check(&input);
+                self.last_t = input.t;
                 if let Some(c) = res.capture {
                     out.push(Output::Capture(c));
                 }
@@ -915,6 +923,13 @@ impl Engine {
             && self.outstanding_resync.is_none()
         {
             self.finished = true;
+            let res = self.checker.finish(self.last_t);
+            for p in res.pairs {
+                out.push(Output::Pair(p));
+            }
+            for al in res.alarms {
+                self.alarm(out, al);
+            }
             out.push(Output::Finished);
         }
     }

@@ -1,4 +1,12 @@
-"""Command line: `python -m goniosim run SCENARIO ...`, `python -m goniosim stats TRUTH`."""
+"""Command line:
+
+- `python -m goniosim run SCENARIO ...`: run a simulated session;
+- `python -m goniosim stats TRUTH`: the paper's Table 2 from a truth file;
+- `python -m goniosim reference SCENARIO --out FILE [--seed N] [--no-calibration] [--noise-pct X]`:
+  write an independent reference BRDF measurement of the scenario's material (spectral, 30 bands,
+  Integra-like grid) in goniowatch's reference format (docs/reference-format.md). The seed defaults
+  to the scenario's `session.seed`; exit code 2 on a bad scenario or argument.
+"""
 
 from __future__ import annotations
 
@@ -25,7 +33,19 @@ def main(argv=None) -> int:
     st = sub.add_parser("stats", help="the paper's Table 2 from a truth file's noiseless means")
     st.add_argument("truth")
     st.add_argument("--rgb-scale", type=float, default=100.0)
+    rf = sub.add_parser(
+        "reference",
+        help="write an independent reference BRDF measurement of the scenario's material (docs/reference-format.md)",
+    )
+    rf.add_argument("scenario")
+    rf.add_argument("--out", required=True, help="the reference file to write")
+    rf.add_argument("--seed", type=int, help="noise seed (default: the scenario's session.seed)")
+    rf.add_argument("--no-calibration", action="store_true", help="a calibrated instrument (no scale, no spectral tilt)")
+    rf.add_argument("--noise-pct", type=float, default=0.5, help="multiplicative Gaussian noise per value, in %% (default 0.5)")
     a = ap.parse_args(argv)
+
+    if a.cmd == "reference":
+        return _reference(a)
 
     if a.cmd == "stats":
         from .colour import table2
@@ -64,6 +84,24 @@ def main(argv=None) -> int:
         pass
     finally:
         ctl.close()
+    return 0
+
+
+def _reference(a) -> int:
+    from .material import PRESETS
+    from .reference import write_reference
+
+    try:
+        sc = S.load(a.scenario, {"seed": a.seed} if a.seed is not None else None)
+    except (S.ScenarioError, OSError, ValueError) as e:
+        print(f"goniosim: {e}", file=sys.stderr)
+        return 2
+    try:
+        n = write_reference(PRESETS[sc.material], a.out, sc.seed, calibration=not a.no_calibration, noise_pct=a.noise_pct)
+    except (OSError, ValueError) as e:
+        print(f"goniosim: {e}", file=sys.stderr)
+        return 2
+    print(f"goniosim: reference of {sc.material!r} ({n} directions, seed {sc.seed}) -> {a.out}", file=sys.stderr)
     return 0
 
 

@@ -360,6 +360,14 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
         "  {:<8.3} {:<8.3} {:<8.3} {:<8.3} {:<8.3} {:<8.3} {:<8.3}",
         t.abs_dx, t.abs_dy, t.abs_dz, t.de76, t.dc, t.dh, t.de2000
     )?;
+    if s.checked.pairs_interpolated + s.checked.pairs_unresolved > 0 {
+        let t = &s.interpolated;
+        writeln!(
+            out,
+            "occlusion substitutes vs interpolated partners: ΔE*ab {:.3}  ΔE00 {:.3} over {} ({} unresolved)",
+            t.de76, t.de2000, t.pairs, s.checked.pairs_unresolved
+        )?;
+    }
     if s.isotropy.pairs > 0 {
         let t = &s.isotropy;
         writeln!(
