@@ -10,8 +10,11 @@
 //!   outcomes) in, lines to send, captures to ingest and result records out (pure).
 //! - [`daemon`]: shell side, `run` and `replay`: serial link, ingestion pool, journal, sinks.
 //! - [`commands`]: shell side, the CLI's commands as functions returning serialisable records.
+//! - [`compare`]: shell side, `goniowatch compare`: a session against a reference measurement.
+//! - [`reference`]: the reference-BRDF file format (pure parsing).
 
 pub mod commands;
+pub mod compare;
 pub mod config;
 pub mod daemon;
 pub mod decode;

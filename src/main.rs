@@ -72,6 +72,31 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Cross-validate a session against an independent reference measurement of the same sample
+    /// (docs/reference-format.md): resample the reference at the session's capture directions,
+    /// fit the 3×3 colour transform, and print the paper's Table 3 and the worst directions,
+    /// also with the session's gain drift divided out. Writes SESSION/crossval.json.
+    Compare {
+        /// The session folder (read; crossval.json is written into it).
+        session: PathBuf,
+        /// The reference file.
+        reference: PathBuf,
+        #[arg(long)]
+        json: bool,
+        /// How many of the largest deviations to list.
+        #[arg(long, default_value_t = 10)]
+        worst: usize,
+        /// Correct for this gain drift (%/h) instead of the session's own estimate.
+        #[arg(long, allow_hyphen_values = true)]
+        drift_rate: Option<f64>,
+        /// No gain correction.
+        #[arg(long, conflicts_with = "drift_rate")]
+        no_gain_correction: bool,
+        /// Leave out directions where the resampled reference's relative uncertainty exceeds
+        /// this (gaps in the reference's grid), in percent.
+        #[arg(long, default_value_t = 5.0)]
+        max_reference_spread_pct: f64,
+    },
     /// Print the sampling plan: directions, captures, reciprocal pairs, isotropy classes and the
     /// entries the rig must take at a substitute pose.
     Plan {
@@ -236,6 +261,47 @@ fn run(cli: Cli) -> Result<ExitCode> {
             }
             if !r.mismatches.is_empty() {
                 return Ok(ExitCode::from(EXIT_REPLAY_MISMATCH));
+            }
+        }
+        Command::Compare {
+            session,
+            reference,
+            json,
+            worst,
+            drift_rate,
+            no_gain_correction,
+            max_reference_spread_pct,
+        } => {
+            if !(max_reference_spread_pct > 0.0 && max_reference_spread_pct.is_finite()) {
+                return Err(UsageError(format!(
+                    "--max-reference-spread-pct {max_reference_spread_pct} must be a positive number"
+                ))
+                .into());
+            }
+            use goniowatch::compare::{compare, render, GainChoice};
+            if let Some(r) = drift_rate {
+                if !r.is_finite() {
+                    return Err(
+                        UsageError(format!("--drift-rate {r} is not a finite number")).into(),
+                    );
+                }
+            }
+            let gain = match (drift_rate, no_gain_correction) {
+                (Some(r), _) => GainChoice::Rate(r),
+                (None, true) => GainChoice::None,
+                (None, false) => GainChoice::Session,
+            };
+            let report = compare(
+                &session,
+                &reference,
+                gain,
+                worst,
+                max_reference_spread_pct / 100.0,
+            )?;
+            if json {
+                writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
+            } else {
+                write!(out, "{}", render(&report))?;
             }
         }
         Command::Plan { config, json } => {

@@ -421,7 +421,11 @@ impl Checker {
         }
         // a pending partner is interpolated once its light direction is complete
         let complete = self.plan.direction_count();
-        if self.pending.iter().any(|p| self.seen_per_light[p.light] == complete) {
+        if self
+            .pending
+            .iter()
+            .any(|p| self.seen_per_light[p.light] == complete)
+        {
             let done = self.seen_per_light.clone();
             self.resolve_pending(|p| done[p.light] == complete, input.t, &mut out);
         }
@@ -436,17 +440,25 @@ impl Checker {
         out
     }
 
-    fn resolve_pending(&mut self, ready: impl Fn(&PendingPartner) -> bool, t: f64, out: &mut CheckOutput) {
+    fn resolve_pending(
+        &mut self,
+        ready: impl Fn(&PendingPartner) -> bool,
+        t: f64,
+        out: &mut CheckOutput,
+    ) {
         if self.pending.is_empty() {
             return;
         }
-        let (ready, wait): (Vec<PendingPartner>, Vec<PendingPartner>) = std::mem::take(&mut self.pending)
-            .into_iter()
-            .partition(|p| ready(p));
+        let (ready, wait): (Vec<PendingPartner>, Vec<PendingPartner>) =
+            std::mem::take(&mut self.pending)
+                .into_iter()
+                .partition(|p| ready(p));
         self.pending = wait;
         let mut slices: HashMap<usize, Result<Resampler, String>> = HashMap::new();
         for p in ready {
-            let slice = slices.entry(p.light).or_insert_with(|| self.slice_of(p.light));
+            let slice = slices
+                .entry(p.light)
+                .or_insert_with(|| self.slice_of(p.light));
             let pair = self.score_interpolated(&p, slice, t);
             if let (Some(d), "interpolated") = (&pair.diff, pair.status.as_str()) {
                 self.interpolated_table.add(d);
@@ -1059,7 +1071,12 @@ mod tests {
                 let pp = rig
                     .plan_pose(d[e.light].spherical(), d[e.camera].spherical())
                     .unwrap();
-                let r = [pp.pose.joints_deg[0], pp.pose.joints_deg[1], pp.pose.joints_deg[2], pp.pose.wagon_deg];
+                let r = [
+                    pp.pose.joints_deg[0],
+                    pp.pose.joints_deg[1],
+                    pp.pose.joints_deg[2],
+                    pp.pose.wagon_deg,
+                ];
                 CaptureInput {
                     idx: idx as u64,
                     entry: idx,
@@ -1116,7 +1133,11 @@ mod tests {
             worst = worst.max(p.diff.as_ref().unwrap().de2000);
             // the spread is an honest uncertainty: no error beyond three of it
             let de = p.diff.as_ref().unwrap().de2000;
-            assert!(de <= 3.0 * sigma + 0.05, "capture {}: ΔE00 {de} vs σ {sigma}", p.a);
+            assert!(
+                de <= 3.0 * sigma + 0.05,
+                "capture {}: ΔE00 {de} vs σ {sigma}",
+                p.a
+            );
         }
         // a reciprocal BRDF: the only difference is the interpolation's error (measured: worst
         // 1.38 ΔE00 at a 30° light, where the 15° grid barely resolves this lobe; median < 0.1)
@@ -1133,11 +1154,23 @@ mod tests {
         let inputs = session(81 + 40);
         let mut during = 0;
         for input in &inputs {
-            during += ch.check(input).pairs.iter().filter(|p| p.interpolated.is_some()).count();
+            during += ch
+                .check(input)
+                .pairs
+                .iter()
+                .filter(|p| p.interpolated.is_some())
+                .count();
         }
         let end = ch.finish(1000.0);
-        let resolved: Vec<_> = end.pairs.iter().filter(|p| p.interpolated.is_some()).collect();
-        assert_eq!(during + resolved.len(), (ch.counts().pairs_interpolated + ch.counts().pairs_unresolved) as usize);
+        let resolved: Vec<_> = end
+            .pairs
+            .iter()
+            .filter(|p| p.interpolated.is_some())
+            .collect();
+        assert_eq!(
+            during + resolved.len(),
+            (ch.counts().pairs_interpolated + ch.counts().pairs_unresolved) as usize
+        );
         for p in &resolved {
             let i = p.interpolated.as_ref().unwrap();
             if p.status == "interpolated" {
@@ -1155,12 +1188,19 @@ mod tests {
     fn a_session_without_substitutes_builds_no_interpolant() {
         // a rig that can put the camera anywhere: no substitutes, no interpolated pairs
         let mut ch = checker();
-        ch.rig = Rig::new(RigSpec { min_separation_deg: 0.0, ..RigSpec::default() }).unwrap();
+        ch.rig = Rig::new(RigSpec {
+            min_separation_deg: 0.0,
+            ..RigSpec::default()
+        })
+        .unwrap();
         for mut input in session(200) {
             input.substitute = None;
             let _ = ch.check(&input);
         }
-        assert_eq!(ch.counts().pairs_interpolated + ch.counts().pairs_unresolved, 0);
+        assert_eq!(
+            ch.counts().pairs_interpolated + ch.counts().pairs_unresolved,
+            0
+        );
         assert!(ch.pending.is_empty());
     }
 }

@@ -1,7 +1,8 @@
 //! Cross-validation against an uncalibrated reference (the paper's Section 6.2): the least-squares
 //! 3×3 colour transform T with T·v ≈ w, and the Table 3 statistics of the colour differences.
-//! Groundwork for issue 6 (the reference file format, the resampling at the session's directions
-//! and the `compare` command are open).
+//! `cross_validate` resamples the reference at the session's capture directions (the layered
+//! resampler of `measure::resample`), fits T, and gives Table 3 with and without the gain
+//! correction of a drift estimate.
 //!
 //! T is found row by row from the n×3 least-squares system V·tₖ = wₖ with an SVD of V (never the
 //! normal equations' inverse): its condition number κ(V) is reported, and near-grey data (all
@@ -10,6 +11,8 @@
 //! problem); `fit_transform_weighted` exists to test exactly that.
 
 use super::colour::{colour_difference, White, Xyz};
+use super::geometry::{Spherical, Vec3};
+use super::resample::LayeredResampler;
 use nalgebra::{DMatrix, DVector, Matrix3};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -168,6 +171,180 @@ pub fn table3(
     )
 }
 
+/// One session capture for the cross-validation: the measured directions, the XYZ as captured
+/// (it carries cos θi and the session's gain), and the controller time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SessionValue {
+    pub idx: u64,
+    pub entry: usize,
+    pub t_s: f64,
+    pub omega_i: Vec3,
+    pub omega_o: Vec3,
+    pub xyz: Xyz,
+}
+
+/// A gain model to divide out: g(t) = exp(r·t), r = rate_pct_per_h / 100 per hour.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GainCorrection {
+    pub rate_pct_per_h: f64,
+    pub se_pct_per_h: f64,
+    /// Where the rate comes from (`probes`, `command line`, ...).
+    pub source: String,
+}
+
+impl GainCorrection {
+    pub fn gain(&self, t_s: f64) -> f64 {
+        (self.rate_pct_per_h / 100.0 * t_s / 3600.0).exp()
+    }
+}
+
+/// One of the directions with the largest deviation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Deviation {
+    pub idx: u64,
+    pub entry: usize,
+    /// θi, φi, θo, φo of the capture (degrees).
+    pub angles_deg: [f64; 4],
+    pub t_h: f64,
+    pub de76: f64,
+    pub de2000: f64,
+    /// The resampled reference's relative uncertainty (nodal spread over value, worst channel).
+    pub reference_rel_spread: f64,
+}
+
+/// Table 3 for one set of session values.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Table3 {
+    pub transform: ColourTransform,
+    pub de76: Table3Row,
+    pub de2000: Table3Row,
+    pub worst: Vec<Deviation>,
+}
+
+/// The result of `cross_validate`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CrossValidation {
+    pub reference_layers_deg: Vec<f64>,
+    pub captures_compared: usize,
+    /// Captures the reference does not reach (θi beyond its layers, outgoing directions outside
+    /// every radius of influence).
+    pub captures_not_covered: usize,
+    /// Captures left out as grazing (cos θi below the limit).
+    pub captures_grazing: usize,
+    /// Captures left out because the resampled reference is too uncertain there (its relative
+    /// nodal spread in any channel exceeds `max_reference_spread`): gaps in the reference's grid.
+    pub captures_reference_uncertain: usize,
+    pub max_reference_spread: f64,
+    /// Median relative uncertainty of the resampled reference (worst channel).
+    pub reference_rel_spread_median: f64,
+    pub table3: Table3,
+    pub gain_corrected: Option<(GainCorrection, Table3)>,
+}
+
+fn table3_of(
+    values: &[Xyz],
+    reference: &[Xyz],
+    used: &[(SessionValue, f64)],
+    white: White,
+    worst: usize,
+) -> Result<Table3, CrossValError> {
+    let transform = fit_transform(values, reference)?;
+    let (de76, de2000, ranked) = table3(&transform, values, reference, white, worst);
+    let worst = ranked
+        .into_iter()
+        .map(|(k, de00)| {
+            let (s, spread) = used[k];
+            let si = Spherical::from_vector(&s.omega_i);
+            let so = Spherical::from_vector(&s.omega_o);
+            Deviation {
+                idx: s.idx,
+                entry: s.entry,
+                angles_deg: [si.theta_deg(), si.phi_deg(), so.theta_deg(), so.phi_deg()],
+                t_h: s.t_s / 3600.0,
+                de76: colour_difference(transform.apply(values[k]), reference[k], white).de76,
+                de2000: de00,
+                reference_rel_spread: spread,
+            }
+        })
+        .collect();
+    Ok(Table3 {
+        transform,
+        de76,
+        de2000,
+        worst,
+    })
+}
+
+/// Resample the reference at every session capture, fit T (session → reference) and give
+/// Table 3; with a gain model, the same again on the gain-corrected session values. Session
+/// values are divided by cos θi first (the reference holds reflectance factors, BRDF·π).
+pub fn cross_validate(
+    session: &[SessionValue],
+    reference: &LayeredResampler,
+    white: White,
+    min_cos: f64,
+    max_reference_spread: f64,
+    gain: Option<GainCorrection>,
+    worst: usize,
+) -> Result<CrossValidation, CrossValError> {
+    let mut used: Vec<(SessionValue, f64)> = Vec::new();
+    let mut values = Vec::new();
+    let mut refs = Vec::new();
+    let (mut not_covered, mut grazing, mut uncertain) = (0, 0, 0);
+    for s in session {
+        let ci = s.omega_i.normalize().z;
+        if !(ci >= min_cos) || !s.xyz.iter().all(|v| v.is_finite()) {
+            grazing += 1;
+            continue;
+        }
+        match reference.at(&s.omega_i, &s.omega_o) {
+            Ok(r) if r.value.iter().all(|v| v.is_finite()) => {
+                // the worst channel: a chroma error shows in X or Z before Y
+                let spread = (0..3)
+                    .map(|c| r.spread[c] / r.value[c].abs().max(1e-300))
+                    .fold(0.0, f64::max);
+                if !(spread <= max_reference_spread) {
+                    uncertain += 1;
+                    continue;
+                }
+                used.push((*s, spread));
+                values.push(s.xyz.map(|v| v / ci));
+                refs.push(r.value);
+            }
+            _ => not_covered += 1,
+        }
+    }
+    let table3 = table3_of(&values, &refs, &used, white, worst)?;
+    let mut spreads: Vec<f64> = used.iter().map(|u| u.1).collect();
+    spreads.sort_by(f64::total_cmp);
+    let gain_corrected = match gain {
+        None => None,
+        Some(g) => {
+            let corrected: Vec<Xyz> = values
+                .iter()
+                .zip(&used)
+                .map(|(v, (s, _))| {
+                    let k = g.gain(s.t_s);
+                    v.map(|c| c / k)
+                })
+                .collect();
+            let t = table3_of(&corrected, &refs, &used, white, worst)?;
+            Some((g, t))
+        }
+    };
+    Ok(CrossValidation {
+        reference_layers_deg: reference.layer_thetas(),
+        captures_compared: used.len(),
+        captures_not_covered: not_covered,
+        captures_grazing: grazing,
+        captures_reference_uncertain: uncertain,
+        max_reference_spread,
+        reference_rel_spread_median: spreads.get(spreads.len() / 2).copied().unwrap_or(0.0),
+        table3,
+        gain_corrected,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -295,5 +472,101 @@ mod tests {
             "{de:?}"
         );
         assert_eq!(worst.len(), 3);
+    }
+
+    #[test]
+    fn cross_validation_recovers_the_transform_and_the_gain_correction_helps() {
+        use crate::measure::plan::SamplingPlan;
+        use crate::measure::resample::{LayeredResampler, ResampleSpec, Sample};
+        // a chromatic, smooth "reference" BRDF (reflectance factors, Y≈100 scale)
+        let f = |wi: &Vec3, wo: &Vec3| -> Xyz {
+            let m = Vec3::new(-wi.x, -wi.y, wi.z);
+            let lobe = 25.0 * m.dot(wo).max(0.0).powi(8);
+            [
+                30.0 + lobe + 10.0 * wo.z,
+                40.0 + lobe,
+                20.0 + lobe + 15.0 * wi.z,
+            ]
+        };
+        let mut samples = Vec::new();
+        for ti in [0.0, 10.0, 20.0, 30.0, 45.0, 60.0, 75.0] {
+            let wi = Spherical::from_deg(ti, 0.0).to_vector();
+            for to in (0..=80).step_by(5) {
+                for po in (0..360).step_by(15) {
+                    if to == 0 && po > 0 {
+                        continue;
+                    }
+                    let wo = Spherical::from_deg(to as f64, po as f64).to_vector();
+                    samples.push(Sample {
+                        omega_i: wi,
+                        omega_o: wo,
+                        value: f(&wi, &wo),
+                    });
+                }
+            }
+        }
+        let reference = LayeredResampler::new(&samples, &ResampleSpec::default()).unwrap();
+        // the session: an uncalibrated camera (T⁻¹), cos θi, and a −2 %/h exponential drift
+        let t_true = [[1.10, 0.05, -0.02], [0.03, 0.95, 0.01], [-0.04, 0.02, 1.20]];
+        let t_inv = nalgebra::Matrix3::from_fn(|r, c| t_true[r][c])
+            .try_inverse()
+            .unwrap();
+        let plan = SamplingPlan::ubo();
+        let dirs = plan.directions();
+        let session: Vec<SessionValue> = (0..plan.capture_count())
+            .step_by(3)
+            .map(|idx| {
+                let e = plan.entry(idx).unwrap();
+                let (wi, wo) = (
+                    dirs[e.light].spherical().to_vector(),
+                    dirs[e.camera].spherical().to_vector(),
+                );
+                let t_s = idx as f64 * 7.0;
+                let g = (-0.02 * t_s / 3600.0).exp();
+                let w = f(&wi, &wo);
+                let v = t_inv * nalgebra::Vector3::new(w[0], w[1], w[2]) * wi.z * g;
+                SessionValue {
+                    idx: idx as u64,
+                    entry: idx,
+                    t_s,
+                    omega_i: wi,
+                    omega_o: wo,
+                    xyz: [v.x, v.y, v.z],
+                }
+            })
+            .collect();
+        let white = White::d65_scaled(100.0).unwrap();
+        let gain = GainCorrection {
+            rate_pct_per_h: -2.0,
+            se_pct_per_h: 0.0,
+            source: "test".into(),
+        };
+        let x = cross_validate(&session, &reference, white, 1e-3, 0.05, Some(gain), 5).unwrap();
+        assert!(x.captures_compared > 2000, "{}", x.captures_compared);
+        assert_eq!(x.reference_layers_deg.len(), 7);
+        let (g, corrected) = x.gain_corrected.as_ref().unwrap();
+        assert_eq!(g.source, "test");
+        // with the drift divided out, T is the instrument's and the residual is interpolation only
+        for r in 0..3 {
+            for c in 0..3 {
+                assert!(
+                    (corrected.transform.t[r][c] - t_true[r][c]).abs() < 0.02,
+                    "{:?}",
+                    corrected.transform.t
+                );
+            }
+        }
+        assert!(corrected.de2000.median < 0.1, "{:?}", corrected.de2000);
+        assert!(
+            x.table3.de2000.median > 3.0 * corrected.de2000.median,
+            "{:?} vs {:?}",
+            x.table3.de2000,
+            corrected.de2000
+        );
+        assert_eq!(corrected.worst.len(), 5);
+        assert!(corrected
+            .worst
+            .windows(2)
+            .all(|w| w[0].de2000 >= w[1].de2000));
     }
 }

@@ -54,6 +54,11 @@ pub struct ResampleSpec {
     /// Units of the θi axis per degree of θi, against the square's ≈ 1/360 per degree of
     /// outgoing angle near the mirror direction.
     pub theta_per_deg: f64,
+    /// Interpolate ln(value) when every value is positive: a specular lobe is close to a
+    /// Gaussian, i.e. a quadratic in ln f, so the nodal quadratics follow it instead of
+    /// overshooting beside it (measured on the simulator's reference: without it, a 10:1 lobe
+    /// made nodal fits 40° away swing by ±100 %). Data with zero or negative values stay linear.
+    pub log_values: bool,
 }
 
 impl Default for ResampleSpec {
@@ -64,6 +69,7 @@ impl Default for ResampleSpec {
             nq_3d: 17,
             nw_3d: 32,
             theta_per_deg: 1.0 / 360.0,
+            log_values: true,
         }
     }
 }
@@ -88,6 +94,7 @@ pub struct Resampler {
     channels: [Shepard; 3],
     nodes: usize,
     method: Method,
+    log: bool,
 }
 
 /// Points closer than this (in the layout's coordinates) are one node.
@@ -193,7 +200,7 @@ impl Resampler {
         } else {
             return Err(ResampleError::TooFewSamples(n, 7));
         };
-        Self::build(Layout::Slice(map), points, method, nq, nw)
+        Self::build(Layout::Slice(map), points, method, nq, nw, spec.log_values)
     }
 
     /// Samples of an isotropic material over any incoming directions, in (θi·s, x, y).
@@ -228,6 +235,7 @@ impl Resampler {
             Method::Quadratic3,
             spec.nq_3d,
             spec.nw_3d,
+            spec.log_values,
         )
     }
 
@@ -237,10 +245,15 @@ impl Resampler {
         method: Method,
         nq: usize,
         nw: usize,
+        log_values: bool,
     ) -> Result<Self, ResampleError> {
         let p: Vec<[f64; 3]> = points.iter().map(|(p, _)| *p).collect();
+        let log = log_values && points.iter().all(|(_, v)| v.iter().all(|c| *c > 0.0));
         let fit = |c: usize| {
-            let f: Vec<f64> = points.iter().map(|(_, v)| v[c]).collect();
+            let f: Vec<f64> = points
+                .iter()
+                .map(|(_, v)| if log { v[c].ln() } else { v[c] })
+                .collect();
             Shepard::fit(method, &p, &f, nq, nw).map_err(ResampleError::Build)
         };
         Ok(Resampler {
@@ -248,6 +261,7 @@ impl Resampler {
             channels: [fit(0)?, fit(1)?, fit(2)?],
             nodes: p.len(),
             method,
+            log,
         })
     }
 
@@ -280,10 +294,21 @@ impl Resampler {
                     ShepardError::Outside { .. } => ResampleError::Outside,
                     other => ResampleError::Build(other),
                 })?;
-            value[c] = v;
-            spread[c] = s;
+            if self.log {
+                // first order: d(e^u) = e^u du
+                value[c] = v.exp();
+                spread[c] = value[c] * s;
+            } else {
+                value[c] = v;
+                spread[c] = s;
+            }
         }
         Ok(Resampled { value, spread })
+    }
+
+    /// Whether values are interpolated as logarithms.
+    pub fn interpolates_logarithms(&self) -> bool {
+        self.log
     }
 
     /// The value at a direction pair (a slice ignores `omega_i`).
