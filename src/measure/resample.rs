@@ -95,7 +95,16 @@ pub struct Resampler {
     nodes: usize,
     method: Method,
     log: bool,
+    /// Per channel, the range of the node values (in the interpolated space): results are
+    /// clamped to it widened by `RANGE_MARGIN` of its span on each side. A nodal polynomial
+    /// fitted across a steep lobe can swing far beyond the data beside it (measured: 970× the
+    /// true value on UBO-sampled walkway data); a peak just off the data (a retro-reflection
+    /// hole) may rightly lie a little above the largest node.
+    range: [(f64, f64); 3],
 }
+
+/// How far beyond the node values' range (as a fraction of its span) a result may go.
+pub const RANGE_MARGIN: f64 = 0.25;
 
 /// Points closer than this (in the layout's coordinates) are one node.
 const MERGE_TOL: f64 = 1e-7;
@@ -256,12 +265,21 @@ impl Resampler {
                 .collect();
             Shepard::fit(method, &p, &f, nq, nw).map_err(ResampleError::Build)
         };
+        let range = [0, 1, 2].map(|c| {
+            points
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (_, v)| {
+                    let x = if log { v[c].ln() } else { v[c] };
+                    (lo.min(x), hi.max(x))
+                })
+        });
         Ok(Resampler {
             layout,
             channels: [fit(0)?, fit(1)?, fit(2)?],
             nodes: p.len(),
             method,
             log,
+            range,
         })
     }
 
@@ -294,6 +312,9 @@ impl Resampler {
                     ShepardError::Outside { .. } => ResampleError::Outside,
                     other => ResampleError::Build(other),
                 })?;
+            let (lo, hi) = self.range[c];
+            let margin = RANGE_MARGIN * (hi - lo);
+            let v = v.clamp(lo - margin, hi + margin);
             if self.log {
                 // first order: d(e^u) = e^u du
                 value[c] = v.exp();
@@ -337,8 +358,8 @@ impl Resampler {
 /// cos θi factor (pass BRDF-like values), or the θi interpolation follows the cosine instead.
 #[derive(Debug, Clone)]
 pub struct LayeredResampler {
-    /// (θi of the layer in degrees, its slice), ascending θi.
-    layers: Vec<(f64, Resampler)>,
+    /// (θi of the layer in degrees, its slice, cos of the largest θo it holds), ascending θi.
+    layers: Vec<(f64, Resampler, f64)>,
     dropped_layers: usize,
 }
 
@@ -388,8 +409,12 @@ impl LayeredResampler {
             let group = &rotated[start..end];
             let theta = group.iter().map(|g| g.0).sum::<f64>() / group.len() as f64;
             let members: Vec<Sample> = group.iter().map(|g| g.1).collect();
+            let min_cos_o = members
+                .iter()
+                .map(|m| m.omega_o.normalize().z)
+                .fold(1.0, f64::min);
             match Resampler::slice(&members, &Spherical::from_deg(theta, 0.0).to_vector(), spec) {
-                Ok(r) => layers.push((theta, r)),
+                Ok(r) => layers.push((theta, r, min_cos_o)),
                 Err(_) => dropped_layers += 1,
             }
             start = end;
@@ -423,10 +448,11 @@ impl LayeredResampler {
         let (tq, wo) = rotate_to_phi_zero(omega_i, omega_o);
         let (x, y) = MirrorAlignedMap::new(&Spherical::from_deg(tq, 0.0).to_vector()).square(&wo);
         let eval = |k: usize| -> Result<Resampled, ResampleError> {
-            let (t, r) = &self.layers[k];
-            // the same square point in the layer's own frame must still be above its horizon
+            let (t, r, min_cos_o) = &self.layers[k];
+            // the same square point, seen from the layer's own mirror direction, must lie within
+            // the layer's data (no further from the pole than its largest θo): no extrapolation
             let map = MirrorAlignedMap::new(&Spherical::from_deg(*t, 0.0).to_vector());
-            if map.direction(x, y).z < 0.0 {
+            if map.direction(x, y).z < min_cos_o - 1e-9 {
                 return Err(ResampleError::Outside);
             }
             r.at_square(x, y)
