@@ -113,17 +113,17 @@ fn finite_up(v: &Vec3) -> bool {
     v.iter().all(|c| c.is_finite()) && v.z >= 0.0 && v.norm() > 0.0
 }
 
+/// Both directions on or above the horizon and every value finite.
+fn usable(s: &Sample) -> bool {
+    finite_up(&s.omega_i) && finite_up(&s.omega_o) && s.value.iter().all(|v| v.is_finite())
+}
+
 /// The isotropic layout's coordinates of a direction pair: rotate both about the normal so that
 /// φi = 0, then (θi·s, x, y) with (x, y) the mirror-aligned square of the rotated ωo.
 pub fn isotropic_coords(omega_i: &Vec3, omega_o: &Vec3, theta_per_deg: f64) -> [f64; 3] {
-    let si = Spherical::from_vector(omega_i);
-    let (c, s) = (si.phi.cos(), si.phi.sin());
-    // Rz(−φi)
-    let rot = |v: &Vec3| Vec3::new(c * v.x + s * v.y, -s * v.x + c * v.y, v.z);
-    let wi = rot(&omega_i.normalize());
-    let wo = rot(&omega_o.normalize());
-    let (x, y) = MirrorAlignedMap::new(&wi).square(&wo);
-    [si.theta_deg() * theta_per_deg, x, y]
+    let (theta_i, wo) = rotate_to_phi_zero(omega_i, omega_o);
+    let (x, y) = MirrorAlignedMap::new(&Spherical::from_deg(theta_i, 0.0).to_vector()).square(&wo);
+    [theta_i * theta_per_deg, x, y]
 }
 
 /// Merge points within `MERGE_TOL` of each other into one node with the mean value.
@@ -216,11 +216,7 @@ impl Resampler {
     pub fn isotropic(samples: &[Sample], spec: &ResampleSpec) -> Result<Self, ResampleError> {
         let points: Vec<([f64; 3], Xyz)> = samples
             .iter()
-            .filter(|s| {
-                finite_up(&s.omega_i)
-                    && finite_up(&s.omega_o)
-                    && s.value.iter().all(|v| v.is_finite())
-            })
+            .filter(|s| usable(s))
             .map(|s| {
                 (
                     isotropic_coords(&s.omega_i, &s.omega_o, spec.theta_per_deg),
@@ -380,11 +376,7 @@ impl LayeredResampler {
     pub fn new(samples: &[Sample], spec: &ResampleSpec) -> Result<Self, ResampleError> {
         let mut rotated: Vec<(f64, Sample)> = samples
             .iter()
-            .filter(|s| {
-                finite_up(&s.omega_i)
-                    && finite_up(&s.omega_o)
-                    && s.value.iter().all(|v| v.is_finite())
-            })
+            .filter(|s| usable(s))
             .map(|s| {
                 let (t, wo) = rotate_to_phi_zero(&s.omega_i, &s.omega_o);
                 (
