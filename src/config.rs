@@ -212,6 +212,16 @@ pub struct Config {
     pub link: LinkSpec,
     #[serde(default)]
     pub ingest: IngestSpec,
+    #[serde(default)]
+    pub http: HttpSpec,
+}
+
+/// `[http]`: the status page of `run --http ADDR`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct HttpSpec {
+    /// Serve on a non-loopback address (the page has no authentication). Off by default.
+    pub allow_remote: bool,
 }
 
 impl Config {

@@ -55,6 +55,10 @@ enum Command {
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
+        /// Serve a live status page (and /status.json, /metrics) at this address, e.g.
+        /// 127.0.0.1:8080. Loopback only unless the config's [http] allow_remote is set.
+        #[arg(long)]
+        http: Option<std::net::SocketAddr>,
     },
     /// Replay a recorded session through the same code path into a fresh results folder.
     Replay {
@@ -213,6 +217,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             capture_root,
             keep_running,
             quiet,
+            http,
         } => {
             use goniowatch::daemon::run::{print_summary, run, RunEnd, RunOptions};
             let rt = tokio::runtime::Builder::new_multi_thread()
@@ -227,6 +232,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 capture_root,
                 keep_running,
                 progress: !quiet,
+                http,
             }))?;
             rt.shutdown_timeout(std::time::Duration::from_secs(1));
             print_summary(&summary, &mut out)?;

@@ -9,6 +9,7 @@ use super::ingest::{Job, Pool};
 use super::journal::{now_ms, JournalEntry, JournalItem, JsonlFile, Results, SessionLock};
 use super::session::{recover, Session};
 use super::sinks::{log_alarm, run_hook};
+use super::status::{Snapshot, StatusModel};
 use crate::engine::{Engine, Input, Output, Summary};
 use crate::measure::alarm::Severity;
 use anyhow::{Context, Result};
@@ -30,6 +31,8 @@ pub struct RunOptions {
     pub keep_running: bool,
     /// Draw a progress bar (when stderr is a terminal).
     pub progress: bool,
+    /// Serve the status page here (`--http`).
+    pub http: Option<std::net::SocketAddr>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -52,6 +55,33 @@ struct Live {
     critical: bool,
     last_plain_report: Instant,
     hooks: Vec<tokio::task::JoinHandle<()>>,
+    status: Option<StatusFeed>,
+}
+
+/// The status page's model and the channel its readers take snapshots from.
+struct StatusFeed {
+    model: StatusModel,
+    tx: watch::Sender<Option<std::sync::Arc<Snapshot>>>,
+    started: Instant,
+    last: Option<Instant>,
+}
+
+impl StatusFeed {
+    /// Publish at most every 250 ms unless forced; never waits for a reader.
+    fn publish(&mut self, summary: &Summary, force: bool) {
+        if !force
+            && self
+                .last
+                .is_some_and(|l| l.elapsed() < Duration::from_millis(250))
+        {
+            return;
+        }
+        self.last = Some(Instant::now());
+        let snap = self
+            .model
+            .snapshot(summary, self.started.elapsed().as_secs_f64());
+        self.tx.send_replace(Some(std::sync::Arc::new(snap)));
+    }
 }
 
 impl Live {
@@ -83,6 +113,9 @@ impl Live {
 
     fn carry_out(&mut self, outputs: Vec<Output>) -> Result<()> {
         for o in outputs {
+            if let Some(s) = &mut self.status {
+                s.model.record(&o);
+            }
             match &o {
                 Output::Send(line) => {
                     self.journal.write(&JournalEntry {
@@ -114,7 +147,14 @@ impl Live {
         Ok(())
     }
 
+    fn publish_status(&mut self, force: bool) {
+        if let Some(s) = &mut self.status {
+            s.publish(&self.engine.summary(), force);
+        }
+    }
+
     fn update_progress(&mut self) {
+        self.publish_status(false);
         let done = self.engine.checked_through();
         let total = self.engine.captures_planned();
         let t2 = self.engine.table2();
@@ -242,7 +282,26 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         critical: false,
         last_plain_report: Instant::now(),
         hooks: Vec::new(),
+        status: None,
     };
+
+    if let Some(addr) = opts.http {
+        super::http::check_address(&addr, cfg.http.allow_remote)?;
+        let mut model = StatusModel::new(&cfg.plan()?);
+        if session.resumed {
+            model.load(&session.dir);
+        }
+        let (tx, rx) = watch::channel(None);
+        let (local, _server) = super::http::serve(addr, rx).await?;
+        eprintln!("goniowatch: status page on http://{local}/");
+        live.status = Some(StatusFeed {
+            model,
+            tx,
+            started: Instant::now(),
+            last: None,
+        });
+        live.publish_status(true);
+    }
 
     if session.resumed {
         live.process(Input::Restart)?;
@@ -298,6 +357,7 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
                 }
                 live.submit_pending();
                 live.update_progress();
+                live.publish_status(true);
                 live.results.write_summary(&live.engine.summary())?;
             }
         }
@@ -315,6 +375,7 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
     live.journal.sync()?;
     let summary = live.engine.summary();
     live.results.write_summary(&summary)?;
+    live.publish_status(true);
     if let Some(b) = &live.bar {
         b.finish_and_clear();
     }

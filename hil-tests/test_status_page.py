@@ -1,0 +1,124 @@
+"""The live status page of `run --http` in a real headless browser (Debian's chromium driven by
+Playwright): the page loads, its progress advances, an injected fault shows up as an alarm, it
+comes back after the browser is closed and reopened; /status.json and /metrics answer; a
+non-loopback address is refused. A screenshot is left in the test's temporary folder (or in
+$GONIOWATCH_SCREENSHOT_DIR)."""
+
+import json
+import os
+import re
+import subprocess
+import threading
+import time
+import urllib.request
+
+import pytest
+
+from hil import binary, daemon_config, needs_simulator, start_daemon
+
+CHROMIUM = os.environ.get("GONIOWATCH_CHROMIUM", "/usr/bin/chromium")
+ARGS = [
+    "--headless=new",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+
+
+def browser_or_skip():
+    if not os.path.exists(CHROMIUM):
+        if os.environ.get("GONIOWATCH_REQUIRE_BROWSER"):
+            pytest.fail(f"{CHROMIUM} is missing (CI installs Debian's chromium)")
+        pytest.skip(f"{CHROMIUM} is not installed")
+    try:
+        from playwright.sync_api import sync_playwright  # noqa: F401
+    except ImportError:
+        if os.environ.get("GONIOWATCH_REQUIRE_BROWSER"):
+            raise
+        pytest.skip("playwright is not installed (pip install -r hil-tests/requirements.txt)")
+
+
+def status_url(proc, timeout=20):
+    """Read the daemon's stderr until it names the status page; keep draining it after."""
+    found = {}
+    lines = []
+
+    def drain():
+        for line in proc.stderr:
+            lines.append(line)
+            m = re.search(r"status page on (http://\S+)", line)
+            if m and "url" not in found:
+                found["url"] = m.group(1)
+
+    t = threading.Thread(target=drain, daemon=True)
+    t.start()
+    deadline = time.monotonic() + timeout
+    while "url" not in found:
+        if time.monotonic() > deadline or proc.poll() is not None:
+            raise AssertionError("no status page address: " + "".join(lines)[-2000:])
+        time.sleep(0.05)
+    return found["url"], lines
+
+
+def test_status_page_in_a_headless_browser(hil, tmp_path):
+    needs_simulator()
+    browser_or_skip()
+    from playwright.sync_api import sync_playwright
+
+    rig = hil("page", [{"kind": "dark-frame", "at_capture": 400}], captures=1500, speed=7.0 / 0.012)
+    session = tmp_path / "page-session"
+    daemon = start_daemon(rig, session, daemon_config(tmp_path, "page"), "--http", "127.0.0.1:0")
+    try:
+        url, _ = status_url(daemon)
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page(viewport={"width": 1280, "height": 1100})
+            page.goto(url)
+            page.wait_for_function("document.getElementById('conn').textContent === 'live'", timeout=20000)
+            page.wait_for_function("Number(document.getElementById('done').textContent) > 0", timeout=20000)
+            first = int(page.text_content("#done"))
+            page.wait_for_function(f"Number(document.getElementById('done').textContent) > {first + 50}", timeout=30000)
+            # the coverage map and the residual plot are drawn
+            assert page.locator("#coverage circle").count() >= 81
+            page.wait_for_function("document.querySelectorAll('#resid circle').length > 0", timeout=30000)
+            # the injected dark frame appears as an alarm with its message
+            page.wait_for_selector('#alarms li[data-code="dark-capture"]', timeout=60000)
+            text = page.text_content('#alarms li[data-code="dark-capture"]')
+            assert "capture 400" in text and "dark" in text, text
+            shots = os.environ.get("GONIOWATCH_SCREENSHOT_DIR") or str(tmp_path)
+            page.screenshot(path=os.path.join(shots, "status-page.png"), full_page=True)
+            browser.close()
+            # the browser closed and opened again: the page picks up where the run is
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page()
+            page.goto(url)
+            page.wait_for_function(f"Number(document.getElementById('done').textContent) > {first + 50}", timeout=20000)
+            page.wait_for_selector('#alarms li[data-code="dark-capture"]', timeout=20000)
+            browser.close()
+        status = json.load(urllib.request.urlopen(url + "status.json", timeout=10))
+        assert status["summary"]["checked"]["captures"] > 0 and len(status["directions"]) == 81
+        assert any(a["code"] == "dark-capture" for a in status["alarms"])
+        metrics = urllib.request.urlopen(url + "metrics", timeout=10).read().decode()
+        assert re.search(r"^goniowatch_captures_checked \d+", metrics, re.M), metrics[:500]
+        assert "# TYPE goniowatch_alarms_total gauge" in metrics
+        daemon.wait(timeout=120)
+        assert daemon.returncode == 0
+    finally:
+        if daemon.poll() is None:
+            daemon.kill()
+            daemon.wait()
+
+
+def test_a_non_loopback_status_address_is_refused(hil, tmp_path):
+    needs_simulator()
+    rig = hil("remote", captures=10, speed=0)
+    r = subprocess.run(
+        [binary(), "run", "--config", str(daemon_config(tmp_path, "remote")), "--session", str(tmp_path / "remote-session"),
+         "--port", rig.port, "--capture-root", rig.capture_root, "--quiet", "--http", "0.0.0.0:0"],
+        capture_output=True, text=True, timeout=60,
+    )
+    assert r.returncode == 2 and "http.allow_remote" in r.stderr, r.stderr

@@ -1,0 +1,131 @@
+//! Shell: the status server of `run --http ADDR` (axum on the daemon's tokio runtime).
+//!
+//! - `GET /`             the status page (one self-contained HTML file, live by server-sent events)
+//! - `GET /events`       server-sent events: the snapshot now, then on every change
+//! - `GET /status.json`  the latest snapshot
+//! - `GET /metrics`      Prometheus text exposition
+//!
+//! Readers take snapshots from a `watch` channel: the run loop never waits for them, and a slow
+//! reader skips to the latest snapshot instead of queueing old ones. At most `MAX_STREAMS`
+//! event streams are served at once; further ones get 503.
+
+use super::status::{metrics, Snapshot};
+use anyhow::{Context, Result};
+use axum::extract::State;
+use axum::http::{header, StatusCode};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{Html, IntoResponse, Response};
+use axum::routing::get;
+use axum::Router;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::{watch, Semaphore};
+
+pub type SnapshotRx = watch::Receiver<Option<Arc<Snapshot>>>;
+
+const PAGE: &str = include_str!("status.html");
+const MAX_STREAMS: usize = 32;
+
+#[derive(Clone)]
+struct AppState {
+    rx: SnapshotRx,
+    streams: Arc<Semaphore>,
+}
+
+/// Refuse a non-loopback address unless the operator allowed it explicitly.
+pub fn check_address(addr: &SocketAddr, allow_remote: bool) -> Result<()> {
+    if !addr.ip().is_loopback() && !allow_remote {
+        return Err(crate::config::ConfigError::Invalid {
+            field: "http.allow_remote",
+            message: format!(
+                "--http {addr} is not a loopback address; the status page has no \
+                 authentication, so serving it beyond this machine needs `allow_remote = true` \
+                 under [http] in the session's config"
+            ),
+        }
+        .into());
+    }
+    Ok(())
+}
+
+/// Bind now (so a bad address is an error at start), serve in the background.
+pub async fn serve(
+    addr: SocketAddr,
+    rx: SnapshotRx,
+) -> Result<(SocketAddr, tokio::task::JoinHandle<()>)> {
+    let listener = tokio::net::TcpListener::bind(addr)
+        .await
+        .with_context(|| format!("cannot listen on {addr} for --http"))?;
+    let local = listener.local_addr().context("listener address")?;
+    let state = AppState {
+        rx,
+        streams: Arc::new(Semaphore::new(MAX_STREAMS)),
+    };
+    let app = Router::new()
+        .route("/", get(page))
+        .route("/events", get(events))
+        .route("/status.json", get(status_json))
+        .route("/metrics", get(prometheus))
+        .with_state(state);
+    let handle = tokio::spawn(async move {
+        if let Err(e) = axum::serve(listener, app).await {
+            tracing::warn!("status server stopped: {e}");
+        }
+    });
+    Ok((local, handle))
+}
+
+async fn page() -> Html<&'static str> {
+    Html(PAGE)
+}
+
+fn latest(rx: &SnapshotRx) -> Option<Arc<Snapshot>> {
+    rx.borrow().clone()
+}
+
+async fn status_json(State(s): State<AppState>) -> Response {
+    match latest(&s.rx) {
+        Some(snap) => axum::Json(snap.as_ref().clone()).into_response(),
+        None => (StatusCode::SERVICE_UNAVAILABLE, "starting").into_response(),
+    }
+}
+
+async fn prometheus(State(s): State<AppState>) -> Response {
+    match latest(&s.rx) {
+        Some(snap) => (
+            [(
+                header::CONTENT_TYPE,
+                "text/plain; version=0.0.4; charset=utf-8",
+            )],
+            metrics(&snap),
+        )
+            .into_response(),
+        None => (StatusCode::SERVICE_UNAVAILABLE, "starting").into_response(),
+    }
+}
+
+async fn events(State(s): State<AppState>) -> Response {
+    let Ok(permit) = s.streams.clone().try_acquire_owned() else {
+        return (StatusCode::SERVICE_UNAVAILABLE, "too many status streams").into_response();
+    };
+    let rx = s.rx.clone();
+    // the first event is the current snapshot; then one per change (intermediate ones skipped)
+    let stream =
+        futures::stream::unfold((rx, true, permit), |(mut rx, first, permit)| async move {
+            if !first && rx.changed().await.is_err() {
+                return None;
+            }
+            let snap = rx.borrow_and_update().clone();
+            let data = snap
+                .map(|s| serde_json::to_string(s.as_ref()).unwrap_or_else(|_| "{}".into()))
+                .unwrap_or_else(|| "{}".into());
+            Some((
+                Ok::<Event, std::convert::Infallible>(Event::default().event("status").data(data)),
+                (rx, false, permit),
+            ))
+        });
+    Sse::new(stream)
+        .keep_alive(KeepAlive::new().interval(Duration::from_secs(10)))
+        .into_response()
+}

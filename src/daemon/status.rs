@@ -1,0 +1,448 @@
+//! Shell: the live status model behind `run --http` (the page, `/status.json`, `/events`,
+//! `/metrics`). It holds nothing of its own: it is fed the same result records the daemon writes
+//! (and, on resume, reads them back from the session folder), plus the engine's summary.
+//!
+//! The run loop publishes a snapshot through a `tokio::sync::watch` channel: publishing never
+//! waits for a reader, and a slow reader only ever sees the latest snapshot.
+
+use crate::engine::{Output, Summary};
+use crate::measure::alarm::Alarm;
+use crate::measure::checks::{CaptureRecord, PairRecord};
+use crate::measure::plan::SamplingPlan;
+use serde::Serialize;
+use std::collections::{HashMap, VecDeque};
+use std::path::Path;
+
+/// How many recent pairs and alarms the page shows.
+const RECENT_PAIRS: usize = 400;
+const RECENT_ALARMS: usize = 100;
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Direction {
+    pub theta_deg: f64,
+    pub phi_deg: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct RecentPair {
+    pub idx: u64,
+    pub t_h: f64,
+    pub status: String,
+    pub de2000: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct DriftPoint {
+    pub t_h: f64,
+    pub rate_pct_per_h: f64,
+    pub se_pct_per_h: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct GainPoint {
+    pub t_h: f64,
+    /// Probe luminance over the original capture's.
+    pub gain: f64,
+}
+
+/// What the page and the endpoints show.
+#[derive(Debug, Clone, Serialize)]
+pub struct Snapshot {
+    pub summary: Summary,
+    /// Captures checked (regular and probes), and those that failed or went missing.
+    pub checked: u64,
+    pub remaining: u64,
+    /// Wall-clock rate over the last minutes and the estimated time to the end (seconds).
+    pub rate_per_h: Option<f64>,
+    pub eta_s: Option<f64>,
+    /// Controller time of the last checked capture (hours).
+    pub t_h: f64,
+    pub state: String,
+    pub directions: Vec<Direction>,
+    /// Per plan direction used as the light: captures checked of its plan entries.
+    pub done_per_light: Vec<u32>,
+    pub per_light: u32,
+    pub current_light: Option<usize>,
+    pub recent_pairs: Vec<RecentPair>,
+    pub alarms: Vec<Alarm>,
+    pub drift: Vec<DriftPoint>,
+    pub gain: Vec<GainPoint>,
+}
+
+/// The aggregator.
+pub struct StatusModel {
+    directions: Vec<Direction>,
+    done_per_light: Vec<u32>,
+    current_light: Option<usize>,
+    first_y: HashMap<usize, f64>,
+    recent_pairs: VecDeque<RecentPair>,
+    alarms: VecDeque<Alarm>,
+    drift: Vec<DriftPoint>,
+    gain: Vec<GainPoint>,
+    last_t: f64,
+    last_drift_n: usize,
+    /// (wall seconds, captures checked) samples for the rate.
+    rate_window: VecDeque<(f64, u64)>,
+}
+
+impl StatusModel {
+    pub fn new(plan: &SamplingPlan) -> Self {
+        let n = plan.direction_count();
+        StatusModel {
+            directions: plan
+                .directions()
+                .iter()
+                .map(|d| Direction {
+                    theta_deg: d.theta_deg,
+                    phi_deg: d.phi_deg,
+                })
+                .collect(),
+            done_per_light: vec![0; n],
+            current_light: None,
+            first_y: HashMap::new(),
+            recent_pairs: VecDeque::new(),
+            alarms: VecDeque::new(),
+            drift: Vec::new(),
+            gain: Vec::new(),
+            last_t: 0.0,
+            last_drift_n: 0,
+            rate_window: VecDeque::new(),
+        }
+    }
+
+    /// Rebuild from a session folder's result files (on resume).
+    pub fn load(&mut self, dir: &Path) {
+        fn each<T: serde::de::DeserializeOwned>(path: &Path, mut f: impl FnMut(T)) {
+            let Ok(text) = std::fs::read_to_string(path) else {
+                return;
+            };
+            for line in text.lines().filter(|l| !l.trim().is_empty()) {
+                if let Ok(v) = serde_json::from_str::<T>(line) {
+                    f(v);
+                }
+            }
+        }
+        each(&dir.join("captures.jsonl"), |c: CaptureRecord| {
+            self.capture(&c)
+        });
+        each(&dir.join("pairs.jsonl"), |p: PairRecord| self.pair(&p));
+        each(&dir.join("alarms.jsonl"), |a: Alarm| self.alarm(&a));
+    }
+
+    fn capture(&mut self, c: &CaptureRecord) {
+        self.last_t = c.t;
+        if c.probe {
+            if let (Some(y0), Some(xyz)) = (self.first_y.get(&c.entry), c.xyz) {
+                if *y0 > 0.0 {
+                    self.gain.push(GainPoint {
+                        t_h: c.t / 3600.0,
+                        gain: xyz[1] / y0,
+                    });
+                }
+            }
+            return;
+        }
+        if let Some(slot) = self.done_per_light.get_mut(c.light) {
+            *slot += 1;
+        }
+        self.current_light = Some(c.light);
+        if let Some(xyz) = c.xyz {
+            self.first_y.entry(c.entry).or_insert(xyz[1]);
+        }
+    }
+
+    fn pair(&mut self, p: &PairRecord) {
+        let Some(d) = &p.diff else { return };
+        self.recent_pairs.push_back(RecentPair {
+            idx: p.b,
+            t_h: p.t / 3600.0,
+            status: p.status.clone(),
+            de2000: d.de2000,
+        });
+        while self.recent_pairs.len() > RECENT_PAIRS {
+            self.recent_pairs.pop_front();
+        }
+    }
+
+    fn alarm(&mut self, a: &Alarm) {
+        self.alarms.push_back(a.clone());
+        while self.alarms.len() > RECENT_ALARMS {
+            self.alarms.pop_front();
+        }
+    }
+
+    /// Take in one engine output.
+    pub fn record(&mut self, o: &Output) {
+        match o {
+            Output::Capture(c) => self.capture(c),
+            Output::Pair(p) => self.pair(p),
+            Output::Alarm(a) => self.alarm(a),
+            _ => {}
+        }
+    }
+
+    /// The snapshot for the page; `wall_s` is the shell's clock (seconds, any origin).
+    pub fn snapshot(&mut self, summary: &Summary, wall_s: f64) -> Snapshot {
+        let checked = summary.checked.captures;
+        // a new drift point when the probe estimate changed
+        if let Some(d) = &summary.probe_drift {
+            if d.pairs != self.last_drift_n {
+                self.last_drift_n = d.pairs;
+                self.drift.push(DriftPoint {
+                    t_h: self.last_t / 3600.0,
+                    rate_pct_per_h: d.rate_pct_per_h,
+                    se_pct_per_h: d.se_pct_per_h,
+                });
+            }
+        }
+        self.rate_window.push_back((wall_s, checked));
+        while self
+            .rate_window
+            .front()
+            .is_some_and(|(w, _)| wall_s - w > 300.0)
+        {
+            self.rate_window.pop_front();
+        }
+        let regular = checked.saturating_sub(summary.checked.probes);
+        let remaining = summary.captures_planned.saturating_sub(regular);
+        let rate_per_s = self.rate_window.front().and_then(|(w0, c0)| {
+            let dt = wall_s - w0;
+            (dt >= 2.0 && checked > *c0).then(|| (checked - c0) as f64 / dt)
+        });
+        let state = if summary.finished {
+            "finished"
+        } else if summary.link.connects > summary.link.disconnects {
+            "running"
+        } else {
+            "waiting for the controller"
+        };
+        Snapshot {
+            summary: summary.clone(),
+            checked,
+            remaining,
+            rate_per_h: rate_per_s.map(|r| r * 3600.0),
+            eta_s: rate_per_s.map(|r| remaining as f64 / r),
+            t_h: self.last_t / 3600.0,
+            state: state.into(),
+            directions: self.directions.clone(),
+            done_per_light: self.done_per_light.clone(),
+            per_light: self.directions.len() as u32,
+            current_light: self.current_light,
+            recent_pairs: self.recent_pairs.iter().cloned().collect(),
+            alarms: self.alarms.iter().cloned().collect(),
+            drift: self.drift.clone(),
+            gain: self.gain.clone(),
+        }
+    }
+}
+
+/// Prometheus text exposition of a snapshot.
+pub fn metrics(s: &Snapshot) -> String {
+    use std::fmt::Write;
+    let mut out = String::new();
+    let mut g = |name: &str, help: &str, v: f64| {
+        let _ = writeln!(out, "# HELP goniowatch_{name} {help}\n# TYPE goniowatch_{name} gauge\ngoniowatch_{name} {v}");
+    };
+    let c = &s.summary.checked;
+    g(
+        "captures_planned",
+        "Captures in the sampling plan.",
+        s.summary.captures_planned as f64,
+    );
+    g(
+        "captures_checked",
+        "Captures checked (including probes).",
+        c.captures as f64,
+    );
+    g(
+        "captures_failed",
+        "Captures that could not be used.",
+        c.failed as f64,
+    );
+    g(
+        "captures_missing",
+        "Announced captures whose file never appeared.",
+        c.missing as f64,
+    );
+    g(
+        "captures_remaining",
+        "Plan captures not yet checked.",
+        s.remaining as f64,
+    );
+    g(
+        "pairs_exact",
+        "Reciprocal pairs compared at the exact mirrored pose.",
+        c.pairs_exact as f64,
+    );
+    g(
+        "pairs_interpolated",
+        "Occlusion substitutes compared with an interpolated partner.",
+        c.pairs_interpolated as f64,
+    );
+    g(
+        "table2_de2000_mean",
+        "Mean CIEDE2000 over exact reciprocal pairs.",
+        s.summary.table2.de2000,
+    );
+    g(
+        "table2_de76_mean",
+        "Mean CIE 1976 colour difference over exact reciprocal pairs.",
+        s.summary.table2.de76,
+    );
+    g(
+        "alarms_total",
+        "Alarms raised in this session.",
+        c.alarms as f64,
+    );
+    g(
+        "link_lines",
+        "Lines received from the controller.",
+        s.summary.link.lines as f64,
+    );
+    g(
+        "link_crc_errors",
+        "Lines with a bad checksum.",
+        s.summary.link.crc_errors as f64,
+    );
+    g(
+        "link_connects",
+        "Times the serial port was opened.",
+        s.summary.link.connects as f64,
+    );
+    g(
+        "link_controller_reboots",
+        "Controller reboots seen.",
+        s.summary.link.reboots as f64,
+    );
+    if let Some(r) = s.rate_per_h {
+        g(
+            "rate_captures_per_hour",
+            "Captures checked per hour of wall time (last 5 min).",
+            r,
+        );
+    }
+    if let Some(d) = &s.summary.probe_drift {
+        g(
+            "drift_rate_pct_per_h",
+            "Gain drift estimated from the probes.",
+            d.rate_pct_per_h,
+        );
+        g(
+            "drift_rate_se_pct_per_h",
+            "Standard error of the drift rate.",
+            d.se_pct_per_h,
+        );
+    }
+    g(
+        "finished",
+        "1 when the run is over.",
+        if s.summary.finished { 1.0 } else { 0.0 },
+    );
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measure::alarm::{AlarmKind, Severity};
+
+    fn capture(idx: u64, entry: usize, light: usize, probe: bool, y: f64) -> CaptureRecord {
+        CaptureRecord {
+            idx,
+            entry,
+            light,
+            camera: 0,
+            probe,
+            t: idx as f64 * 7.0,
+            file: format!("c{idx}.hdr"),
+            status: "ok".into(),
+            error: None,
+            mean_rgb: None,
+            xyz: Some([y, y, y]),
+            lab: None,
+            pixels: None,
+            nonfinite: None,
+            clipped: None,
+            negative: None,
+            angles: None,
+            substitute: None,
+            pose_error_deg: None,
+        }
+    }
+
+    #[test]
+    fn snapshot_counts_coverage_probes_and_alarms_and_reloads_from_files() {
+        let plan = SamplingPlan::ubo();
+        let mut m = StatusModel::new(&plan);
+        let mut outputs = Vec::new();
+        for idx in 0..100u64 {
+            let e = plan.entry(idx as usize).unwrap();
+            outputs.push(Output::Capture(capture(
+                idx,
+                idx as usize,
+                e.light,
+                false,
+                50.0,
+            )));
+        }
+        // a probe of entry 19 at 2 % less light
+        outputs.push(Output::Capture(capture(100, 19, 0, true, 49.0)));
+        outputs.push(Output::Alarm(
+            Alarm::new(
+                AlarmKind::CaptureQuality,
+                Severity::Warning,
+                "dark-capture",
+                "capture 7 is dark".to_string(),
+            )
+            .at(Some(7), Some(49.0)),
+        ));
+        for o in &outputs {
+            m.record(o);
+        }
+        let mut summary = Summary::default();
+        summary.captures_planned = 6561;
+        summary.checked.captures = 101;
+        summary.checked.probes = 1;
+        let s = m.snapshot(&summary, 0.0);
+        assert_eq!(s.remaining, 6561 - 100);
+        assert_eq!(s.done_per_light[0], 81);
+        assert_eq!(s.done_per_light[1], 19);
+        assert_eq!(s.current_light, Some(1));
+        assert_eq!(s.gain.len(), 1);
+        assert!((s.gain[0].gain - 0.98).abs() < 1e-12);
+        assert_eq!(s.alarms.len(), 1);
+        assert!(s.rate_per_h.is_none(), "no rate from one sample");
+        summary.checked.captures = 201;
+        let s2 = m.snapshot(&summary, 10.0);
+        assert!((s2.rate_per_h.unwrap() - 36_000.0).abs() < 1e-6);
+
+        // the same state read back from result files
+        let dir = std::env::temp_dir().join(format!("gw-status-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut caps = String::new();
+        let mut alarms = String::new();
+        for o in &outputs {
+            match o {
+                Output::Capture(c) => caps += &(serde_json::to_string(c).unwrap() + "\n"),
+                Output::Alarm(a) => alarms += &(serde_json::to_string(a).unwrap() + "\n"),
+                _ => {}
+            }
+        }
+        std::fs::write(dir.join("captures.jsonl"), caps).unwrap();
+        std::fs::write(dir.join("alarms.jsonl"), alarms + "{torn line\n").unwrap();
+        let mut r = StatusModel::new(&plan);
+        r.load(&dir);
+        let s3 = r.snapshot(&summary, 0.0);
+        assert_eq!(s3.done_per_light, s.done_per_light);
+        assert_eq!(s3.alarms.len(), 1);
+        assert_eq!(s3.gain.len(), 1);
+        let _ = std::fs::remove_dir_all(&dir);
+
+        let text = metrics(&s2);
+        assert!(
+            text.contains("goniowatch_captures_remaining 6361\n"),
+            "{text}"
+        );
+        assert!(text.contains("# TYPE goniowatch_rate_captures_per_hour gauge"));
+    }
+}
