@@ -38,8 +38,9 @@ pub enum GainChoice {
     None,
 }
 
-/// The session's captures as comparison inputs: first good capture of each plan entry, no probes.
-pub fn session_values(dir: &Path) -> Result<Vec<SessionValue>> {
+/// The session's captures as comparison inputs: first good capture of each plan entry, no probes,
+/// nothing at or below the dark level (`[checks] dark_y`: a lamp off is not a colour).
+pub fn session_values(dir: &Path, dark_y: f64) -> Result<Vec<SessionValue>> {
     let path = dir.join("captures.jsonl");
     let file = std::fs::File::open(&path).with_context(|| {
         format!(
@@ -62,6 +63,9 @@ pub fn session_values(dir: &Path) -> Result<Vec<SessionValue>> {
         let (Some(a), Some(xyz)) = (rec.angles, rec.xyz) else {
             continue;
         };
+        if !(xyz[1] > dark_y) {
+            continue;
+        }
         out.push(SessionValue {
             idx: rec.idx,
             entry: rec.entry,
@@ -92,7 +96,7 @@ pub fn compare(
         )
     })?)
     .with_context(|| format!("invalid session config {}", cfg_path.display()))?;
-    let values = session_values(session)?;
+    let values = session_values(session, cfg.checks.dark_y)?;
     if values.is_empty() {
         bail!("{} has no usable captures", session.display());
     }

@@ -12,6 +12,7 @@
 //! - [`commands`]: shell side, the CLI's commands as functions returning serialisable records.
 //! - [`compare`]: shell side, `goniowatch compare`: a session against a reference measurement.
 //! - [`reference`]: the reference-BRDF file format (pure parsing).
+//! - [`report`]: shell side, `goniowatch report`: the end-of-run HTML report and CSV tables.
 
 pub mod commands;
 pub mod compare;
@@ -22,3 +23,4 @@ pub mod engine;
 pub mod measure;
 pub mod protocol;
 pub mod reference;
+pub mod report;

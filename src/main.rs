@@ -101,6 +101,16 @@ enum Command {
         #[arg(long, default_value_t = 5.0)]
         max_reference_spread_pct: f64,
     },
+    /// Write the end-of-run report: one self-contained HTML file with its plots (hemisphere
+    /// maps of the reciprocity residual, the gain drift with its band and the alarms, the
+    /// residual distribution, Tables 2 and 3, quality, link, configuration) and the tables as CSV.
+    Report {
+        /// The session folder (or a replay's output folder).
+        session: PathBuf,
+        /// Where to write (default: SESSION/report).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Print the sampling plan: directions, captures, reciprocal pairs, isotropy classes and the
     /// entries the rig must take at a substitute pose.
     Plan {
@@ -308,6 +318,15 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
             } else {
                 write!(out, "{}", render(&report))?;
+            }
+        }
+        Command::Report {
+            session,
+            out: out_dir,
+        } => {
+            let files = goniowatch::report::report(&session, out_dir.as_deref())?;
+            for f in &files {
+                writeln!(out, "{}", f.display())?;
             }
         }
         Command::Plan { config, json } => {

@@ -66,6 +66,10 @@ pub fn replay(
     }
     std::fs::create_dir_all(&out_dir)
         .with_context(|| format!("cannot create {}", out_dir.display()))?;
+    // the config beside the results, so that the replayed folder stands on its own (`report`)
+    let config_text = std::fs::read(session_dir.join("config.toml"))
+        .with_context(|| format!("cannot read {}", session_dir.join("config.toml").display()))?;
+    super::journal::write_atomic(&out_dir.join("config.toml"), &config_text)?;
     let entries = read_journal(&session_dir.join("journal.jsonl"))?;
     let all: Vec<(u64, Input)> = inputs(&entries).map(|(w, i)| (w, i.clone())).collect();
 

@@ -1,0 +1,63 @@
+"""`goniowatch report`: the end-of-run HTML report and its CSV tables, on a simulated session with
+probes, a lamp step, a dark frame and a cross-validation; the report of the replayed session is
+byte-identical to the live one's."""
+
+import csv
+import io
+import subprocess
+import sys
+
+from hil import REPO, binary, daemon_config, needs_simulator, read_jsonl, run_daemon
+
+
+def run(*args, timeout=120):
+    r = subprocess.run([binary(), *map(str, args)], capture_output=True, text=True, timeout=timeout)
+    assert r.returncode == 0, r.stdout + r.stderr
+    return r.stdout
+
+
+def test_report_of_a_session_and_of_its_replay_are_identical(hil, tmp_path):
+    needs_simulator()
+    faults = [
+        {"kind": "lamp-step", "at_capture": 700, "step_pct": -3.0},
+        {"kind": "dark-frame", "at_capture": 300},
+    ]
+    rig = hil("rep", faults, captures=1400, speed=0)
+    session = tmp_path / "rep-session"
+    code, out, err = run_daemon(rig, session, daemon_config(tmp_path, "rep", every=50), timeout=300)
+    assert code == 0, err[-2000:]
+    ref = tmp_path / "rep.ref"
+    r = subprocess.run([sys.executable, "-m", "goniosim", "reference", str(rig.scenario), "--out", str(ref)], cwd=f"{REPO}/sim", capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    run("compare", session, ref)
+    listed = run("report", session).split()
+    assert listed[0].endswith("report.html") and len(listed) == 7, listed  # + table3.csv
+
+    html = (session / "report" / "report.html").read_text()
+    for needle in ["Table 2", "Table 3", "Residual per light direction", "Gain drift", "Capture quality", "Link", "Configuration",
+                   "dark-capture", "gain-step", "<svg", "[probes]"]:
+        assert needle in html, needle
+    # self-contained: nothing loaded from anywhere
+    assert "http://" not in html.replace('xmlns="http://www.w3.org/2000/svg"', "") and "<script" not in html
+    assert str(tmp_path) not in html, "the report must not depend on where the session lives"
+
+    caps = list(csv.DictReader(io.StringIO((session / "report" / "captures.csv").read_text())))
+    assert len(caps) == len(read_jsonl(session / "captures.jsonl"))
+    assert {"idx", "X", "Y", "Z", "theta_i", "pose_error_deg"} <= set(caps[0])
+    alarms = list(csv.DictReader(io.StringIO((session / "report" / "alarms.csv").read_text())))
+    assert any(a["code"] == "dark-capture" and a["idx"] == "300" for a in alarms)
+    t3 = list(csv.DictReader(io.StringIO((session / "report" / "table3.csv").read_text())))
+    assert {r["table"] for r in t3} == {"as measured", "gain-corrected"}
+
+    # the replayed session's report equals the live one's
+    replayed = tmp_path / "rep-replay"
+    run("replay", session, "--out", replayed, "--quiet", timeout=300)
+    run("compare", replayed, ref)
+    run("report", replayed)
+    for name in ["report.html", "captures.csv", "pairs.csv", "alarms.csv", "table2.csv", "light_residuals.csv", "table3.csv"]:
+        assert (session / "report" / name).read_bytes() == (replayed / "report" / name).read_bytes(), name
+
+
+def test_report_refuses_a_folder_that_is_not_a_session(tmp_path):
+    r = subprocess.run([binary(), "report", str(tmp_path)], capture_output=True, text=True)
+    assert r.returncode == 3 and "config.toml" in r.stderr, r.stderr

@@ -1,0 +1,892 @@
+//! Shell: `goniowatch report SESSION [--out DIR]`: the end-of-run report, one self-contained HTML
+//! file with inline SVG plots (no fonts, images or scripts from anywhere), and the same tables as
+//! CSV. It reads only the session's recorded files, so a replayed session's report is the live
+//! session's report, byte for byte (no dates, no paths).
+
+use crate::compare::CompareReport;
+use crate::config::Config;
+use crate::engine::Summary;
+use crate::measure::alarm::{Alarm, Severity};
+use crate::measure::checks::{CaptureRecord, PairRecord, Table2};
+use crate::measure::plan::SamplingPlan;
+use anyhow::{Context, Result};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// What a report is made of: the session's recorded files.
+pub struct ReportInputs {
+    pub summary: Summary,
+    pub config_text: String,
+    pub config: Config,
+    pub captures: Vec<CaptureRecord>,
+    pub pairs: Vec<PairRecord>,
+    pub alarms: Vec<Alarm>,
+    pub crossval: Option<CompareReport>,
+}
+
+fn read_jsonl<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Vec<T>> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
+    };
+    let mut out = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        match serde_json::from_str(line) {
+            Ok(v) => out.push(v),
+            // a torn last line (a crash mid-write) is left out, as recovery would cut it
+            Err(_) if n + 1 == text.lines().count() => {}
+            Err(e) => return Err(e).with_context(|| format!("{} line {}", path.display(), n + 1)),
+        }
+    }
+    Ok(out)
+}
+
+pub fn load(dir: &Path) -> Result<ReportInputs> {
+    let config_path = dir.join("config.toml");
+    let config_text = std::fs::read_to_string(&config_path).with_context(|| {
+        format!(
+            "cannot read {} (is this a goniowatch session folder?)",
+            config_path.display()
+        )
+    })?;
+    let config = Config::from_toml_str(&config_text)
+        .with_context(|| format!("invalid config {}", config_path.display()))?;
+    let summary: Summary = serde_json::from_slice(
+        &std::fs::read(dir.join("summary.json"))
+            .with_context(|| format!("cannot read {}", dir.join("summary.json").display()))?,
+    )
+    .context("summary.json")?;
+    let crossval = match std::fs::read(dir.join("crossval.json")) {
+        Ok(b) => Some(serde_json::from_slice(&b).context("crossval.json")?),
+        Err(_) => None,
+    };
+    Ok(ReportInputs {
+        summary,
+        config_text,
+        config,
+        captures: read_jsonl(&dir.join("captures.jsonl"))?,
+        pairs: read_jsonl(&dir.join("pairs.jsonl"))?,
+        alarms: read_jsonl(&dir.join("alarms.jsonl"))?,
+        crossval,
+    })
+}
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// A perceptually ordered ramp (viridis stops), t in [0, 1].
+fn ramp(t: f64) -> String {
+    const STOPS: [[f64; 3]; 5] = [
+        [68.0, 1.0, 84.0],
+        [59.0, 82.0, 139.0],
+        [33.0, 145.0, 140.0],
+        [94.0, 201.0, 98.0],
+        [253.0, 231.0, 37.0],
+    ];
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let x = t * 4.0;
+    let i = (x.floor() as usize).min(3);
+    let f = x - i as f64;
+    let c: Vec<u8> = (0..3)
+        .map(|k| (STOPS[i][k] + f * (STOPS[i + 1][k] - STOPS[i][k])).round() as u8)
+        .collect();
+    format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2])
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let k = ((sorted.len() - 1) as f64 * p).round() as usize;
+    sorted[k.min(sorted.len() - 1)]
+}
+
+/// ΔE00 per plan entry (both captures of a pair carry its residual), exact and interpolated pairs.
+fn residual_by_entry(pairs: &[PairRecord]) -> BTreeMap<usize, f64> {
+    let mut m = BTreeMap::new();
+    for p in pairs {
+        if let (Some(d), "exact" | "interpolated") = (&p.diff, p.status.as_str()) {
+            m.insert(p.entries[0], d.de2000);
+            m.insert(p.entries[1], d.de2000);
+        }
+    }
+    m
+}
+
+struct Plot {
+    svg: String,
+    w: f64,
+    h: f64,
+    l: f64,
+    r: f64,
+    t: f64,
+    b: f64,
+    x: (f64, f64),
+    y: (f64, f64),
+}
+
+impl Plot {
+    fn new(w: f64, h: f64, x: (f64, f64), y: (f64, f64), xlabel: &str, ylabel: &str) -> Plot {
+        let mut p = Plot {
+            svg: String::new(),
+            w,
+            h,
+            l: 52.0,
+            r: 14.0,
+            t: 12.0,
+            b: 40.0,
+            x,
+            y,
+        };
+        let _ = write!(
+            p.svg,
+            r##"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {w} {h}" width="{w}" height="{h}" class="plot">"##
+        );
+        let (x0, y0, x1, y1) = (p.l, h - p.b, w - p.r, p.t);
+        let _ = write!(
+            p.svg,
+            r##"<line x1="{x0}" y1="{y0}" x2="{x1}" y2="{y0}" stroke="#8a96a3"/><line x1="{x0}" y1="{y0}" x2="{x0}" y2="{y1}" stroke="#8a96a3"/>"##
+        );
+        for i in 0..=4 {
+            let xv = x.0 + (x.1 - x.0) * i as f64 / 4.0;
+            let yv = y.0 + (y.1 - y.0) * i as f64 / 4.0;
+            let (sx, sy) = (p.sx(xv), p.sy(yv));
+            let _ = write!(
+                p.svg,
+                r##"<text x="{sx:.1}" y="{:.1}" text-anchor="middle">{}</text><text x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"##,
+                y0 + 15.0,
+                tick(xv, x.1 - x.0),
+                x0 - 5.0,
+                sy + 4.0,
+                tick(yv, y.1 - y.0)
+            );
+            let _ = write!(
+                p.svg,
+                r##"<line x1="{x0}" y1="{sy:.1}" x2="{x1}" y2="{sy:.1}" stroke="#eef1f4"/>"##
+            );
+        }
+        let _ = write!(
+            p.svg,
+            r##"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"##,
+            (x0 + x1) / 2.0,
+            h - 6.0,
+            esc(xlabel)
+        );
+        let _ = write!(
+            p.svg,
+            r##"<text x="12" y="{:.1}" text-anchor="middle" transform="rotate(-90 12 {:.1})">{}</text>"##,
+            (y0 + y1) / 2.0,
+            (y0 + y1) / 2.0,
+            esc(ylabel)
+        );
+        p
+    }
+    fn sx(&self, v: f64) -> f64 {
+        self.l + (v - self.x.0) / (self.x.1 - self.x.0).max(1e-300) * (self.w - self.l - self.r)
+    }
+    fn sy(&self, v: f64) -> f64 {
+        self.h
+            - self.b
+            - (v - self.y.0) / (self.y.1 - self.y.0).max(1e-300) * (self.h - self.b - self.t)
+    }
+    fn finish(mut self) -> String {
+        self.svg.push_str("</svg>");
+        self.svg
+    }
+}
+
+fn tick(v: f64, span: f64) -> String {
+    if span.abs() < 0.05 {
+        format!("{v:.3}")
+    } else if span.abs() < 5.0 {
+        format!("{v:.2}")
+    } else {
+        format!("{v:.0}")
+    }
+}
+
+/// Polar position of a direction in a disc of radius `r` centred at (cx, cy): θ/90° to the rim.
+fn polar(theta_deg: f64, phi_deg: f64, cx: f64, cy: f64, r: f64) -> (f64, f64) {
+    let rr = r * theta_deg / 90.0;
+    let a = phi_deg.to_radians();
+    (cx + rr * a.cos(), cy - rr * a.sin())
+}
+
+fn hemisphere_maps(inp: &ReportInputs, plan: &SamplingPlan) -> String {
+    let by_entry = residual_by_entry(&inp.pairs);
+    let mut vals: Vec<f64> = by_entry
+        .values()
+        .copied()
+        .filter(|v| v.is_finite())
+        .collect();
+    vals.sort_by(f64::total_cmp);
+    let top = percentile(&vals, 0.95).max(0.5);
+    let dirs = plan.directions();
+    let mut s = String::new();
+    // overview: each light direction coloured by its mean residual
+    let _ = write!(
+        s,
+        r##"<div class="maps"><figure><svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 260 260" width="260" height="260">"##
+    );
+    let _ = write!(
+        s,
+        r##"<circle cx="130" cy="130" r="118" fill="none" stroke="#c5ccd3"/>"##
+    );
+    for (l, d) in dirs.iter().enumerate() {
+        let v: Vec<f64> = (0..dirs.len())
+            .filter_map(|c| plan.index_of(l, c))
+            .filter_map(|e| by_entry.get(&e).copied())
+            .collect();
+        let (x, y) = polar(d.theta_deg, d.phi_deg, 130.0, 130.0, 118.0);
+        let (fill, title) = if v.is_empty() {
+            ("#e8edf2".to_string(), "no pairs".to_string())
+        } else {
+            let m = v.iter().sum::<f64>() / v.len() as f64;
+            (
+                ramp(m / top),
+                format!("mean ΔE00 {m:.2} over {} pairs", v.len()),
+            )
+        };
+        let _ = write!(
+            s,
+            r##"<circle cx="{x:.1}" cy="{y:.1}" r="8" fill="{fill}" stroke="#8a96a3" stroke-width="0.5"><title>light θ {}°, φ {}°: {title}</title></circle>"##,
+            d.theta_deg, d.phi_deg
+        );
+    }
+    let _ = write!(
+        s,
+        r##"</svg><figcaption>Mean reciprocity residual (ΔE00) per light direction</figcaption></figure>"##
+    );
+    // legend
+    let _ = write!(
+        s,
+        r##"<figure><svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 60 260" width="60" height="260">"##
+    );
+    for i in 0..50 {
+        let t = 1.0 - i as f64 / 49.0;
+        let _ = write!(
+            s,
+            r##"<rect x="8" y="{:.1}" width="14" height="4.8" fill="{}"/>"##,
+            10.0 + i as f64 * 4.8,
+            ramp(t)
+        );
+    }
+    let _ = write!(
+        s,
+        r##"<text x="26" y="16">{top:.1}</text><text x="26" y="254">0</text></svg><figcaption>ΔE00</figcaption></figure></div>"##
+    );
+    // small multiples: one disc per light direction, its camera directions coloured by residual
+    let _ = write!(s, r##"<div class="multiples">"##);
+    for (l, d) in dirs.iter().enumerate() {
+        let _ = write!(
+            s,
+            r##"<figure><svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 84 84" width="84" height="84"><circle cx="42" cy="42" r="38" fill="#f7f9fb" stroke="#c5ccd3" stroke-width="0.6"/>"##
+        );
+        for (c, dc) in dirs.iter().enumerate() {
+            let (x, y) = polar(dc.theta_deg, dc.phi_deg, 42.0, 42.0, 38.0);
+            let fill = plan
+                .index_of(l, c)
+                .and_then(|e| by_entry.get(&e))
+                .map(|v| ramp(v / top))
+                .unwrap_or_else(|| "#e1e6eb".into());
+            let _ = write!(
+                s,
+                r##"<circle cx="{x:.1}" cy="{y:.1}" r="2.6" fill="{fill}"/>"##
+            );
+        }
+        let (x, y) = polar(d.theta_deg, d.phi_deg, 42.0, 42.0, 38.0);
+        let _ = write!(
+            s,
+            r##"<circle cx="{x:.1}" cy="{y:.1}" r="4" fill="none" stroke="#c62828" stroke-width="1.2"/></svg><figcaption>{}°/{}°</figcaption></figure>"##,
+            d.theta_deg, d.phi_deg
+        );
+    }
+    s.push_str("</div>");
+    s
+}
+
+fn alarm_colour(a: &Alarm) -> &'static str {
+    match a.severity {
+        Severity::Critical => "#c62828",
+        Severity::Warning => "#d17a00",
+        Severity::Info => "#8a96a3",
+    }
+}
+
+fn drift_plot(inp: &ReportInputs) -> String {
+    // probe gain points: probe Y over the first capture of the same entry
+    let mut first_y: BTreeMap<usize, f64> = BTreeMap::new();
+    let mut gain = Vec::new();
+    for c in &inp.captures {
+        let Some(xyz) = c.xyz else { continue };
+        if c.probe {
+            if let Some(y0) = first_y.get(&c.entry).filter(|y| **y > 0.0) {
+                gain.push((c.t / 3600.0, xyz[1] / y0));
+            }
+        } else {
+            first_y.entry(c.entry).or_insert(xyz[1]);
+        }
+    }
+    let t_end = inp
+        .captures
+        .iter()
+        .map(|c| c.t / 3600.0)
+        .fold(0.0f64, f64::max)
+        .max(0.1);
+    let est = inp.summary.probe_drift;
+    // the estimate covers the probes since its last reset (a step restarts it): draw its line
+    // through them, pivoting the ± 2 SE band about their mean time
+    let fit = est.map(|d| {
+        let recent = &gain[gain.len().saturating_sub(d.pairs)..];
+        let r = d.rate_pct_per_h / 100.0;
+        if recent.is_empty() {
+            (d, 0.0, 0.0, 0.0)
+        } else {
+            let n = recent.len() as f64;
+            let tm = recent.iter().map(|g| g.0).sum::<f64>() / n;
+            let lm = recent
+                .iter()
+                .map(|g| g.1.ln() - r * (g.0 - tm))
+                .sum::<f64>()
+                / n;
+            (d, recent[0].0, tm, lm)
+        }
+    });
+    let curve = |k: f64, t: f64| -> f64 {
+        match fit {
+            Some((d, _, tm, lm)) => {
+                (lm + (d.rate_pct_per_h + k * d.se_pct_per_h) / 100.0 * (t - tm)).exp()
+            }
+            None => 1.0,
+        }
+    };
+    let mut lo = gain.iter().map(|g| g.1).fold(1.0f64, f64::min);
+    let mut hi = gain.iter().map(|g| g.1).fold(1.0f64, f64::max);
+    if let Some((_, t0, _, _)) = fit {
+        for k in [-2.0, 2.0] {
+            for t in [t0, t_end] {
+                lo = lo.min(curve(k, t));
+                hi = hi.max(curve(k, t));
+            }
+        }
+    }
+    let pad = ((hi - lo) * 0.1).max(0.005);
+    let mut p = Plot::new(
+        720.0,
+        260.0,
+        (0.0, t_end),
+        (lo - pad, hi + pad),
+        "controller time [h]",
+        "relative gain",
+    );
+    if let Some((_, t0, _, _)) = fit {
+        let n = 40;
+        let pts = |k: f64| -> Vec<String> {
+            (0..=n)
+                .map(|i| {
+                    let t = t0 + (t_end - t0) * i as f64 / n as f64;
+                    format!("{:.1},{:.1}", p.sx(t), p.sy(curve(k, t)))
+                })
+                .collect()
+        };
+        let mut band = pts(2.0);
+        let mut lower = pts(-2.0);
+        let centre = pts(0.0);
+        lower.reverse();
+        band.extend(lower);
+        let _ = write!(
+            p.svg,
+            r##"<polygon points="{}" fill="rgba(31,95,168,0.18)"/>"##,
+            band.join(" ")
+        );
+        let _ = write!(
+            p.svg,
+            r##"<polyline points="{}" fill="none" stroke="#1f5fa8" stroke-width="2"/>"##,
+            centre.join(" ")
+        );
+    } else {
+        let _ = write!(
+            p.svg,
+            r##"<text x="{:.1}" y="{:.1}" text-anchor="middle">no gain estimate: drift probes were off (or too few)</text>"##,
+            p.sx(t_end / 2.0),
+            p.sy((lo + hi) / 2.0) - 20.0
+        );
+    }
+    let (y1a, y1b) = (p.sy(1.0), p.sy(1.0));
+    let _ = write!(
+        p.svg,
+        r##"<line x1="{:.1}" y1="{y1a:.1}" x2="{:.1}" y2="{y1b:.1}" stroke="#8a96a3" stroke-dasharray="4 3"/>"##,
+        p.sx(0.0),
+        p.sx(t_end)
+    );
+    for (t, g) in &gain {
+        let _ = write!(
+            p.svg,
+            r##"<circle cx="{:.1}" cy="{:.1}" r="3" fill="#1f5fa8"/>"##,
+            p.sx(*t),
+            p.sy(*g)
+        );
+    }
+    // alarms on the time axis
+    let base = p.h - p.b;
+    for a in &inp.alarms {
+        let Some(t) = a.t else { continue };
+        let x = p.sx(t / 3600.0);
+        let _ = write!(
+            p.svg,
+            r##"<line x1="{x:.1}" y1="{:.1}" x2="{x:.1}" y2="{base:.1}" stroke="{}" stroke-width="1.5"><title>{}</title></line>"##,
+            base - 14.0,
+            alarm_colour(a),
+            esc(&format!("{} {}: {}", a.code, t / 3600.0, a.message))
+        );
+    }
+    p.finish()
+}
+
+fn histogram(inp: &ReportInputs) -> String {
+    let mut exact: Vec<f64> = Vec::new();
+    let mut interp: Vec<f64> = Vec::new();
+    for p in &inp.pairs {
+        if let Some(d) = &p.diff {
+            match p.status.as_str() {
+                "exact" => exact.push(d.de2000),
+                "interpolated" => interp.push(d.de2000),
+                _ => {}
+            }
+        }
+    }
+    let mut all: Vec<f64> = exact
+        .iter()
+        .chain(&interp)
+        .copied()
+        .filter(|v| v.is_finite())
+        .collect();
+    all.sort_by(f64::total_cmp);
+    let top = percentile(&all, 0.99).max(0.5);
+    let nb = 40usize;
+    let w = top / nb as f64;
+    let count = |v: &[f64]| {
+        let mut h = vec![0usize; nb];
+        for x in v {
+            let k = ((x / w).floor().max(0.0) as usize).min(nb - 1);
+            h[k] += 1;
+        }
+        h
+    };
+    let (he, hi) = (count(&exact), count(&interp));
+    let ymax = he.iter().chain(&hi).copied().max().unwrap_or(1).max(1) as f64;
+    let mut p = Plot::new(
+        720.0,
+        240.0,
+        (0.0, top),
+        (0.0, ymax * 1.05),
+        "CIEDE2000 of a pair (last bin: and above)",
+        "pairs",
+    );
+    for (k, n) in he.iter().enumerate() {
+        let (x0, x1) = (p.sx(k as f64 * w), p.sx((k + 1) as f64 * w));
+        let (y0, y1) = (p.sy(*n as f64), p.sy(0.0));
+        let _ = write!(
+            p.svg,
+            r##"<rect x="{x0:.1}" y="{y0:.1}" width="{:.1}" height="{:.1}" fill="#1f5fa8" opacity="0.8"/>"##,
+            (x1 - x0 - 1.0).max(0.5),
+            y1 - y0
+        );
+    }
+    for (k, n) in hi.iter().enumerate().filter(|(_, n)| **n > 0) {
+        let (x0, x1) = (p.sx(k as f64 * w), p.sx((k + 1) as f64 * w));
+        let y0 = p.sy(*n as f64);
+        let _ = write!(
+            p.svg,
+            r##"<line x1="{x0:.1}" y1="{y0:.1}" x2="{x1:.1}" y2="{y0:.1}" stroke="#e07b00" stroke-width="3"/>"##
+        );
+    }
+    p.finish()
+}
+
+fn table2_rows(sets: &[(&str, &Table2)]) -> String {
+    let mut s = String::from("<table><tr><th></th><th>pairs</th><th>|ΔX|</th><th>|ΔY|</th><th>|ΔZ|</th><th>ΔE*ab</th><th>ΔC*ab</th><th>ΔH*ab</th><th>ΔE00</th></tr>");
+    for (name, t) in sets {
+        let _ = write!(s, "<tr><td>{}</td><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td></tr>", esc(name), t.pairs, t.abs_dx, t.abs_dy, t.abs_dz, t.de76, t.dc, t.dh, t.de2000);
+    }
+    s.push_str("</table>");
+    s
+}
+
+fn table3_html(c: &CompareReport) -> String {
+    let mut s = String::new();
+    let x = &c.result;
+    let _ = write!(s, "<p>Against <b>{}</b> ({} samples, θi layers {}°): {} captures compared, {} not reached by the reference, {} where the resampled reference is uncertain by more than {:.0} %, {} grazing.</p>",
+        esc(c.reference_name.as_deref().unwrap_or("the reference")), c.reference_samples,
+        x.reference_layers_deg.iter().map(|t| format!("{t:.0}")).collect::<Vec<_>>().join(", "),
+        x.captures_compared, x.captures_not_covered, x.captures_reference_uncertain, 100.0 * x.max_reference_spread, x.captures_grazing);
+    let mut tables = vec![("as measured".to_string(), &x.table3)];
+    if let Some((g, t)) = &x.gain_corrected {
+        tables.push((
+            format!(
+                "gain-corrected ({:+.3} ± {:.3} %/h, {})",
+                g.rate_pct_per_h, g.se_pct_per_h, g.source
+            ),
+            t,
+        ));
+    }
+    s.push_str("<table><tr><th></th><th>metric</th><th>max</th><th>avg</th><th>median</th><th>κ(T)</th></tr>");
+    for (name, t) in &tables {
+        let flag = if t.transform.ill_conditioned {
+            " (ill-conditioned)"
+        } else {
+            ""
+        };
+        let _ = write!(s, "<tr><td rowspan=2>{}</td><td>ΔE*ab</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td rowspan=2>{:.0}{flag}</td></tr><tr><td>CIEDE2000</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td></tr>",
+            esc(name), t.de76.max, t.de76.avg, t.de76.median, t.transform.condition, t.de2000.max, t.de2000.avg, t.de2000.median);
+    }
+    s.push_str("</table>");
+    if let Some(w) = x.table3.worst.first() {
+        let _ = write!(s, "<p>Largest deviation: capture {} (θi {:.1}°, φi {:.1}°, θo {:.1}°, φo {:.1}°) at ΔE00 {:.2}.</p>", w.idx, w.angles_deg[0], w.angles_deg[1], w.angles_deg[2], w.angles_deg[3], w.de2000);
+    }
+    s
+}
+
+/// The report's HTML.
+pub fn render_html(inp: &ReportInputs) -> Result<String> {
+    let plan = inp.config.plan().context("the session's plan")?;
+    let s = &inp.summary;
+    let c = &s.checked;
+    let mut h = String::new();
+    let title = format!(
+        "goniowatch report: session {}",
+        s.session.as_deref().unwrap_or("?")
+    );
+    let _ = write!(
+        h,
+        r##"<!doctype html><html lang="en"><head><meta charset="utf-8"><title>{}</title><style>
+body{{font:14px/1.45 system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;color:#1d232a;max-width:1100px;margin:24px auto;padding:0 18px}}
+h1{{font-size:22px}} h2{{font-size:17px;margin-top:28px;border-bottom:1px solid #d9dee3;padding-bottom:4px}}
+table{{border-collapse:collapse;margin:8px 0}} td,th{{padding:3px 10px;border-bottom:1px solid #eef1f4;text-align:right;font-variant-numeric:tabular-nums}} td:first-child,th:first-child{{text-align:left}}
+.muted{{color:#5d6b78}} .maps{{display:flex;gap:8px;align-items:flex-start}} figure{{margin:0}} figcaption{{font-size:11px;color:#5d6b78;text-align:center}}
+.multiples{{display:grid;grid-template-columns:repeat(9,84px);gap:4px;margin-top:10px}}
+svg text{{font:11px system-ui,sans-serif;fill:#5d6b78}} pre{{background:#f5f7f9;padding:10px;overflow:auto;font-size:12px}}
+table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){{white-space:nowrap}}
+.sev-critical{{color:#c62828;font-weight:600}} .sev-warning{{color:#b86e00;font-weight:600}} .sev-info{{color:#5d6b78}}
+</style></head><body>"##,
+        esc(&title)
+    );
+    let _ = write!(
+        h,
+        "<h1>{}</h1><p class=muted>rig {} · {} · {} of {} planned captures checked{}</p>",
+        esc(&title),
+        esc(s.rig.as_deref().unwrap_or("?")),
+        esc(&inp.config.sample.name),
+        c.captures - c.probes,
+        s.captures_planned,
+        if s.finished {
+            " · run finished"
+        } else {
+            " · run not finished"
+        }
+    );
+
+    // summary
+    let _ = write!(h, "<h2>Summary</h2><table><tr><td>captures checked</td><td>{}</td></tr><tr><td>usable</td><td>{}</td></tr><tr><td>failed</td><td>{}</td></tr><tr><td>missing</td><td>{}</td></tr><tr><td>drift probes</td><td>{}</td></tr><tr><td>exact reciprocal pairs</td><td>{}</td></tr><tr><td>occlusion substitutes vs interpolated partner</td><td>{} ({} unresolved)</td></tr><tr><td>pairs needing resampling / grazing</td><td>{} / {}</td></tr><tr><td>isotropy comparisons</td><td>{}</td></tr><tr><td>alarms</td><td>{}</td></tr></table>",
+        c.captures, c.ok, c.failed, c.missing, c.probes, c.pairs_exact, c.pairs_interpolated, c.pairs_unresolved, c.pairs_needs_resampling, c.pairs_grazing, c.isotropy_comparisons, c.alarms);
+
+    let _ = write!(h, "<h2>Reciprocity (the paper's Table 2)</h2><p class=muted>Means over pairs after the cosine re-correction; XYZ on the configured scale, L*a*b* under the configured white.</p>");
+    let mut sets: Vec<(&str, &Table2)> = vec![("exact reciprocal pairs", &s.table2)];
+    if s.interpolated.pairs > 0 {
+        sets.push(("substitutes vs interpolated partner", &s.interpolated));
+    }
+    if s.isotropy.pairs > 0 {
+        sets.push(("isotropy (capture vs class mean)", &s.isotropy));
+    }
+    h.push_str(&table2_rows(&sets));
+    h.push_str("<h3>Residual per light direction</h3><p class=muted>Centre: θ = 0°, rim: θ = 90°, φ counter-clockwise from the right. The small discs show, for each light direction (ringed), the residual of every camera direction's pair.</p>");
+    h.push_str(&hemisphere_maps(inp, &plan));
+    h.push_str("<h3>Distribution</h3><p class=muted>Bars: exact pairs; orange marks: substitutes against their interpolated partner.</p>");
+    h.push_str(&histogram(inp));
+
+    let _ = write!(h, "<h2>Gain drift</h2>");
+    match &s.probe_drift {
+        Some(d) => {
+            let _ = write!(h, "<p>From the last {} drift probes (a step restarts the estimate): <b>{:+.3} ± {:.3} %/h</b> (standard error). The dots are all probes (luminance over the original capture of the same pose); the line is the fitted drift over the probes it uses, the band ± 2 standard errors of the rate; ticks on the time axis are alarms (orange warnings, red critical, grey info).</p>", d.pairs, d.rate_pct_per_h, d.se_pct_per_h);
+        }
+        None => h.push_str("<p>No gain estimate: drift probes were off (`[probes] every`) or too few. Ticks on the time axis are the alarms.</p>"),
+    }
+    h.push_str(&drift_plot(inp));
+
+    if let Some(cv) = &inp.crossval {
+        h.push_str("<h2>Cross-validation (the paper's Table 3)</h2>");
+        h.push_str(&table3_html(cv));
+    }
+
+    // capture quality
+    let nonfinite: u64 = inp.captures.iter().filter_map(|c| c.nonfinite).sum();
+    let clipped_caps = inp
+        .captures
+        .iter()
+        .filter(|c| c.clipped.unwrap_or(0) > 0)
+        .count();
+    let max_pose = inp
+        .captures
+        .iter()
+        .filter_map(|c| c.pose_error_deg)
+        .fold(0.0f64, f64::max);
+    let subs = inp
+        .captures
+        .iter()
+        .filter(|c| c.substitute.is_some())
+        .count();
+    let _ = write!(h, "<h2>Capture quality</h2><table><tr><td>non-finite pixels (left out of the means)</td><td>{nonfinite}</td></tr><tr><td>captures with clipped pixels</td><td>{clipped_caps}</td></tr><tr><td>occlusion substitutes</td><td>{subs}</td></tr><tr><td>largest pose error (encoders vs plan)</td><td>{max_pose:.3}°</td></tr></table>");
+
+    let l = &s.link;
+    let _ = write!(h, "<h2>Link</h2><table><tr><td>lines received</td><td>{}</td></tr><tr><td>CRC errors</td><td>{}</td></tr><tr><td>framing errors</td><td>{}</td></tr><tr><td>sequence gaps</td><td>{}</td></tr><tr><td>port opened / lost</td><td>{} / {}</td></tr><tr><td>controller reboots</td><td>{}</td></tr><tr><td>resyncs</td><td>{}</td></tr><tr><td>daemon restarts</td><td>{}</td></tr></table>",
+        l.lines, l.crc_errors, l.framing_errors, l.sequence_gaps, l.connects, l.disconnects, l.reboots, l.resyncs, l.restarts);
+
+    let _ = write!(h, "<h2>Alarms ({})</h2>", inp.alarms.len());
+    if inp.alarms.is_empty() {
+        h.push_str("<p>None.</p>");
+    } else {
+        let mut by_code: BTreeMap<&str, usize> = BTreeMap::new();
+        for a in &inp.alarms {
+            *by_code.entry(a.code.as_str()).or_default() += 1;
+        }
+        h.push_str("<p>");
+        h.push_str(
+            &by_code
+                .iter()
+                .map(|(k, v)| format!("{} × {}", v, esc(k)))
+                .collect::<Vec<_>>()
+                .join(", "),
+        );
+        h.push_str("</p><table class=alarms><tr><th>capture</th><th>time [h]</th><th>alarm</th><th>message</th></tr>");
+        for a in inp.alarms.iter().take(300) {
+            let sev = serde_json::to_value(a.severity)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_string))
+                .unwrap_or_default();
+            let _ = write!(
+                h,
+                "<tr><td>{}</td><td>{}</td><td class=\"sev-{sev}\">{}</td><td>{}</td></tr>",
+                a.idx.map(|i| i.to_string()).unwrap_or_default(),
+                a.t.map(|t| format!("{:.2}", t / 3600.0))
+                    .unwrap_or_default(),
+                esc(&a.code),
+                esc(&a.message)
+            );
+        }
+        h.push_str("</table>");
+        if inp.alarms.len() > 300 {
+            let _ = write!(
+                h,
+                "<p class=muted>… and {} more in alarms.csv.</p>",
+                inp.alarms.len() - 300
+            );
+        }
+    }
+    let _ = write!(
+        h,
+        "<h2>Configuration</h2><pre>{}</pre>",
+        esc(&inp.config_text)
+    );
+    h.push_str("<p class=muted>Tables as CSV beside this file: captures.csv, pairs.csv, alarms.csv, table2.csv, light_residuals.csv (and table3.csv after a cross-validation).</p></body></html>\n");
+    Ok(h)
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
+    v.map(|x| x.to_string()).unwrap_or_default()
+}
+
+/// The CSV files: (name, contents).
+pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
+    let plan = inp.config.plan().context("the session's plan")?;
+    let mut caps = String::from("idx,entry,light,camera,probe,t_s,status,theta_i,phi_i,theta_o,phi_o,R,G,B,X,Y,Z,L,a,b,pixels,nonfinite,clipped,pose_error_deg,substitute_theta_i,error\n");
+    for c in &inp.captures {
+        let a = c.angles;
+        let _ = writeln!(
+            caps,
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            c.idx,
+            c.entry,
+            c.light,
+            c.camera,
+            c.probe,
+            c.t,
+            c.status,
+            opt(a.map(|a| a.theta_i_deg)),
+            opt(a.map(|a| a.phi_i_deg)),
+            opt(a.map(|a| a.theta_o_deg)),
+            opt(a.map(|a| a.phi_o_deg)),
+            opt(c.mean_rgb.map(|v| v[0])),
+            opt(c.mean_rgb.map(|v| v[1])),
+            opt(c.mean_rgb.map(|v| v[2])),
+            opt(c.xyz.map(|v| v[0])),
+            opt(c.xyz.map(|v| v[1])),
+            opt(c.xyz.map(|v| v[2])),
+            opt(c.lab.map(|v| v.l)),
+            opt(c.lab.map(|v| v.a)),
+            opt(c.lab.map(|v| v.b)),
+            opt(c.pixels),
+            opt(c.nonfinite),
+            opt(c.clipped),
+            opt(c.pose_error_deg),
+            opt(c.substitute),
+            csv_field(c.error.as_deref().unwrap_or(""))
+        );
+    }
+    let mut pairs = String::from("a,b,entry_a,entry_b,status,t_s,mismatch_deg,abs_dX,abs_dY,abs_dZ,dE76,dC,dH,dE00,sigma_dE00\n");
+    for p in &inp.pairs {
+        let d = p.diff;
+        let _ = writeln!(
+            pairs,
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            p.a,
+            p.b,
+            p.entries[0],
+            p.entries[1],
+            p.status,
+            p.t,
+            p.mismatch_deg,
+            opt(d.map(|d| d.abs_dxyz[0])),
+            opt(d.map(|d| d.abs_dxyz[1])),
+            opt(d.map(|d| d.abs_dxyz[2])),
+            opt(d.map(|d| d.de76)),
+            opt(d.map(|d| d.dc)),
+            opt(d.map(|d| d.dh)),
+            opt(d.map(|d| d.de2000)),
+            opt(p.interpolated.as_ref().and_then(|i| i.sigma_de2000))
+        );
+    }
+    let mut alarms = String::from("idx,t_s,severity,kind,code,message\n");
+    for a in &inp.alarms {
+        let sev = serde_json::to_value(a.severity)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default();
+        let kind = serde_json::to_value(a.kind)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default();
+        let _ = writeln!(
+            alarms,
+            "{},{},{},{},{},{}",
+            opt(a.idx),
+            opt(a.t),
+            sev,
+            kind,
+            csv_field(&a.code),
+            csv_field(&a.message)
+        );
+    }
+    let s = &inp.summary;
+    let mut t2 = String::from("set,pairs,abs_dX,abs_dY,abs_dZ,dE76,dC,dH,dE00\n");
+    for (name, t) in [
+        ("exact", &s.table2),
+        ("interpolated", &s.interpolated),
+        ("isotropy", &s.isotropy),
+    ] {
+        let _ = writeln!(
+            t2,
+            "{name},{},{},{},{},{},{},{},{}",
+            t.pairs, t.abs_dx, t.abs_dy, t.abs_dz, t.de76, t.dc, t.dh, t.de2000
+        );
+    }
+    let by_entry = residual_by_entry(&inp.pairs);
+    let dirs = plan.directions();
+    let mut lights = String::from("light,theta_deg,phi_deg,pairs,mean_dE00,max_dE00\n");
+    for (l, d) in dirs.iter().enumerate() {
+        let v: Vec<f64> = (0..dirs.len())
+            .filter_map(|c| plan.index_of(l, c))
+            .filter_map(|e| by_entry.get(&e).copied())
+            .collect();
+        let mean = if v.is_empty() {
+            String::new()
+        } else {
+            (v.iter().sum::<f64>() / v.len() as f64).to_string()
+        };
+        let max = if v.is_empty() {
+            String::new()
+        } else {
+            v.iter()
+                .copied()
+                .fold(f64::NEG_INFINITY, f64::max)
+                .to_string()
+        };
+        let _ = writeln!(
+            lights,
+            "{l},{},{},{},{mean},{max}",
+            d.theta_deg,
+            d.phi_deg,
+            v.len()
+        );
+    }
+    let mut out = vec![
+        ("captures.csv", caps),
+        ("pairs.csv", pairs),
+        ("alarms.csv", alarms),
+        ("table2.csv", t2),
+        ("light_residuals.csv", lights),
+    ];
+    if let Some(cv) = &inp.crossval {
+        let mut t3 = String::from("table,metric,max,avg,median,condition\n");
+        let x = &cv.result;
+        let mut tables = vec![("as measured", &x.table3)];
+        if let Some((_, t)) = &x.gain_corrected {
+            tables.push(("gain-corrected", t));
+        }
+        for (name, t) in tables {
+            let _ = writeln!(
+                t3,
+                "{name},dE76,{},{},{},{}",
+                t.de76.max, t.de76.avg, t.de76.median, t.transform.condition
+            );
+            let _ = writeln!(
+                t3,
+                "{name},dE00,{},{},{},{}",
+                t.de2000.max, t.de2000.avg, t.de2000.median, t.transform.condition
+            );
+        }
+        out.push(("table3.csv", t3));
+    }
+    Ok(out)
+}
+
+/// Write the report of `session` into `out` (default SESSION/report); returns the files written.
+pub fn report(session: &Path, out: Option<&Path>) -> Result<Vec<PathBuf>> {
+    let inp = load(session)?;
+    let out_dir = out
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| session.join("report"));
+    std::fs::create_dir_all(&out_dir)
+        .with_context(|| format!("cannot create {}", out_dir.display()))?;
+    let mut written = Vec::new();
+    let html = render_html(&inp)?;
+    let path = out_dir.join("report.html");
+    crate::daemon::journal::write_atomic(&path, html.as_bytes())?;
+    written.push(path);
+    for (name, text) in render_csvs(&inp)? {
+        let path = out_dir.join(name);
+        crate::daemon::journal::write_atomic(&path, text.as_bytes())?;
+        written.push(path);
+    }
+    Ok(written)
+}
