@@ -71,7 +71,8 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
 
     rig = hil("page", [{"kind": "dark-frame", "at_capture": 400}], captures=1500, speed=7.0 / 0.012)
     session = tmp_path / "page-session"
-    daemon = start_daemon(rig, session, daemon_config(tmp_path, "page"), "--http", "127.0.0.1:0")
+    # drift probes on, so that the drift chart has an estimate to draw
+    daemon = start_daemon(rig, session, daemon_config(tmp_path, "page", every=25), "--http", "127.0.0.1:0")
     try:
         url, _ = status_url(daemon)
         with sync_playwright() as p:
@@ -85,6 +86,8 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
             # the coverage map and the residual plot are drawn
             assert page.locator("#coverage circle").count() >= 81
             page.wait_for_function("document.querySelectorAll('#resid circle').length > 0", timeout=30000)
+            page.wait_for_function("document.querySelectorAll('#drift polygon').length === 1", timeout=60000)
+            assert "%/h" in page.text_content("#driftnow")
             # the injected dark frame appears as an alarm with its message
             page.wait_for_selector('#alarms li[data-code="dark-capture"]', timeout=60000)
             text = page.text_content('#alarms li[data-code="dark-capture"]')
