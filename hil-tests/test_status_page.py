@@ -102,6 +102,18 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
             page.wait_for_function(f"Number(document.getElementById('done').textContent) > {first + 50}", timeout=20000)
             page.wait_for_selector('#alarms li[data-code="dark-capture"]', timeout=20000)
             browser.close()
+        # clients that open the event stream and never read it must not hold the run up
+        import socket
+        from urllib.parse import urlparse
+
+        host, port = urlparse(url).hostname, urlparse(url).port
+        stuck = []
+        for _ in range(6):
+            s = socket.socket()
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1024)
+            s.connect((host, port))
+            s.sendall(b"GET /events HTTP/1.1\r\nHost: x\r\n\r\n")
+            stuck.append(s)
         status = json.load(urllib.request.urlopen(url + "status.json", timeout=10))
         assert status["summary"]["checked"]["captures"] > 0 and len(status["directions"]) == 81
         assert any(a["code"] == "dark-capture" for a in status["alarms"])
@@ -110,6 +122,8 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
         assert "# TYPE goniowatch_alarms_total gauge" in metrics
         daemon.wait(timeout=120)
         assert daemon.returncode == 0
+        for s in stuck:
+            s.close()
     finally:
         if daemon.poll() is None:
             daemon.kill()
