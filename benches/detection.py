@@ -1,12 +1,16 @@
-"""Detection benchmark (issue 5, probe path so far): full 6,561-capture simulated runs, several
-seeds per scenario, the daemon with drift probes. Reports the alarm rate on fault-free runs, the
-detection delay after onset (captures and hours), the final drift-rate estimate against the truth.
+"""Detection benchmark (issue 5): full 6,561-capture simulated runs, several seeds per scenario.
+With `--every N` the daemon asks for a drift probe every N captures (the probe path); with
+`--every 0` there are no probes and the drift comes from isotropy classes only. Reports the alarm
+rate on fault-free runs, the detection delay after onset (captures and hours), the final
+drift-rate estimate of that path against the truth, and the daemon's CPU time per capture (all
+of it: link, decoding, checks).
 
 Run (after `cargo build --release`):
   python3 benches/detection.py [--seeds 3] [--every 100] [--presets realistic,clean] [--only "no fault"]
-Prints a Markdown table."""
+Prints a Markdown table. GONIOWATCH_BIN overrides the binary."""
 
 import argparse
+import resource
 import json
 import math
 import os
@@ -18,7 +22,7 @@ import tempfile
 import time
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.path.join(REPO, "target", "release", "goniowatch")
+BIN = os.environ.get("GONIOWATCH_BIN") or os.path.join(REPO, "target", "release", "goniowatch")
 T_CAPTURE_H = 7.0 / 3600.0
 
 SCENARIOS = [
@@ -48,15 +52,17 @@ def run(tmp, name, preset, faults, seed, every):
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     while not os.path.exists(f"{d}/port"):
         time.sleep(0.05)
-    t0 = time.process_time()
+    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     r = subprocess.run([BIN, "run", "--config", cfg, "--session", f"{d}/s", "--port", f"{d}/port",
                         "--capture-root", f"{d}/cap", "--quiet"], capture_output=True, text=True, timeout=900)
+    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    daemon_cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
     sim.terminate()
     sim.wait()
     alarms = [json.loads(l) for l in open(f"{d}/s/alarms.jsonl") if l.strip()]
     summary = json.load(open(f"{d}/s/summary.json"))
     shutil.rmtree(d, ignore_errors=True)
-    return r.returncode, alarms, summary
+    return r.returncode, alarms, summary, daemon_cpu
 
 
 def main():
@@ -67,23 +73,26 @@ def main():
     ap.add_argument("--only", help="run only the scenarios whose name contains this text")
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="gw-detect-")
-    print(f"Probes every {a.every} captures, {a.seeds} seeds per row, full 6,561-capture runs.\n")
-    print("| preset | scenario | runs with a drift alarm | first alarm: captures after onset (hours) | final rate %/h (truth) |")
-    print("|---|---|---|---|---|")
+    path = f"probes every {a.every} captures" if a.every else "no probes: isotropy classes"
+    key = "probe_drift" if a.every else "isotropy_drift"
+    print(f"{path}, {a.seeds} seeds per row, full 6,561-capture runs.\n")
+    print("| preset | scenario | runs with a drift alarm | first alarm: captures after onset (hours) | final rate %/h (truth) | daemon CPU per capture |")
+    print("|---|---|---|---|---|---|")
     for preset in a.presets.split(","):
         for name, faults, truth in SCENARIOS:
             if a.only and a.only not in name:
                 continue
-            hits, delays, rates = 0, [], []
+            hits, delays, rates, cpu = 0, [], [], []
             for seed in range(1, a.seeds + 1):
-                code, alarms, summary = run(tmp, name.split()[0], preset, faults, seed, a.every)
+                code, alarms, summary, daemon_cpu = run(tmp, name.split()[0], preset, faults, seed, a.every)
+                cpu.append(1000 * daemon_cpu / max(1, summary["checked"]["captures"]))
                 drift = [x for x in alarms if x["kind"] == "drift" and x["code"] != "gain-drift-cleared"]
                 hits += bool(drift)
                 if drift and truth:
                     onset = truth[1]
                     first = min(x["idx"] for x in drift if x["idx"] is not None)
                     delays.append(first - onset)
-                pd = summary.get("probe_drift") or {}
+                pd = summary.get(key) or {}
                 if "rate_pct_per_h" in pd:
                     rates.append(pd["rate_pct_per_h"])
             delay = (f"{sorted(delays)[len(delays) // 2]} ({sorted(delays)[len(delays) // 2] * T_CAPTURE_H:.2f} h), "
@@ -93,7 +102,7 @@ def main():
                 # ln of a linear gain decay averaged over the run (13 h)
                 truth_rate = f" ({100 * math.log(1 - truth[2] / 100 * 12.76) / 12.76:+.3f})"
             rate = ", ".join(f"{r:+.3f}" for r in rates) + truth_rate
-            print(f"| {preset} | {name} | {hits} of {a.seeds} | {delay} | {rate} |", flush=True)
+            print(f"| {preset} | {name} | {hits} of {a.seeds} | {delay} | {rate} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
     shutil.rmtree(tmp, ignore_errors=True)
 
 

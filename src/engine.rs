@@ -102,6 +102,9 @@ pub struct Summary {
     pub interpolated: Table2,
     /// Gain drift estimate from the probes (%/h), when probes are enabled.
     pub probe_drift: Option<crate::measure::drift::DriftEstimate>,
+    /// Gain drift estimate from isotropy classes (isotropic samples).
+    #[serde(default)]
+    pub isotropy_drift: Option<crate::measure::drift::DriftEstimate>,
     pub alarms: BTreeMap<String, u64>,
     pub link: LinkStats,
     pub finished: bool,
@@ -357,6 +360,7 @@ impl Engine {
             isotropy: self.checker.isotropy_table().clone(),
             interpolated: self.checker.interpolated_table().clone(),
             probe_drift: self.checker.probe_drift(),
+            isotropy_drift: self.checker.isotropy_drift(),
             alarms: self.alarm_counts.clone(),
             link: self.stats.clone(),
             finished: self.finished,

@@ -618,6 +618,9 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
     h.push_str(&histogram(inp));
 
     let _ = write!(h, "<h2>Gain drift</h2>");
+    if let Some(d) = &s.isotropy_drift {
+        let _ = write!(h, "<p>From {} isotropy comparisons (each capture against the first capture of the same geometry): <b>{:+.3} ± {:.3} %/h</b> (standard error; a rate over the whole run: steps are not in it). captures.csv carries every capture's colour with the drift known at its time divided out.</p>", d.pairs, d.rate_pct_per_h, d.se_pct_per_h);
+    }
     match &s.probe_drift {
         Some(d) => {
             let _ = write!(h, "<p>From the last {} drift probes (a step restarts the estimate): <b>{:+.3} ± {:.3} %/h</b> (standard error). The dots are all probes (luminance over the original capture of the same pose); the line is the fitted drift over the probes it uses, the band ± 2 standard errors of the rate; ticks on the time axis are alarms (orange warnings, red critical, grey info).</p>", d.pairs, d.rate_pct_per_h, d.se_pct_per_h);
@@ -719,12 +722,12 @@ fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
 /// The CSV files: (name, contents).
 pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
     let plan = inp.config.plan().context("the session's plan")?;
-    let mut caps = String::from("idx,entry,light,camera,probe,t_s,status,theta_i,phi_i,theta_o,phi_o,R,G,B,X,Y,Z,L,a,b,pixels,nonfinite,clipped,pose_error_deg,substitute_theta_i,error\n");
+    let mut caps = String::from("idx,entry,light,camera,probe,t_s,status,theta_i,phi_i,theta_o,phi_o,R,G,B,X,Y,Z,L,a,b,pixels,nonfinite,clipped,pose_error_deg,substitute_theta_i,X_gain_corrected,Y_gain_corrected,Z_gain_corrected,gain,gain_sigma_rel,gain_source,error\n");
     for c in &inp.captures {
         let a = c.angles;
         let _ = writeln!(
             caps,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             c.idx,
             c.entry,
             c.light,
@@ -750,6 +753,12 @@ pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
             opt(c.clipped),
             opt(c.pose_error_deg),
             opt(c.substitute),
+            opt(c.gain_corrected.as_ref().map(|g| g.xyz[0])),
+            opt(c.gain_corrected.as_ref().map(|g| g.xyz[1])),
+            opt(c.gain_corrected.as_ref().map(|g| g.xyz[2])),
+            opt(c.gain_corrected.as_ref().map(|g| g.gain)),
+            opt(c.gain_corrected.as_ref().map(|g| g.sigma_rel)),
+            csv_field(c.gain_corrected.as_ref().map(|g| g.source.as_str()).unwrap_or("")),
             csv_field(c.error.as_deref().unwrap_or(""))
         );
     }

@@ -437,6 +437,13 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
             t.de76, t.de2000, t.pairs
         )?;
     }
+    if let Some(d) = &s.isotropy_drift {
+        writeln!(
+            out,
+            "gain drift from isotropy classes: {:+.3} %/h ± {:.3} (standard error, {} comparisons)",
+            d.rate_pct_per_h, d.se_pct_per_h, d.pairs
+        )?;
+    }
     if let Some(d) = &s.probe_drift {
         writeln!(
             out,

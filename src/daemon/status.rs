@@ -185,7 +185,11 @@ impl StatusModel {
     pub fn snapshot(&mut self, summary: &Summary, wall_s: f64) -> Snapshot {
         let checked = summary.checked.captures;
         // a new drift point when the probe estimate changed
-        if let Some(d) = &summary.probe_drift {
+        if let Some(d) = summary
+            .probe_drift
+            .as_ref()
+            .or(summary.isotropy_drift.as_ref())
+        {
             if d.pairs != self.last_drift_n {
                 self.last_drift_n = d.pairs;
                 self.drift.push(DriftPoint {
@@ -321,6 +325,18 @@ pub fn metrics(s: &Snapshot) -> String {
             r,
         );
     }
+    if let Some(d) = &s.summary.isotropy_drift {
+        g(
+            "isotropy_drift_rate_pct_per_h",
+            "Gain drift estimated from isotropy classes.",
+            d.rate_pct_per_h,
+        );
+        g(
+            "isotropy_drift_rate_se_pct_per_h",
+            "Standard error of that rate.",
+            d.se_pct_per_h,
+        );
+    }
     if let Some(d) = &s.summary.probe_drift {
         g(
             "drift_rate_pct_per_h",
@@ -367,6 +383,7 @@ mod tests {
             angles: None,
             substitute: None,
             pose_error_deg: None,
+            gain_corrected: None,
         }
     }
 

@@ -8,7 +8,7 @@
 use super::alarm::{Alarm, AlarmKind, Severity};
 use super::averaging::CaptureStats;
 use super::colour::{colour_difference, xyz_to_lab, ColourDifference, Lab, RgbToXyz, White, Xyz};
-use super::drift::{DriftEstimate, DriftEvent};
+use super::drift::{DriftDetector, DriftEstimate, DriftEvent, DriftSpec, PairObservation};
 use super::geometry::{angle_between, Spherical, Vec3};
 use super::kinematics::{Angles, Incidence, Rig};
 use super::plan::{IsotropyKey, SamplingPlan};
@@ -121,6 +121,23 @@ pub struct CaptureRecord {
     pub substitute: Option<f64>,
     /// Largest angle between a measured and a planned direction (degrees).
     pub pose_error_deg: Option<f64>,
+    /// The XYZ with the gain drift known at check time divided out, when there is an estimate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gain_corrected: Option<GainCorrected>,
+}
+
+/// A capture's drift-corrected colour: xyz / g(t), with g from the drift probes when enabled
+/// (the current segment's line: its level includes steps) or else from isotropy classes (a rate
+/// from the start of the run: steps are not in it).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GainCorrected {
+    pub xyz: Xyz,
+    /// The gain divided out, g(t) relative to the start (probes: to the probe pose's original).
+    pub gain: f64,
+    /// Relative standard uncertainty of the correction.
+    pub sigma_rel: f64,
+    /// `probes` or `isotropy classes`.
+    pub source: String,
 }
 
 /// One line of `pairs.jsonl`.
@@ -288,6 +305,10 @@ pub struct Checker {
     seen_per_light: Vec<usize>,
     pending: Vec<PendingPartner>,
     interpolated_table: Table2,
+    /// Gain drift from isotropy classes (isotropic samples only): every capture against the
+    /// first capture of the same (θi, θo, |φi − φo|), i.e. the same geometry at another time.
+    first_of_geometry: HashMap<(i64, i64, i64), (f64, f64)>,
+    isotropy_drift: Option<DriftDetector>,
 }
 
 fn drift_alarm(ev: DriftEvent, source: &str, at: (Option<u64>, Option<f64>)) -> Alarm {
@@ -356,12 +377,52 @@ impl Checker {
             seen_per_light: vec![0; plan_dirs],
             pending: Vec::new(),
             interpolated_table: Table2::default(),
+            first_of_geometry: HashMap::new(),
+            isotropy_drift: isotropic.then(|| {
+                DriftDetector::new(DriftSpec {
+                    // about 6,561 − 1,378 observations in a UBO run
+                    run_pairs: 5200.0,
+                    // rate only: consecutive observations share neighbouring geometry, so their
+                    // residuals are correlated and heavy-tailed and the CUSUM's ARL design does
+                    // not hold (measured: 1–3 false steps per fault-free realistic run even with
+                    // per-geometry scales, and with medians of 81-capture batches); steps are
+                    // the probes' job
+                    step_detection: false,
+                    ..DriftSpec::default()
+                })
+            }),
         }
     }
 
     /// The gain drift estimate from the probes, once there are enough.
     pub fn probe_drift(&self) -> Option<DriftEstimate> {
         self.probes.estimate()
+    }
+
+    /// The gain known now at time `t_h`, divided out of `xyz`.
+    fn gain_correction(&self, t_h: f64, xyz: Xyz) -> Option<GainCorrected> {
+        let (gain, sigma_rel, source) = if let Some((g, s)) = self.probes.gain_at(t_h) {
+            (g, s, "probes")
+        } else {
+            let e = self.isotropy_drift()?;
+            let r = e.rate_pct_per_h / 100.0;
+            (
+                (r * t_h).exp(),
+                t_h * e.se_pct_per_h / 100.0,
+                "isotropy classes",
+            )
+        };
+        (gain > 0.0 && gain.is_finite()).then(|| GainCorrected {
+            xyz: [xyz[0] / gain, xyz[1] / gain, xyz[2] / gain],
+            gain,
+            sigma_rel,
+            source: source.into(),
+        })
+    }
+
+    /// The gain drift estimate from isotropy classes (isotropic samples), once there are enough.
+    pub fn isotropy_drift(&self) -> Option<DriftEstimate> {
+        self.isotropy_drift.as_ref().and_then(|d| d.estimate())
     }
 
     pub fn plan(&self) -> &SamplingPlan {
@@ -610,6 +671,7 @@ impl Checker {
             angles: None,
             substitute: input.substitute,
             pose_error_deg: None,
+            gain_corrected: None,
         };
         if input.probe {
             self.counts.probes += 1;
@@ -726,6 +788,7 @@ impl Checker {
         rec.mean_rgb = Some(stats.mean_rgb);
         rec.xyz = Some(xyz);
         rec.lab = Some(xyz_to_lab(xyz, self.colour.white));
+        rec.gain_corrected = self.gain_correction(input.t / 3600.0, xyz);
         rec.pixels = Some(stats.pixels);
         rec.nonfinite = Some(stats.nonfinite);
         rec.clipped = Some(stats.clipped);
@@ -889,6 +952,47 @@ impl Checker {
                     for c in 0..3 {
                         acc.sum[c] += v[c];
                     }
+                }
+            }
+        }
+
+        // the same geometry captured earlier: a gain ratio free of geometric effects
+        if self.isotropy_drift.is_some()
+            && exact_pose
+            && input.substitute.is_none()
+            && !dark
+            && !retake
+            && xyz[1] > 0.0
+        {
+            let dirs = self.plan.directions();
+            let (l, c) = (dirs[light], dirs[camera]);
+            let dphi = if l.theta_deg == 0.0 || c.theta_deg == 0.0 {
+                0.0
+            } else {
+                super::geometry::azimuth_difference_deg(l.phi_deg, c.phi_deg)
+            };
+            let key = (
+                (l.theta_deg * 1000.0).round() as i64,
+                (c.theta_deg * 1000.0).round() as i64,
+                (dphi * 1000.0).round() as i64,
+            );
+            let t_h = input.t / 3600.0;
+            match self.first_of_geometry.get(&key) {
+                Some(&(t0, y0)) => {
+                    let obs = PairObservation {
+                        t_a_h: t0,
+                        t_b_h: t_h,
+                        d: (xyz[1] / y0).ln(),
+                        bucket: (key.0, key.1),
+                    };
+                    if let Some(det) = self.isotropy_drift.as_mut() {
+                        for ev in det.add(obs) {
+                            out.alarms.push(drift_alarm(ev, "isotropy classes", at));
+                        }
+                    }
+                }
+                None => {
+                    self.first_of_geometry.insert(key, (t_h, xyz[1]));
                 }
             }
         }
@@ -1062,6 +1166,10 @@ mod tests {
 
     /// The captures of the UBO plan in light-outer order, as the rig would take them.
     fn session(upto: usize) -> Vec<CaptureInput> {
+        session_with_gain(upto, |_| 1.0)
+    }
+
+    fn session_with_gain(upto: usize, gain: impl Fn(f64) -> f64) -> Vec<CaptureInput> {
         let plan = SamplingPlan::ubo();
         let rig = Rig::new(RigSpec::default()).unwrap();
         (0..upto)
@@ -1088,7 +1196,8 @@ mod tests {
                     probe: false,
                     outcome: Outcome::Ok {
                         stats: CaptureStats {
-                            mean_rgb: reading(&pp.used.omega_i, &pp.used.omega_o),
+                            mean_rgb: reading(&pp.used.omega_i, &pp.used.omega_o)
+                                .map(|v| v * gain(idx as f64 * 7.0 / 3600.0)),
                             pixels: 100,
                             nonfinite: 0,
                             negative: 0,
@@ -1208,5 +1317,58 @@ mod tests {
             0
         );
         assert!(ch.pending.is_empty());
+    }
+
+    #[test]
+    fn isotropy_classes_give_the_drift_rate_and_the_corrected_colour() {
+        // −1 %/h exponential decay over 3,000 captures (5.8 h)
+        let mut ch = checker();
+        let mut alarms = Vec::new();
+        let mut last = None;
+        for input in session_with_gain(3000, |t| (-0.01 * t).exp()) {
+            let out = ch.check(&input);
+            alarms.extend(out.alarms.into_iter().filter(|a| a.code == "gain-drift"));
+            last = out.capture;
+        }
+        let e = ch.isotropy_drift().unwrap();
+        assert!((e.rate_pct_per_h + 1.0).abs() < 0.01, "{e:?}");
+        assert_eq!(alarms.len(), 1, "{alarms:?}");
+        assert!(alarms[0].message.contains("isotropy classes"));
+        // the last capture's colour with the drift divided out is the undrifted colour
+        let c = last.unwrap();
+        let g = c.gain_corrected.unwrap();
+        assert_eq!(g.source, "isotropy classes");
+        let t_h = c.t / 3600.0;
+        assert!((g.gain - (-0.01 * t_h).exp()).abs() < 1e-3, "{g:?}");
+        assert!(g.sigma_rel >= 0.0 && g.sigma_rel < 0.01);
+        assert!((g.xyz[1] - c.xyz.unwrap()[1] / g.gain).abs() < 1e-12);
+
+        // no drift: an estimate near 0, no alarm
+        let mut quiet = checker();
+        let mut n = 0;
+        for input in session(3000) {
+            n += quiet
+                .check(&input)
+                .alarms
+                .iter()
+                .filter(|a| a.code.starts_with("gain"))
+                .count();
+        }
+        assert_eq!(n, 0);
+        assert!(quiet.isotropy_drift().unwrap().rate_pct_per_h.abs() < 0.01);
+    }
+
+    #[test]
+    fn an_anisotropic_sample_gets_no_isotropy_terms() {
+        let mut ch = checker();
+        ch.isotropic = false;
+        ch.isotropy_drift = None;
+        for input in session_with_gain(1500, |t| (-0.05 * t).exp()) {
+            let out = ch.check(&input);
+            assert!(out.isotropy.is_empty());
+            assert!(out.capture.unwrap().gain_corrected.is_none());
+        }
+        assert!(ch.isotropy_drift().is_none());
+        assert_eq!(ch.counts().isotropy_comparisons, 0);
     }
 }

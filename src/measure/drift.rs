@@ -1,7 +1,8 @@
-//! Temporal gain drift from reciprocal pairs: groundwork for issue 5, NOT wired into the live
-//! checks yet. The estimator and the change detector below are tested on synthetic pairs with
-//! independent geometry effects. On the simulator's realistic preset they are not fit for use,
-//! for a reason that shapes the design of issue 5 (measured, 2026-11-22):
+//! Temporal gain drift from pairs of captures: a rate fit with geometry fixed effects and a CUSUM.
+//! Wired in with *isotropy-class* observations (`Checker`: each capture against the first
+//! capture of the same (θi, θo, |Δφ|)), rate only. Fed with reciprocal pairs it is not fit for
+//! use on the simulator's realistic preset, for a reason that shapes issue 5 (measured,
+//! 2026-11-22):
 //!
 //! - The realistic non-reciprocity depends on the light direction (footprint) and the camera
 //!   direction (holder bleed) separately, so a pair's nuisance is v(c) − v(ℓ) for the capture
@@ -55,6 +56,14 @@ pub struct DriftSpec {
     /// The CUSUM is designed for at most one false alarm in this many runs of `run_pairs` pairs.
     pub false_alarm_runs: f64,
     pub run_pairs: f64,
+    /// Run the CUSUM step detector (off where the observations are too correlated in time for
+    /// its ARL design to hold; see `Checker`'s isotropy source).
+    #[serde(default = "yes")]
+    pub step_detection: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl Default for DriftSpec {
@@ -68,6 +77,7 @@ impl Default for DriftSpec {
             cusum_burn_in: 400,
             false_alarm_runs: 20.0,
             run_pairs: 3240.0,
+            step_detection: true,
         }
     }
 }
@@ -138,6 +148,9 @@ pub struct DriftDetector {
     estimate: Option<DriftEstimate>,
     /// Bucket effects and bucket sizes from the last fit.
     beta: BTreeMap<(i64, i64), (f64, usize)>,
+    /// Robust residual scale per bucket (MAD), for standardizing new observations: geometries
+    /// differ in their noise by several times, and one global scale makes the noisy ones fire.
+    bucket_scale: BTreeMap<(i64, i64), f64>,
     rate_alarm: bool,
     cusum_hi: f64,
     cusum_lo: f64,
@@ -153,6 +166,7 @@ impl DriftDetector {
             obs: Vec::new(),
             estimate: None,
             beta: BTreeMap::new(),
+            bucket_scale: BTreeMap::new(),
             rate_alarm: false,
             cusum_hi: 0.0,
             cusum_lo: 0.0,
@@ -178,12 +192,19 @@ impl DriftDetector {
         // (only in buckets whose effect is known from enough pairs; the prediction error of a
         // new pair includes the uncertainty of its bucket's effect)
         if let (Some(est), Some(&(beta, nb))) = (self.estimate, self.beta.get(&o.bucket)) {
-            if est.residual_scale > 0.0
+            if self.spec.step_detection
+                && est.residual_scale > 0.0
                 && nb >= MIN_BUCKET_PAIRS
                 && self.obs.len() >= self.spec.cusum_burn_in
             {
                 let r = est.rate_pct_per_h / 100.0;
-                let sd = est.residual_scale * (1.0 + 1.0 / nb as f64).sqrt();
+                let bucket_sd = self
+                    .bucket_scale
+                    .get(&o.bucket)
+                    .copied()
+                    .unwrap_or(est.residual_scale)
+                    .max(est.residual_scale * 0.25);
+                let sd = bucket_sd * (1.0 + 1.0 / nb as f64).sqrt();
                 let z = ((o.d - r * (o.t_b_h - o.t_a_h) - beta) / sd).clamp(-4.0, 4.0);
                 self.cusum_hi = (self.cusum_hi + z - self.spec.cusum_k).max(0.0);
                 self.cusum_lo = (self.cusum_lo - z - self.spec.cusum_k).max(0.0);
@@ -282,6 +303,19 @@ impl DriftDetector {
             let sse: f64 = res.iter().zip(&w).map(|(e, wi)| wi * e * e).sum();
             se = (sse / dof / sxx).sqrt();
         }
+        // per-bucket robust scale of the final residuals
+        let mut per: BTreeMap<(i64, i64), Vec<f64>> = BTreeMap::new();
+        for o in &self.obs {
+            let e = o.d - r * (o.t_b_h - o.t_a_h) - beta[&o.bucket].0;
+            per.entry(o.bucket).or_default().push(e.abs());
+        }
+        self.bucket_scale = per
+            .into_iter()
+            .map(|(k, mut v)| {
+                v.sort_by(f64::total_cmp);
+                (k, 1.4826 * v[v.len() / 2])
+            })
+            .collect();
         self.beta = beta;
         Some(DriftEstimate {
             pairs: n,

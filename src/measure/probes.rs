@@ -105,6 +105,18 @@ impl ProbeDrift {
         self.estimate
     }
 
+    /// The gain at `t_h` relative to the original capture of the probe pose, from the current
+    /// segment's line (its level includes any step since the start), and its relative standard
+    /// uncertainty (intercept and slope). None until the segment has three points.
+    pub fn gain_at(&self, t_h: f64) -> Option<(f64, f64)> {
+        let f = fit(&self.segment)?;
+        let n = self.segment.len() as f64;
+        let tm = self.segment.iter().map(|p| p.0).sum::<f64>() / n;
+        let ln_g = f.a + f.r * (t_h - f.t0);
+        let sigma = (f.sd * f.sd / n + (f.se * (t_h - tm)).powi(2)).sqrt();
+        (ln_g.is_finite() && sigma.is_finite()).then(|| (ln_g.exp(), sigma))
+    }
+
     /// One probe: its time and luminance, and the original capture's time and luminance.
     pub fn add(&mut self, t_orig_h: f64, y_orig: f64, t_h: f64, y: f64) -> Vec<DriftEvent> {
         let mut ev = Vec::new();
