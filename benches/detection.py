@@ -31,6 +31,9 @@ SCENARIOS = [
     ("decay 1 %/h", [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 1.0}], ("rate", 0, 1.0)),
     ("step −2 % at mid-run", [{"kind": "lamp-step", "at_capture": 3280, "step_pct": -2.0}], ("step", 3280, None)),
     ("step −3 % at mid-run", [{"kind": "lamp-step", "at_capture": 3280, "step_pct": -3.0}], ("step", 3280, None)),
+] + [
+    (f"joint {j} +{o}° at mid-run", [{"kind": "joint-offset", "at_capture": 3280, "joint": j, "offset_deg": float(o)}], ("joint", 3280, j))
+    for j in (1, 2, 3) for o in (1, 2)
 ]
 
 
@@ -76,17 +79,20 @@ def main():
     path = f"probes every {a.every} captures" if a.every else "no probes: isotropy classes"
     key = "probe_drift" if a.every else "isotropy_drift"
     print(f"{path}, {a.seeds} seeds per row, full 6,561-capture runs.\n")
-    print("| preset | scenario | runs with a drift alarm | first alarm: captures after onset (hours) | final rate %/h (truth) | daemon CPU per capture |")
-    print("|---|---|---|---|---|---|")
+    print("| preset | scenario | runs with a drift alarm | first alarm: captures after onset (hours) | final rate %/h (truth) | positioning / outlier alarms after onset (first, median) | daemon CPU per capture |")
+    print("|---|---|---|---|---|---|---|")
     for preset in a.presets.split(","):
         for name, faults, truth in SCENARIOS:
             if a.only and a.only not in name:
                 continue
-            hits, delays, rates, cpu = 0, [], [], []
+            hits, delays, rates, cpu, geo = 0, [], [], [], []
             for seed in range(1, a.seeds + 1):
                 code, alarms, summary, daemon_cpu = run(tmp, name.split()[0], preset, faults, seed, a.every)
                 cpu.append(1000 * daemon_cpu / max(1, summary["checked"]["captures"]))
                 drift = [x for x in alarms if x["kind"] == "drift" and x["code"] != "gain-drift-cleared"]
+                onset = truth[1] if truth else 0
+                g = [x for x in alarms if x["kind"] in ("positioning", "reciprocity-outlier") and (x["idx"] or 0) >= onset]
+                geo.append(f"{len(g)}" + (f" ({g[0]['code']} +{g[0]['idx'] - onset})" if g else ""))
                 hits += bool(drift)
                 if drift and truth:
                     onset = truth[1]
@@ -102,7 +108,7 @@ def main():
                 # ln of a linear gain decay averaged over the run (13 h)
                 truth_rate = f" ({100 * math.log(1 - truth[2] / 100 * 12.76) / 12.76:+.3f})"
             rate = ", ".join(f"{r:+.3f}" for r in rates) + truth_rate
-            print(f"| {preset} | {name} | {hits} of {a.seeds} | {delay} | {rate} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
+            print(f"| {preset} | {name} | {hits} of {a.seeds} | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
     shutil.rmtree(tmp, ignore_errors=True)
 
 
