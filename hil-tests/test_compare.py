@@ -74,6 +74,6 @@ def test_compare_refuses_bad_inputs(tmp_path):
     bad_ref = tmp_path / "bad.txt"
     bad_ref.write_text("# goniowatch reference BRDF, version 1\nformat = rgb\n10 0 10 180 0.5 0.5\n")
     r = subprocess.run([binary(), "compare", str(tmp_path / "notasession"), str(bad_ref)], capture_output=True, text=True)
-    assert r.returncode == 3 and "not a goniowatch session" in r.stderr or "config.toml" in r.stderr, r.stderr
+    assert r.returncode == 3 and ("not a goniowatch session" in r.stderr or "config.toml" in r.stderr), r.stderr
     r = subprocess.run([binary(), "compare", str(tmp_path), str(bad_ref), "--max-reference-spread-pct", "-1"], capture_output=True, text=True)
     assert r.returncode == 2, r.stderr

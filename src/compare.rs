@@ -57,15 +57,17 @@ pub fn session_values(dir: &Path, dark_y: f64) -> Result<Vec<SessionValue>> {
         }
         let rec: CaptureRecord = serde_json::from_str(&line)
             .with_context(|| format!("{} line {}: not a capture record", path.display(), n + 1))?;
-        if rec.probe || rec.status != "ok" || !seen.insert(rec.entry) {
+        if rec.probe || rec.status != "ok" || seen.contains(&rec.entry) {
             continue;
         }
         let (Some(a), Some(xyz)) = (rec.angles, rec.xyz) else {
             continue;
         };
+        // a dark capture does not count as the entry's capture: a good retake still can
         if !(xyz[1] > dark_y) {
             continue;
         }
+        seen.insert(rec.entry);
         out.push(SessionValue {
             idx: rec.idx,
             entry: rec.entry,
@@ -80,6 +82,37 @@ pub fn session_values(dir: &Path, dark_y: f64) -> Result<Vec<SessionValue>> {
 
 /// Directions where the resampled reference's relative uncertainty exceeds this are left out.
 pub const DEFAULT_MAX_REFERENCE_SPREAD: f64 = 0.05;
+
+/// The probes' gain curve: (t in hours, Y of the probe / Y of the first capture of its entry),
+/// starting at (t of that first capture, 1).
+pub fn probe_gain_curve(dir: &Path) -> Result<Vec<(f64, f64)>> {
+    let path = dir.join("captures.jsonl");
+    let file =
+        std::fs::File::open(&path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut first: std::collections::HashMap<usize, (f64, f64)> = std::collections::HashMap::new();
+    let mut points = Vec::new();
+    for line in std::io::BufReader::new(file).lines() {
+        let line = line.with_context(|| format!("cannot read {}", path.display()))?;
+        let Ok(rec) = serde_json::from_str::<CaptureRecord>(&line) else {
+            continue;
+        };
+        let Some(xyz) = rec.xyz else { continue };
+        if rec.status != "ok" || !(xyz[1] > 0.0) {
+            continue;
+        }
+        if rec.probe {
+            if let Some(&(t0, y0)) = first.get(&rec.entry) {
+                if points.is_empty() {
+                    points.push((t0 / 3600.0, 1.0));
+                }
+                points.push((rec.t / 3600.0, xyz[1] / y0));
+            }
+        } else {
+            first.entry(rec.entry).or_insert((rec.t, xyz[1]));
+        }
+    }
+    Ok(points)
+}
 
 pub fn compare(
     session: &Path,
@@ -123,16 +156,31 @@ pub fn compare(
             rate_pct_per_h: r,
             se_pct_per_h: 0.0,
             source: "command line".into(),
+            points: Vec::new(),
         }),
         GainChoice::Session => {
             let summary: Option<Summary> = std::fs::read(session.join("summary.json"))
                 .ok()
                 .and_then(|b| serde_json::from_slice(&b).ok());
-            summary.and_then(|s| s.probe_drift).map(|d| GainCorrection {
-                rate_pct_per_h: d.rate_pct_per_h,
-                se_pct_per_h: d.se_pct_per_h,
-                source: format!("the session's drift probes ({} probes)", d.pairs),
-            })
+            let points = probe_gain_curve(session)?;
+            match (summary, points.len()) {
+                (Some(s), n) if n >= 2 => Some(GainCorrection {
+                    rate_pct_per_h: s.probe_drift.map(|d| d.rate_pct_per_h).unwrap_or(0.0),
+                    se_pct_per_h: s.probe_drift.map(|d| d.se_pct_per_h).unwrap_or(0.0),
+                    source: format!(
+                        "the session's measured probe gain curve ({} probes, steps included)",
+                        n - 1
+                    ),
+                    points,
+                }),
+                (Some(s), _) => s.isotropy_drift.map(|d| GainCorrection {
+                    rate_pct_per_h: d.rate_pct_per_h,
+                    se_pct_per_h: d.se_pct_per_h,
+                    source: format!("the session's isotropy classes ({} comparisons)", d.pairs),
+                    points: Vec::new(),
+                }),
+                (None, _) => None,
+            }
         }
     };
     let result = cross_validate(
@@ -248,7 +296,7 @@ pub fn render(r: &CompareReport) -> String {
         None => {
             let _ = writeln!(
                 s,
-                "\nno gain correction: the session has no drift estimate (enable [probes], or pass --drift-rate)"
+                "\nno gain correction: the session has no drift estimate (enable [probes], declare an isotropic sample, or pass --drift-rate)"
             );
         }
     }

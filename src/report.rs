@@ -333,6 +333,10 @@ fn drift_plot(inp: &ReportInputs) -> String {
     for c in &inp.captures {
         let Some(xyz) = c.xyz else { continue };
         if c.probe {
+            // a dark probe (lamp off) is no gain measurement, as in the checks
+            if !(xyz[1] > inp.config.checks.dark_y) {
+                continue;
+            }
             if let Some(y0) = first_y.get(&c.entry).filter(|y| **y > 0.0) {
                 gain.push((c.t / 3600.0, xyz[1] / y0));
             }
@@ -420,7 +424,7 @@ fn drift_plot(inp: &ReportInputs) -> String {
     } else {
         let _ = write!(
             p.svg,
-            r##"<text x="{:.1}" y="{:.1}" text-anchor="middle">no gain estimate: drift probes were off (or too few)</text>"##,
+            r##"<text x="{:.1}" y="{:.1}" text-anchor="middle">no probe gain curve: drift probes were off (or too few)</text>"##,
             p.sx(t_end / 2.0),
             p.sy((lo + hi) / 2.0) - 20.0
         );
@@ -590,7 +594,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
         esc(&title),
         esc(s.rig.as_deref().unwrap_or("?")),
         esc(&inp.config.sample.name),
-        c.captures - c.probes,
+        c.captures.saturating_sub(c.probes),
         s.captures_planned,
         if s.finished {
             " · run finished"
@@ -708,7 +712,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
 }
 
 fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n']) {
+    if s.contains([',', '"', '\n', '\r']) {
         format!("\"{}\"", s.replace('"', "\"\""))
     } else {
         s.to_string()

@@ -9,7 +9,7 @@
 //! reader skips to the latest snapshot instead of queueing old ones. At most `MAX_STREAMS`
 //! event streams are served at once; further ones get 503.
 
-use super::status::{metrics, Snapshot};
+use super::status::{metrics, Published};
 use anyhow::{Context, Result};
 use axum::extract::State;
 use axum::http::{header, StatusCode};
@@ -22,7 +22,7 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{watch, Semaphore};
 
-pub type SnapshotRx = watch::Receiver<Option<Arc<Snapshot>>>;
+pub type SnapshotRx = watch::Receiver<Option<Arc<Published>>>;
 
 const PAGE: &str = include_str!("status.html");
 const MAX_STREAMS: usize = 32;
@@ -35,7 +35,7 @@ struct AppState {
 
 /// Refuse a non-loopback address unless the operator allowed it explicitly.
 pub fn check_address(addr: &SocketAddr, allow_remote: bool) -> Result<()> {
-    if !addr.ip().is_loopback() && !allow_remote {
+    if !addr.ip().to_canonical().is_loopback() && !allow_remote {
         return Err(crate::config::ConfigError::Invalid {
             field: "http.allow_remote",
             message: format!(
@@ -80,13 +80,13 @@ async fn page() -> Html<&'static str> {
     Html(PAGE)
 }
 
-fn latest(rx: &SnapshotRx) -> Option<Arc<Snapshot>> {
+fn latest(rx: &SnapshotRx) -> Option<Arc<Published>> {
     rx.borrow().clone()
 }
 
 async fn status_json(State(s): State<AppState>) -> Response {
     match latest(&s.rx) {
-        Some(snap) => axum::Json(snap.as_ref().clone()).into_response(),
+        Some(p) => ([(header::CONTENT_TYPE, "application/json")], p.json.clone()).into_response(),
         None => (StatusCode::SERVICE_UNAVAILABLE, "starting").into_response(),
     }
 }
@@ -98,7 +98,7 @@ async fn prometheus(State(s): State<AppState>) -> Response {
                 header::CONTENT_TYPE,
                 "text/plain; version=0.0.4; charset=utf-8",
             )],
-            metrics(&snap),
+            metrics(&snap.snapshot),
         )
             .into_response(),
         None => (StatusCode::SERVICE_UNAVAILABLE, "starting").into_response(),
@@ -117,9 +117,7 @@ async fn events(State(s): State<AppState>) -> Response {
                 return None;
             }
             let snap = rx.borrow_and_update().clone();
-            let data = snap
-                .map(|s| serde_json::to_string(s.as_ref()).unwrap_or_else(|_| "{}".into()))
-                .unwrap_or_else(|| "{}".into());
+            let data = snap.map(|p| p.json.clone()).unwrap_or_else(|| "{}".into());
             Some((
                 Ok::<Event, std::convert::Infallible>(Event::default().event("status").data(data)),
                 (rx, false, permit),

@@ -9,7 +9,7 @@ use super::ingest::{Job, Pool};
 use super::journal::{now_ms, JournalEntry, JournalItem, JsonlFile, Results, SessionLock};
 use super::session::{recover, Session};
 use super::sinks::{log_alarm, run_hook};
-use super::status::{Snapshot, StatusModel};
+use super::status::{Published, StatusModel};
 use crate::engine::{Engine, Input, Output, Summary};
 use crate::measure::alarm::Severity;
 use anyhow::{Context, Result};
@@ -61,7 +61,7 @@ struct Live {
 /// The status page's model and the channel its readers take snapshots from.
 struct StatusFeed {
     model: StatusModel,
-    tx: watch::Sender<Option<std::sync::Arc<Snapshot>>>,
+    tx: watch::Sender<Option<std::sync::Arc<Published>>>,
     started: Instant,
     last: Option<Instant>,
 }
@@ -80,7 +80,8 @@ impl StatusFeed {
         let snap = self
             .model
             .snapshot(summary, self.started.elapsed().as_secs_f64());
-        self.tx.send_replace(Some(std::sync::Arc::new(snap)));
+        self.tx
+            .send_replace(Some(std::sync::Arc::new(Published::new(snap))));
     }
 }
 

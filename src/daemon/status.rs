@@ -240,6 +240,20 @@ impl StatusModel {
     }
 }
 
+/// A published snapshot: the value (for `/metrics`) and its JSON, serialised once per version
+/// rather than once per reader.
+pub struct Published {
+    pub snapshot: Snapshot,
+    pub json: String,
+}
+
+impl Published {
+    pub fn new(snapshot: Snapshot) -> Self {
+        let json = serde_json::to_string(&snapshot).unwrap_or_else(|_| "{}".into());
+        Published { snapshot, json }
+    }
+}
+
 /// Prometheus text exposition of a snapshot.
 pub fn metrics(s: &Snapshot) -> String {
     use std::fmt::Write;

@@ -403,6 +403,10 @@ impl Checker {
     fn gain_correction(&self, t_h: f64, xyz: Xyz) -> Option<GainCorrected> {
         let (gain, sigma_rel, source) = if let Some((g, s)) = self.probes.gain_at(t_h) {
             (g, s, "probes")
+        } else if self.counts.probes > 0 {
+            // probes are in use but their segment is too short to fit (just after a step): the
+            // isotropy rate would leave the step out, so nothing rather than a wrong correction
+            return None;
         } else {
             let e = self.isotropy_drift()?;
             let r = e.rate_pct_per_h / 100.0;
@@ -619,8 +623,12 @@ impl Checker {
                         rec.status = "interpolated".into();
                     }
                     Err(e) => {
+                        rec.status = match e {
+                            PairError::Grazing { .. } => "grazing",
+                            _ => "unresolved",
+                        }
+                        .into();
                         info.error = Some(e.to_string());
-                        rec.status = "grazing".into();
                     }
                 }
             }

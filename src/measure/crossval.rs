@@ -183,18 +183,44 @@ pub struct SessionValue {
     pub xyz: Xyz,
 }
 
-/// A gain model to divide out: g(t) = exp(r·t), r = rate_pct_per_h / 100 per hour.
+/// A gain model to divide out: a measured gain curve when there is one (`points`, e.g. the
+/// drift probes: steps included), else g(t) = exp(r·t), r = rate_pct_per_h / 100 per hour.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GainCorrection {
     pub rate_pct_per_h: f64,
     pub se_pct_per_h: f64,
-    /// Where the rate comes from (`probes`, `command line`, ...).
+    /// Where the model comes from (`probes`, `command line`, ...).
     pub source: String,
+    /// (t in hours, gain) in time order: interpolated linearly in ln g, held at the ends.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub points: Vec<(f64, f64)>,
 }
 
 impl GainCorrection {
     pub fn gain(&self, t_s: f64) -> f64 {
-        (self.rate_pct_per_h / 100.0 * t_s / 3600.0).exp()
+        let t = t_s / 3600.0;
+        let p = &self.points;
+        if p.len() >= 2 {
+            let k = p.partition_point(|q| q.0 <= t);
+            let ln = |i: usize| p[i].1.ln();
+            let v = if k == 0 {
+                ln(0)
+            } else if k == p.len() {
+                ln(p.len() - 1)
+            } else {
+                let (a, b) = (p[k - 1], p[k]);
+                let u = if b.0 > a.0 {
+                    (t - a.0) / (b.0 - a.0)
+                } else {
+                    1.0
+                };
+                ln(k - 1) + u * (ln(k) - ln(k - 1))
+            };
+            if v.is_finite() {
+                return v.exp();
+            }
+        }
+        (self.rate_pct_per_h / 100.0 * t).exp()
     }
 }
 
@@ -540,6 +566,7 @@ mod tests {
             rate_pct_per_h: -2.0,
             se_pct_per_h: 0.0,
             source: "test".into(),
+            points: vec![],
         };
         let x = cross_validate(&session, &reference, white, 1e-3, 0.05, Some(gain), 5).unwrap();
         assert!(x.captures_compared > 2000, "{}", x.captures_compared);
@@ -568,5 +595,26 @@ mod tests {
             .worst
             .windows(2)
             .all(|w| w[0].de2000 >= w[1].de2000));
+    }
+
+    #[test]
+    fn a_measured_gain_curve_is_interpolated_in_ln_g_and_held_at_the_ends() {
+        let g = GainCorrection {
+            rate_pct_per_h: 0.0,
+            se_pct_per_h: 0.0,
+            source: "probes".into(),
+            points: vec![(1.0, 1.0), (2.0, 0.9), (2.0, 0.8), (4.0, 0.8)],
+        };
+        assert_eq!(g.gain(0.0), 1.0);
+        assert!((g.gain(1.5 * 3600.0) - 0.9f64.sqrt()).abs() < 1e-12);
+        // a step: after the repeated time the new level holds
+        assert!((g.gain(3.0 * 3600.0) - 0.8).abs() < 1e-12);
+        assert!((g.gain(10.0 * 3600.0) - 0.8).abs() < 1e-12);
+        let rate = GainCorrection {
+            points: vec![],
+            rate_pct_per_h: -1.0,
+            ..g
+        };
+        assert!((rate.gain(3600.0) - (-0.01f64).exp()).abs() < 1e-15);
     }
 }

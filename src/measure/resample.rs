@@ -103,7 +103,8 @@ pub struct Resampler {
     range: [(f64, f64); 3],
 }
 
-/// How far beyond the node values' range (as a fraction of its span) a result may go.
+/// How far beyond the node values' range a result may go: a fraction of the span for linear
+/// values, a ratio (1 + this) for ln values.
 pub const RANGE_MARGIN: f64 = 0.25;
 
 /// Points closer than this (in the layout's coordinates) are one node.
@@ -309,15 +310,22 @@ impl Resampler {
                     other => ResampleError::Build(other),
                 })?;
             let (lo, hi) = self.range[c];
-            let margin = RANGE_MARGIN * (hi - lo);
-            let v = v.clamp(lo - margin, hi + margin);
-            if self.log {
-                // first order: d(e^u) = e^u du
-                value[c] = v.exp();
-                spread[c] = value[c] * s;
+            // ln values: at most RANGE_MARGIN beyond the extreme nodes as a *ratio*; linear
+            // values: RANGE_MARGIN of the span
+            let margin = if self.log {
+                (1.0 + RANGE_MARGIN).ln()
             } else {
-                value[c] = v;
-                spread[c] = s;
+                RANGE_MARGIN * (hi - lo)
+            };
+            let clamped = v.clamp(lo - margin, hi + margin);
+            if self.log {
+                // first order: d(e^u) = e^u du; a clamped value is at least as uncertain as the
+                // amount the clamp removed
+                value[c] = clamped.exp();
+                spread[c] = (value[c] * s).max((v.exp() - value[c]).abs().min(value[c]));
+            } else {
+                value[c] = clamped;
+                spread[c] = s.max((v - clamped).abs());
             }
         }
         Ok(Resampled { value, spread })
@@ -499,8 +507,25 @@ impl LayeredResampler {
                 .zip(&weights)
                 .map(|((_, r), w)| (w * r.spread[c]).powi(2))
                 .sum();
-            value[c] = poly;
-            spread[c] = (nodal + (poly - linear).powi(2)).sqrt();
+            // no more than RANGE_MARGIN beyond the layers it comes from (a polynomial through
+            // four layers can swing); what the clamp removes counts as uncertainty
+            let lo = pts
+                .iter()
+                .map(|(_, r)| r.value[c])
+                .fold(f64::INFINITY, f64::min);
+            let hi = pts
+                .iter()
+                .map(|(_, r)| r.value[c])
+                .fold(f64::NEG_INFINITY, f64::max);
+            let (lo, hi) = if lo > 0.0 {
+                (lo / (1.0 + RANGE_MARGIN), hi * (1.0 + RANGE_MARGIN))
+            } else {
+                (lo - RANGE_MARGIN * (hi - lo), hi + RANGE_MARGIN * (hi - lo))
+            };
+            value[c] = poly.clamp(lo, hi);
+            spread[c] = (nodal + (poly - linear).powi(2))
+                .sqrt()
+                .max((poly - value[c]).abs());
         }
         Ok(Resampled { value, spread })
     }

@@ -547,6 +547,10 @@ impl Shepard {
                 .sum::<f64>()
                 + self.f[k];
             let w = (1.0 / dist - 1.0 / r).powi(power);
+            if !(w > 0.0 && w.is_finite()) {
+                // 1/d and 1/r round to the same value: this node has no weight here
+                return;
+            }
             let sw_new = sw + w;
             let delta = qk - mean;
             mean += delta * (w / sw_new);
