@@ -10,6 +10,7 @@ import re
 import subprocess
 import threading
 import time
+import urllib.error
 import urllib.request
 
 import pytest
@@ -117,6 +118,12 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
         status = json.load(urllib.request.urlopen(url + "status.json", timeout=10))
         assert status["summary"]["checked"]["captures"] > 0 and len(status["directions"]) == 81
         assert any(a["code"] == "dark-capture" for a in status["alarms"])
+        # a page on another site cannot read the status through a name that resolves to 127.0.0.1
+        try:
+            urllib.request.urlopen(urllib.request.Request(url + "status.json", headers={"Host": "evil.example"}), timeout=10)
+            raise AssertionError("a foreign Host header was served")
+        except urllib.error.HTTPError as e:
+            assert e.code == 403
         metrics = urllib.request.urlopen(url + "metrics", timeout=10).read().decode()
         assert re.search(r"^goniowatch_captures_checked \d+", metrics, re.M), metrics[:500]
         assert "# TYPE goniowatch_alarms_total gauge" in metrics
@@ -139,3 +146,5 @@ def test_a_non_loopback_status_address_is_refused(hil, tmp_path):
         capture_output=True, text=True, timeout=60,
     )
     assert r.returncode == 2 and "http.allow_remote" in r.stderr, r.stderr
+    # refused before anything was created
+    assert not (tmp_path / "remote-session").exists()

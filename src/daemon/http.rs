@@ -49,15 +49,54 @@ pub fn check_address(addr: &SocketAddr, allow_remote: bool) -> Result<()> {
     Ok(())
 }
 
-/// Bind now (so a bad address is an error at start), serve in the background.
+/// Bind (before the session is opened, so that a bad or busy address leaves nothing behind).
+pub async fn bind(addr: SocketAddr) -> Result<tokio::net::TcpListener> {
+    tokio::net::TcpListener::bind(addr)
+        .await
+        .with_context(|| format!("cannot listen on {addr} for --http"))
+}
+
+/// On a loopback address, only requests naming a loopback host are served: a web page the
+/// operator visits cannot read the status through a DNS name that resolves to 127.0.0.1.
+fn host_allowed(host: Option<&str>) -> bool {
+    let Some(host) = host else { return false };
+    let name = if let Some(rest) = host.strip_prefix('[') {
+        rest.split(']').next().unwrap_or("")
+    } else {
+        host.rsplit_once(':').map(|(h, _)| h).unwrap_or(host)
+    };
+    name.eq_ignore_ascii_case("localhost")
+        || name
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.to_canonical().is_loopback())
+}
+
+async fn host_guard(
+    State(loopback): State<bool>,
+    req: axum::extract::Request,
+    next: axum::middleware::Next,
+) -> Response {
+    let host = req
+        .headers()
+        .get(header::HOST)
+        .and_then(|h| h.to_str().ok());
+    if loopback && !host_allowed(host) {
+        return (
+            StatusCode::FORBIDDEN,
+            "the status page answers to localhost only",
+        )
+            .into_response();
+    }
+    next.run(req).await
+}
+
+/// Serve in the background on a bound listener.
 pub async fn serve(
-    addr: SocketAddr,
+    listener: tokio::net::TcpListener,
     rx: SnapshotRx,
 ) -> Result<(SocketAddr, tokio::task::JoinHandle<()>)> {
-    let listener = tokio::net::TcpListener::bind(addr)
-        .await
-        .with_context(|| format!("cannot listen on {addr} for --http"))?;
     let local = listener.local_addr().context("listener address")?;
+    let loopback = local.ip().to_canonical().is_loopback();
     let state = AppState {
         rx,
         streams: Arc::new(Semaphore::new(MAX_STREAMS)),
@@ -67,7 +106,8 @@ pub async fn serve(
         .route("/events", get(events))
         .route("/status.json", get(status_json))
         .route("/metrics", get(prometheus))
-        .with_state(state);
+        .with_state(state)
+        .layer(axum::middleware::from_fn_with_state(loopback, host_guard));
     let handle = tokio::spawn(async move {
         if let Err(e) = axum::serve(listener, app).await {
             tracing::warn!("status server stopped: {e}");
@@ -126,4 +166,37 @@ async fn events(State(s): State<AppState>) -> Response {
     Sse::new(stream)
         .keep_alive(KeepAlive::new().interval(Duration::from_secs(10)))
         .into_response()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn loopback_hosts_only() {
+        for ok in [
+            "localhost",
+            "localhost:8080",
+            "127.0.0.1:1",
+            "127.3.4.5",
+            "[::1]:80",
+            "[::ffff:127.0.0.1]:9",
+            "LOCALHOST",
+        ] {
+            assert!(host_allowed(Some(ok)), "{ok}");
+        }
+        for bad in [
+            "evil.example:8080",
+            "192.168.1.2",
+            "[fe80::1]:80",
+            "",
+            "localhost.evil.example",
+        ] {
+            assert!(!host_allowed(Some(bad)), "{bad}");
+        }
+        assert!(!host_allowed(None));
+        assert!(check_address(&"[::ffff:127.0.0.1]:0".parse().unwrap(), false).is_ok());
+        assert!(check_address(&"0.0.0.0:0".parse().unwrap(), false).is_err());
+        assert!(check_address(&"0.0.0.0:0".parse().unwrap(), true).is_ok());
+    }
 }

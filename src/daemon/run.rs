@@ -215,6 +215,26 @@ impl Live {
 }
 
 pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
+    // the status address is checked and bound before the session folder is touched
+    let listener = match opts.http {
+        None => None,
+        Some(addr) => {
+            if !addr.ip().to_canonical().is_loopback() {
+                let stored = opts.session_dir.join("config.toml");
+                let path = if stored.exists() {
+                    Some(stored)
+                } else {
+                    opts.config.clone()
+                };
+                let allow = match path {
+                    Some(p) => crate::config::Config::load(&p)?.0.http.allow_remote,
+                    None => false,
+                };
+                super::http::check_address(&addr, allow)?;
+            }
+            Some(super::http::bind(addr).await?)
+        }
+    };
     let session = Session::open_or_create(
         &opts.session_dir,
         opts.config.as_deref(),
@@ -286,14 +306,13 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         status: None,
     };
 
-    if let Some(addr) = opts.http {
-        super::http::check_address(&addr, cfg.http.allow_remote)?;
+    if let Some(listener) = listener {
         let mut model = StatusModel::new(&cfg.plan()?);
         if session.resumed {
             model.load(&session.dir);
         }
         let (tx, rx) = watch::channel(None);
-        let (local, _server) = super::http::serve(addr, rx).await?;
+        let (local, _server) = super::http::serve(listener, rx).await?;
         eprintln!("goniowatch: status page on http://{local}/");
         live.status = Some(StatusFeed {
             model,
