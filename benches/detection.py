@@ -79,20 +79,24 @@ def main():
     path = f"probes every {a.every} captures" if a.every else "no probes: isotropy classes"
     key = "probe_drift" if a.every else "isotropy_drift"
     print(f"{path}, {a.seeds} seeds per row, full 6,561-capture runs.\n")
-    print("| preset | scenario | runs with a drift alarm | first alarm: captures after onset (hours) | final rate %/h (truth) | positioning / outlier alarms after onset (first, median) | daemon CPU per capture |")
+    print("| preset | scenario | runs with a drift alarm (first code) | first alarm: captures after onset (hours) | final rate %/h (truth) | positioning / outlier alarms after onset (first: joint, estimate, captures after onset) | daemon CPU per capture |")
     print("|---|---|---|---|---|---|---|")
     for preset in a.presets.split(","):
         for name, faults, truth in SCENARIOS:
             if a.only and a.only not in name:
                 continue
-            hits, delays, rates, cpu, geo = 0, [], [], [], []
+            hits, delays, rates, cpu, geo, kinds = 0, [], [], [], [], []
             for seed in range(1, a.seeds + 1):
                 code, alarms, summary, daemon_cpu = run(tmp, name.split()[0], preset, faults, seed, a.every)
                 cpu.append(1000 * daemon_cpu / max(1, summary["checked"]["captures"]))
                 drift = [x for x in alarms if x["kind"] == "drift" and x["code"] != "gain-drift-cleared"]
+                kinds.append(min(drift, key=lambda x: x["idx"] or 0)["code"] if drift else "–")
                 onset = truth[1] if truth else 0
                 g = [x for x in alarms if x["kind"] in ("positioning", "reciprocity-outlier") and (x["idx"] or 0) >= onset]
-                geo.append(f"{len(g)}" + (f" ({g[0]['code']} +{g[0]['idx'] - onset})" if g else ""))
+                js = [x for x in g if x["code"] == "joint-offset-suspected"]
+                first = (f"joint {js[0]['evidence']['joint']} {js[0]['evidence']['offset_deg']:+.2f}° +{js[0]['idx'] - onset}" if js
+                         else f"{g[0]['code']} +{g[0]['idx'] - onset}" if g else "")
+                geo.append(f"{len(g)}" + (f" ({first})" if first else ""))
                 hits += bool(drift)
                 if drift and truth:
                     onset = truth[1]
@@ -108,7 +112,7 @@ def main():
                 # ln of a linear gain decay averaged over the run (13 h)
                 truth_rate = f" ({100 * math.log(1 - truth[2] / 100 * 12.76) / 12.76:+.3f})"
             rate = ", ".join(f"{r:+.3f}" for r in rates) + truth_rate
-            print(f"| {preset} | {name} | {hits} of {a.seeds} | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
+            print(f"| {preset} | {name} | {hits} of {a.seeds} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
     shutil.rmtree(tmp, ignore_errors=True)
 
 

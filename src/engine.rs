@@ -63,6 +63,7 @@ pub enum Output {
     Capture(CaptureRecord),
     Pair(PairRecord),
     Isotropy(IsotropyRecord),
+    Sweep(crate::measure::sweeps::SweepRecord),
     Alarm(Alarm),
     Manifest(ManifestRecord),
     /// Every capture the controller announced as taken is checked and the run is done.
@@ -898,6 +899,9 @@ impl Engine {
                 }
                 for r in res.isotropy {
                     out.push(Output::Isotropy(r));
+                }
+                for r in res.sweeps {
+                    out.push(Output::Sweep(r));
                 }
                 for al in res.alarms {
                     self.alarm(out, al);

@@ -150,16 +150,18 @@ pub struct Results {
     captures: JsonlFile,
     pairs: JsonlFile,
     isotropy: JsonlFile,
+    sweeps: JsonlFile,
     alarms: JsonlFile,
     manifest: JsonlFile,
 }
 
-pub const RESULT_FILES: [&str; 5] = [
+pub const RESULT_FILES: [&str; 6] = [
     "captures.jsonl",
     "pairs.jsonl",
     "isotropy.jsonl",
     "alarms.jsonl",
     "manifest.jsonl",
+    "sweeps.jsonl",
 ];
 
 impl Results {
@@ -180,6 +182,7 @@ impl Results {
             isotropy: open(RESULT_FILES[2])?,
             alarms: open(RESULT_FILES[3])?,
             manifest: open(RESULT_FILES[4])?,
+            sweeps: open(RESULT_FILES[5])?,
         })
     }
 
@@ -189,6 +192,7 @@ impl Results {
             Output::Capture(c) => self.captures.write(c),
             Output::Pair(p) => self.pairs.write(p),
             Output::Isotropy(r) => self.isotropy.write(r),
+            Output::Sweep(r) => self.sweeps.write(r),
             Output::Alarm(a) => self.alarms.write(a),
             Output::Manifest(m) => self.manifest.write(m),
             Output::Send(_) | Output::Ingest { .. } | Output::Finished => Ok(()),
@@ -200,6 +204,7 @@ impl Results {
             &mut self.captures,
             &mut self.pairs,
             &mut self.isotropy,
+            &mut self.sweeps,
             &mut self.alarms,
             &mut self.manifest,
         ] {

@@ -186,6 +186,7 @@ pub fn is_record(o: &Output) -> bool {
         Output::Capture(_)
             | Output::Pair(_)
             | Output::Isotropy(_)
+            | Output::Sweep(_)
             | Output::Alarm(_)
             | Output::Manifest(_)
     )

@@ -15,6 +15,7 @@ use super::plan::{IsotropyKey, SamplingPlan};
 use super::probes::{ProbeDrift, ProbeSpec};
 use super::reciprocity::{pair_residual, PairError};
 use super::resample::{ResampleSpec, Resampler, Sample};
+use super::sweeps::{SweepCapture, SweepMonitor, SweepRecord, SweepSpec};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::collections::HashMap;
@@ -44,6 +45,8 @@ pub struct CheckSpec {
     pub dark_y: f64,
     /// This many failed captures in a row is critical.
     pub failures_critical: u32,
+    /// Light-sweep checks: gain level shifts and joint offsets (isotropic samples).
+    pub sweeps: SweepSpec,
 }
 
 impl Default for CheckSpec {
@@ -59,6 +62,7 @@ impl Default for CheckSpec {
             clipped_fraction_max: 0.001,
             dark_y: 0.5,
             failures_critical: 5,
+            sweeps: SweepSpec::default(),
         }
     }
 }
@@ -243,6 +247,7 @@ pub struct CheckOutput {
     pub capture: Option<CaptureRecord>,
     pub pairs: Vec<PairRecord>,
     pub isotropy: Vec<IsotropyRecord>,
+    pub sweeps: Vec<SweepRecord>,
     pub alarms: Vec<Alarm>,
 }
 
@@ -309,6 +314,10 @@ pub struct Checker {
     /// first capture of the same (θi, θo, |φi − φo|), i.e. the same geometry at another time.
     first_of_geometry: HashMap<(i64, i64, i64), (f64, f64)>,
     isotropy_drift: Option<DriftDetector>,
+    /// Light-sweep checks (isotropic samples, light-outer orders).
+    sweeps: Option<SweepMonitor>,
+    /// Drift probes are enabled: the sweep level test is left out (the probes see steps).
+    probes_enabled: bool,
 }
 
 fn drift_alarm(ev: DriftEvent, source: &str, at: (Option<u64>, Option<f64>)) -> Alarm {
@@ -359,7 +368,13 @@ impl Checker {
     ) -> Self {
         let n = plan.capture_count();
         let plan_dirs = plan.direction_count();
+        let light_outer = !matches!(plan.order(), super::plan::AcquisitionOrder::CameraOuter);
+        let sweeps = (isotropic && spec.sweeps.enabled && light_outer)
+            .then(|| SweepMonitor::new(spec.sweeps.clone(), rig.clone(), plan_dirs));
+        let probes_enabled = probes.every > 0;
         Checker {
+            sweeps,
+            probes_enabled,
             plan,
             rig,
             colour,
@@ -481,6 +496,15 @@ impl Checker {
                 if !*seen {
                     *seen = true;
                     self.seen_per_light[light] += 1;
+                    if self.seen_per_light[light] == self.plan.direction_count() {
+                        let level_test = !self.probes_enabled;
+                        if let Some(m) = self.sweeps.as_mut() {
+                            let (rec, alarms) = m.light_complete(light, level_test);
+                            out.sweeps.extend(rec);
+                            self.counts.alarms += alarms.len() as u64;
+                            out.alarms.extend(alarms);
+                        }
+                    }
                 }
             }
         }
@@ -1003,6 +1027,20 @@ impl Checker {
                     self.first_of_geometry.insert(key, (t_h, xyz[1]));
                 }
             }
+            if let Some(m) = self.sweeps.as_mut() {
+                m.add(SweepCapture {
+                    idx: input.idx,
+                    t: input.t,
+                    light,
+                    camera,
+                    class: key,
+                    layer: key.0,
+                    omega_i: nominal.omega_i,
+                    omega_o: nominal.omega_o,
+                    cmd: input.cmd,
+                    y: xyz[1],
+                });
+            }
         }
 
         if let Some(slot) = self.by_entry.get_mut(input.entry) {
@@ -1378,5 +1416,53 @@ mod tests {
         }
         assert!(ch.isotropy_drift().is_none());
         assert_eq!(ch.counts().isotropy_comparisons, 0);
+    }
+
+    #[test]
+    fn light_sweeps_run_only_where_they_mean_something() {
+        use super::super::plan::{AcquisitionOrder, PlanSpec};
+        let colour = || checker().colour.clone();
+        let make = |isotropic: bool, order: AcquisitionOrder, enabled: bool| {
+            let mut spec = CheckSpec::default();
+            spec.sweeps.enabled = enabled;
+            Checker::new(
+                SamplingPlan::new(&PlanSpec {
+                    order,
+                    ..PlanSpec::default()
+                })
+                .unwrap(),
+                Rig::new(RigSpec::default()).unwrap(),
+                colour(),
+                spec,
+                isotropic,
+                ProbeSpec::default(),
+            )
+        };
+        assert!(make(true, AcquisitionOrder::LightOuter, true)
+            .sweeps
+            .is_some());
+        assert!(make(true, AcquisitionOrder::LightOuterSerpentine, true)
+            .sweeps
+            .is_some());
+        // an anisotropic sample has no isotropy classes to compare sweeps by
+        assert!(make(false, AcquisitionOrder::LightOuter, true)
+            .sweeps
+            .is_none());
+        // camera-outer: a light direction completes only at the end of the run
+        assert!(make(true, AcquisitionOrder::CameraOuter, true)
+            .sweeps
+            .is_none());
+        assert!(make(true, AcquisitionOrder::LightOuter, false)
+            .sweeps
+            .is_none());
+
+        // on an isotropic light-outer session every completed light gives a sweep record
+        let mut ch = checker();
+        let mut records = Vec::new();
+        for input in session(20 * 81) {
+            records.extend(ch.check(&input).sweeps);
+        }
+        assert!(records.len() >= 15, "{}", records.len());
+        assert!(records.windows(2).all(|w| w[0].idx < w[1].idx));
     }
 }

@@ -18,3 +18,4 @@ pub mod probes;
 pub mod reciprocity;
 pub mod resample;
 pub mod shepard;
+pub mod sweeps;
