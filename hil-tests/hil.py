@@ -18,7 +18,7 @@ sys.path.insert(0, os.path.join(REPO, "sim"))
 
 REAL_PORT = os.environ.get("GONIOWATCH_HIL_PORT")
 REAL_ROOT = os.environ.get("GONIOWATCH_HIL_CAPTURE_ROOT")
-RESULT_FILES = ["captures.jsonl", "pairs.jsonl", "isotropy.jsonl", "alarms.jsonl", "manifest.jsonl", "summary.json"]
+RESULT_FILES = ["captures.jsonl", "pairs.jsonl", "isotropy.jsonl", "sweeps.jsonl", "alarms.jsonl", "manifest.jsonl", "summary.json"]
 
 
 def binary():

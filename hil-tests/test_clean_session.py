@@ -29,6 +29,10 @@ def test_clean_full_session(hil, tmp_path):
         assert s["checked"]["isotropy_comparisons"] > 1000
         subs = [c for c in caps if c["substitute"] is not None]
         assert len(subs) == 81
+        # every light direction but the first few is tested as a sweep, none is flagged
+        sweeps = read_jsonl(session / "sweeps.jsonl")
+        assert len(sweeps) >= 70, len(sweeps)
+        assert all(abs(j["offset_deg"]) < 0.25 for r in sweeps for j in r["joints"]), sweeps[-1]
     assert "Table 2" in out
     assert_replay_identical(session, tmp_path)
     # run again on the finished session: it resumes, sees it is done, and exits unchanged
