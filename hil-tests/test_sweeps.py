@@ -5,6 +5,8 @@ naming that joint; a fault-free run on the realistic preset raises neither. One 
 onset part-way through light sweep 25 (θi = 45°), 700 captures after it. Replay gives the same
 bytes."""
 
+import json
+
 import pytest
 
 from hil import assert_replay_identical, daemon_config, needs_simulator, read_jsonl, run_daemon
@@ -59,4 +61,8 @@ def test_a_fault_free_realistic_run_raises_no_drift_or_positioning_alarm(hil, tm
     session, alarms, out = run(hil, tmp_path, "sweepquiet", [])
     bad = [a for a in alarms if a["kind"] in ("drift", "positioning")]
     assert bad == [], bad
-    assert len(read_jsonl(session / "sweeps.jsonl")) > 25
+    sweeps = read_jsonl(session / "sweeps.jsonl")
+    assert len(sweeps) > 25
+    s = json.load(open(session / "summary.json"))
+    assert s["sweeps"]["tested"] == len(sweeps) and s["sweeps"]["last"] == sweeps[-1]
+    assert "light sweeps: " in out and " tested; the last (light " in out, out

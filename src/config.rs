@@ -326,6 +326,49 @@ impl Config {
                 });
             }
         }
+        let sw = &self.checks.sweeps;
+        for (field, v, min) in [
+            (
+                "checks.sweeps.joint_tolerance_deg",
+                sw.joint_tolerance_deg,
+                0.0,
+            ),
+            (
+                "checks.sweeps.level_tolerance_pct",
+                sw.level_tolerance_pct,
+                0.0,
+            ),
+            ("checks.sweeps.cusum_k", sw.cusum_k, 0.0),
+            ("checks.sweeps.clip", sw.clip, f64::MIN_POSITIVE),
+            ("checks.sweeps.false_alarm_runs", sw.false_alarm_runs, 1.0),
+            (
+                "checks.sweeps.sensitivity_step_deg",
+                sw.sensitivity_step_deg,
+                f64::MIN_POSITIVE,
+            ),
+        ] {
+            if !(v.is_finite() && v >= min) {
+                return Err(ConfigError::Invalid {
+                    field,
+                    message: format!("{v} is not a finite number ≥ {min}"),
+                });
+            }
+        }
+        if sw.sensitivity_step_deg > 10.0 {
+            return Err(ConfigError::Invalid {
+                field: "checks.sweeps.sensitivity_step_deg",
+                message: format!("{} is larger than 10°", sw.sensitivity_step_deg),
+            });
+        }
+        if sw.min_captures < 4 {
+            return Err(ConfigError::Invalid {
+                field: "checks.sweeps.min_captures",
+                message: format!(
+                    "{} is below 4 (the fit has three coefficients)",
+                    sw.min_captures
+                ),
+            });
+        }
         Ok(())
     }
 
@@ -454,5 +497,34 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("min_separation_deg"), "{e}");
+        for (text, field) in [
+            ("[checks.sweeps]\nclip = 0\n", "checks.sweeps.clip"),
+            ("[checks.sweeps]\ncusum_k = -1\n", "checks.sweeps.cusum_k"),
+            (
+                "[checks.sweeps]\nfalse_alarm_runs = 0.5\n",
+                "checks.sweeps.false_alarm_runs",
+            ),
+            (
+                "[checks.sweeps]\nmin_captures = 2\n",
+                "checks.sweeps.min_captures",
+            ),
+            (
+                "[checks.sweeps]\nsensitivity_step_deg = 45\n",
+                "checks.sweeps.sensitivity_step_deg",
+            ),
+            ("[checks.sweeps]\njoint_tolerance = 1\n", "joint_tolerance"),
+        ] {
+            let e = Config::from_toml_str(text).unwrap_err().to_string();
+            assert!(e.contains(field), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn the_shipped_configs_parse_and_keep_the_sweep_defaults() {
+        for name in ["ubo.toml", "sim.toml"] {
+            let path = format!("{}/config/{name}", env!("CARGO_MANIFEST_DIR"));
+            let c = Config::from_toml_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+            assert_eq!(c.checks.sweeps, Default::default(), "{name}");
+        }
     }
 }

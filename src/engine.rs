@@ -106,6 +106,9 @@ pub struct Summary {
     /// Gain drift estimate from isotropy classes (isotropic samples).
     #[serde(default)]
     pub isotropy_drift: Option<crate::measure::drift::DriftEstimate>,
+    /// The light-sweep checks (isotropic samples in a light-outer order).
+    #[serde(default)]
+    pub sweeps: Option<crate::measure::sweeps::SweepSummary>,
     pub alarms: BTreeMap<String, u64>,
     pub link: LinkStats,
     pub finished: bool,
@@ -362,6 +365,7 @@ impl Engine {
             interpolated: self.checker.interpolated_table().clone(),
             probe_drift: self.checker.probe_drift(),
             isotropy_drift: self.checker.isotropy_drift(),
+            sweeps: self.checker.sweeps(),
             alarms: self.alarm_counts.clone(),
             link: self.stats.clone(),
             finished: self.finished,

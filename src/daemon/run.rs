@@ -464,6 +464,28 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
             d.rate_pct_per_h, d.se_pct_per_h, d.pairs
         )?;
     }
+    if let Some(sw) = &s.sweeps {
+        match &sw.last {
+            Some(r) => {
+                let joints: Vec<String> = r
+                    .joints
+                    .iter()
+                    .map(|j| format!("joint {} {:+.2}° ± {:.2}", j.joint, j.offset_deg, j.se_deg))
+                    .collect();
+                writeln!(
+                    out,
+                    "light sweeps: {} tested; the last (light {}): level {:+.2} % ± {:.2}{}{}",
+                    sw.tested,
+                    r.light,
+                    r.level_pct,
+                    r.level_se_pct,
+                    if joints.is_empty() { "" } else { ", " },
+                    joints.join(", ")
+                )?;
+            }
+            None => writeln!(out, "light sweeps: none tested yet")?,
+        }
+    }
     if let Some(d) = &s.probe_drift {
         writeln!(
             out,

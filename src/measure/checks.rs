@@ -440,6 +440,11 @@ impl Checker {
     }
 
     /// The gain drift estimate from isotropy classes (isotropic samples), once there are enough.
+    /// The light-sweep checks' state (none when they do not run for this session).
+    pub fn sweeps(&self) -> Option<super::sweeps::SweepSummary> {
+        self.sweeps.as_ref().map(|m| m.summary())
+    }
+
     pub fn isotropy_drift(&self) -> Option<DriftEstimate> {
         self.isotropy_drift.as_ref().and_then(|d| d.estimate())
     }

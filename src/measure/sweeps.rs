@@ -197,6 +197,16 @@ pub struct SweepMonitor {
     h_level: f64,
     h_joint: f64,
     last: Option<SweepRecord>,
+    tested: usize,
+}
+
+/// The light-sweep checks in the session summary.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepSummary {
+    /// Sweeps tested so far.
+    pub tested: usize,
+    /// The latest sweep's record.
+    pub last: Option<SweepRecord>,
 }
 
 /// Robust scale about zero: 1.4826 · median |x|.
@@ -298,6 +308,7 @@ impl SweepMonitor {
             joint_cusum: [Cusum::default(), Cusum::default()],
             latched: HashSet::new(),
             last: None,
+            tested: 0,
         }
     }
 
@@ -309,6 +320,13 @@ impl SweepMonitor {
     /// The latest sweep's record.
     pub fn last(&self) -> Option<&SweepRecord> {
         self.last.as_ref()
+    }
+
+    pub fn summary(&self) -> SweepSummary {
+        SweepSummary {
+            tested: self.tested,
+            last: self.last.clone(),
+        }
     }
 
     pub fn add(&mut self, c: SweepCapture) {
@@ -725,6 +743,7 @@ impl SweepMonitor {
             .unwrap_or(0);
         rec.model_builds = self.model_builds;
         self.last = Some(rec.clone());
+        self.tested += 1;
         (Some(rec), alarms)
     }
 }
