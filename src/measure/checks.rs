@@ -238,6 +238,9 @@ pub struct CheckCounts {
     #[serde(default)]
     pub pairs_unresolved: u64,
     pub isotropy_comparisons: u64,
+    /// Interpolated pairs fed to the isotropy drift fit (weighted by their spread).
+    #[serde(default)]
+    pub drift_interpolated: u64,
     pub alarms: u64,
 }
 
@@ -557,6 +560,7 @@ impl Checker {
             if let (Some(d), "interpolated") = (&pair.diff, pair.status.as_str()) {
                 self.interpolated_table.add(d);
             }
+            self.feed_interpolated_to_drift(&p, &pair, out);
             if pair.status == "interpolated" {
                 self.counts.pairs_interpolated += 1;
             } else {
@@ -564,6 +568,77 @@ impl Checker {
             }
             out.pairs.push(pair);
         }
+    }
+
+    /// An interpolated pair in the isotropy drift fit: the substitute against its partner
+    /// interpolated at the mirrored pose, timed at the mean time of the partner light's
+    /// captures, in a bucket of its own per (θ light, θ camera) so that the pair's stationary
+    /// non-reciprocity is a fixed effect, and weighted by the interpolation's relative spread.
+    fn feed_interpolated_to_drift(
+        &mut self,
+        p: &PendingPartner,
+        pair: &PairRecord,
+        out: &mut CheckOutput,
+    ) {
+        if self.isotropy_drift.is_none() || pair.status != "interpolated" {
+            return;
+        }
+        let (Some(a), Some(b), Some(info)) = (pair.xyz_a, pair.xyz_b, &pair.interpolated) else {
+            return;
+        };
+        let Some(spread) = info.spread_xyz else {
+            return;
+        };
+        let Some(t_partner) = self.light_mean_time(p.light) else {
+            return;
+        };
+        if !(a[1] > 0.0 && b[1] > 0.0) {
+            return;
+        }
+        let Ok(pe) = self.plan.entry(p.entry) else {
+            return;
+        };
+        let dirs = self.plan.directions();
+        let bucket = (
+            -1 - (dirs[pe.light].theta_deg * 1000.0).round() as i64,
+            (dirs[pe.camera].theta_deg * 1000.0).round() as i64,
+        );
+        let (t_sub, t_par) = (p.capture.t / 3600.0, t_partner / 3600.0);
+        // d = ln(Y later / Y earlier)
+        let (t_a_h, t_b_h, d) = if t_sub <= t_par {
+            (t_sub, t_par, (b[1] / a[1]).ln())
+        } else {
+            (t_par, t_sub, (a[1] / b[1]).ln())
+        };
+        let obs = PairObservation {
+            t_a_h,
+            t_b_h,
+            d,
+            bucket,
+            sigma: (spread[1] / b[1]).abs(),
+        };
+        let at = (Some(p.capture.idx), Some(p.capture.t));
+        if let Some(det) = self.isotropy_drift.as_mut() {
+            for ev in det.add(obs) {
+                out.alarms.push(drift_alarm(ev, "isotropy classes", at));
+                self.counts.alarms += 1;
+            }
+        }
+        self.counts.drift_interpolated += 1;
+    }
+
+    /// Mean controller time of the captures of one light direction that can be nodes.
+    fn light_mean_time(&self, light: usize) -> Option<f64> {
+        let (mut sum, mut n) = (0.0, 0usize);
+        for e in (0..self.plan.directions().len()).filter_map(|c| self.plan.index_of(light, c)) {
+            if let Some(Some(c)) = self.by_entry.get(e) {
+                if c.exact_pose && !c.dark && !c.substitute {
+                    sum += c.t;
+                    n += 1;
+                }
+            }
+        }
+        (n > 0).then(|| sum / n as f64)
     }
 
     /// The session's captures of one light direction as a slice interpolant.
@@ -1021,6 +1096,7 @@ impl Checker {
                         t_b_h: t_h,
                         d: (xyz[1] / y0).ln(),
                         bucket: (key.0, key.1),
+                        sigma: 0.0,
                     };
                     if let Some(det) = self.isotropy_drift.as_mut() {
                         for ev in det.add(obs) {
@@ -1283,6 +1359,12 @@ mod tests {
         assert_eq!(ch.counts().pairs_unresolved, 0);
         assert_eq!(interpolated.len() as u64, ch.counts().pairs_interpolated);
         assert!(interpolated.len() >= 80, "{}", interpolated.len());
+        // each went into the isotropy drift fit, weighted by its spread
+        assert_eq!(
+            ch.counts().drift_interpolated,
+            ch.counts().pairs_interpolated
+        );
+        assert!(ch.isotropy_drift().unwrap().rate_pct_per_h.abs() < 0.01);
         let mut worst: f64 = 0.0;
         let mut beyond = 0;
         for p in &interpolated {

@@ -111,6 +111,11 @@ pub struct PairObservation {
     pub t_b_h: f64,
     pub d: f64,
     pub bucket: (i64, i64),
+    /// Extra standard uncertainty of `d` beyond the residual scale (ln units), e.g. an
+    /// interpolated partner's spread; 0 for a measured pair. The fit weights the observation by
+    /// 1 / (1 + (sigma / scale)²) on top of its Huber weight.
+    #[serde(default)]
+    pub sigma: f64,
 }
 
 /// The current drift estimate.
@@ -252,7 +257,18 @@ impl DriftDetector {
     /// IRLS with Huber weights and bucket fixed effects (within-bucket centring).
     fn fit(&mut self) -> Option<DriftEstimate> {
         let n = self.obs.len();
-        let mut w = vec![1.0f64; n];
+        // precision weights from each observation's own uncertainty, relative to the residual
+        // scale (unknown in the first pass: equal weights)
+        let prior = |scale: f64, o: &PairObservation| {
+            if o.sigma > 0.0 && o.sigma.is_finite() && scale > 0.0 {
+                1.0 / (1.0 + (o.sigma / scale).powi(2))
+            } else if o.sigma.is_finite() {
+                1.0
+            } else {
+                0.0
+            }
+        };
+        let mut w: Vec<f64> = self.obs.iter().map(|o| prior(0.0, o)).collect();
         let mut r = 0.0;
         let mut beta: BTreeMap<(i64, i64), (f64, usize)> = BTreeMap::new();
         let mut scale = 0.0;
@@ -295,8 +311,8 @@ impl DriftDetector {
                 scale = 1e-9;
             }
             let c = 1.345 * scale;
-            for (wi, e) in w.iter_mut().zip(&res) {
-                *wi = if e.abs() <= c { 1.0 } else { c / e.abs() };
+            for ((wi, e), o) in w.iter_mut().zip(&res).zip(&self.obs) {
+                *wi = prior(scale, o) * if e.abs() <= c { 1.0 } else { c / e.abs() };
             }
             // variance of r: σ² / Sxx with the weighted residual variance
             let dof = (n as f64 - beta.len() as f64 - 1.0).max(1.0);
@@ -375,11 +391,68 @@ mod tests {
                 t_b_h: t_b,
                 d,
                 bucket: (b as i64, 0),
+                sigma: 0.0,
             }) {
                 events.push((i, e));
             }
         }
         (det, events)
+    }
+
+    #[test]
+    fn uncertain_observations_weigh_less() {
+        // 2,000 measured pairs with a −1 %/h drift, and 200 whose values follow +5 %/h; with
+        // no stated uncertainty the latter pull the rate, with a large one they hardly do
+        let fit = |sigma: f64| {
+            let mut s = 11;
+            let mut det = DriftDetector::new(DriftSpec {
+                refit_every: 2200,
+                min_pairs: 100,
+                ..DriftSpec::default()
+            });
+            for i in 0..2200 {
+                let t_b = 13.0 * (i as f64 + 1.0) / 2200.0;
+                let t_a = t_b * lcg(&mut s);
+                let odd = i % 11 == 0;
+                let rate = if odd { 0.05 } else { -0.01 };
+                let d = rate * (t_b - t_a) + 0.015 * gauss(&mut s);
+                det.add(PairObservation {
+                    t_a_h: t_a,
+                    t_b_h: t_b,
+                    d,
+                    bucket: (if odd { -1 } else { (i % 7) as i64 }, 0),
+                    sigma: if odd { sigma } else { 0.0 },
+                });
+            }
+            det.estimate().unwrap().rate_pct_per_h
+        };
+        let plain = fit(0.0);
+        let weighted = fit(0.3);
+        assert!((weighted + 1.0).abs() < 0.05, "{weighted}");
+        assert!(
+            (weighted + 1.0).abs() < (plain + 1.0).abs(),
+            "{plain} {weighted}"
+        );
+        // a non-finite uncertainty: the observation is left out
+        let mut det = DriftDetector::new(DriftSpec {
+            refit_every: 1,
+            min_pairs: 3,
+            ..DriftSpec::default()
+        });
+        for (i, sigma) in [0.0, 0.0, 0.0, f64::NAN].iter().enumerate() {
+            det.add(PairObservation {
+                t_a_h: 0.0,
+                t_b_h: 1.0 + i as f64,
+                d: if sigma.is_nan() {
+                    10.0
+                } else {
+                    -0.01 * (1.0 + i as f64)
+                },
+                bucket: (0, 0),
+                sigma: *sigma,
+            });
+        }
+        assert!((det.estimate().unwrap().rate_pct_per_h + 1.0).abs() < 1e-6);
     }
 
     #[test]
