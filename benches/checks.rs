@@ -1,5 +1,6 @@
 //! CPU time of the per-capture checks (the sans-IO core: geometry, colour, quality, pairs,
-//! isotropy classes, the isotropy drift refits, substitutes' interpolated partners) over a full
+//! isotropy classes, the isotropy drift refits, substitutes' interpolated partners, the light
+//! sweeps' back-fits, interpolant builds and joint fits) over a full
 //! 6,561-capture UBO session in light-outer order, reported per window of the run so that the
 //! cost at the end of the run is visible (issue 5's target: under 1 ms per capture at the end).
 //! Synthetic reciprocal BRDF readings with a −1 %/h decay; no decoding, no I/O.
@@ -108,6 +109,23 @@ fn main() {
             let max = w.iter().copied().fold(0.0, f64::max);
             println!("| {a}–{b} | {:.1} µs | {:.2} ms |", mean * 1e6, max * 1e3);
         }
+        // the captures that completed a light direction carry the sweep test
+        let sweep_caps: Vec<f64> = times.iter().skip(80).step_by(81).copied().collect();
+        let other: Vec<f64> = times
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| k % 81 != 80)
+            .map(|(_, t)| *t)
+            .collect();
+        let sw = ch.sweeps().expect("sweeps run on this session");
+        println!(
+            "\nlight sweeps: {} tested, interpolant built {} times; a sweep-completing capture {:.2} ms on average (max {:.1} ms), the others {:.1} µs",
+            sw.tested,
+            sw.last.as_ref().map(|r| r.model_builds).unwrap_or(0),
+            1e3 * sweep_caps.iter().sum::<f64>() / sweep_caps.len() as f64,
+            1e3 * sweep_caps.iter().copied().fold(0.0, f64::max),
+            1e6 * other.iter().sum::<f64>() / other.len() as f64,
+        );
         let e = ch.isotropy_drift().expect("estimate");
         println!(
             "\nfinal isotropy drift estimate {:+.3} ± {:.3} %/h (truth −1.000)",

@@ -31,11 +31,11 @@ def test_report_of_a_session_and_of_its_replay_are_identical(hil, tmp_path):
     assert r.returncode == 0, r.stderr
     run("compare", session, ref)
     listed = run("report", session).split()
-    assert listed[0].endswith("report.html") and len(listed) == 7, listed  # + table3.csv
+    assert listed[0].endswith("report.html") and len(listed) == 8, listed  # + sweeps.csv, table3.csv
 
     html = (session / "report" / "report.html").read_text()
     for needle in ["Table 2", "Table 3", "Residual per light direction", "Gain drift", "Capture quality", "Link", "Configuration",
-                   "dark-capture", "gain-step", "<svg", "[probes]"]:
+                   "dark-capture", "gain-step", "<svg", "[probes]", "Light sweeps"]:
         assert needle in html, needle
     # self-contained: nothing loaded from anywhere
     assert "http://" not in html.replace('xmlns="http://www.w3.org/2000/svg"', "") and "<script" not in html
@@ -48,13 +48,16 @@ def test_report_of_a_session_and_of_its_replay_are_identical(hil, tmp_path):
     assert any(a["code"] == "dark-capture" and a["idx"] == "300" for a in alarms)
     t3 = list(csv.DictReader(io.StringIO((session / "report" / "table3.csv").read_text())))
     assert {r["table"] for r in t3} == {"as measured", "gain-corrected"}
+    sweeps = list(csv.DictReader(io.StringIO((session / "report" / "sweeps.csv").read_text())))
+    assert len(sweeps) == len(read_jsonl(session / "sweeps.jsonl")) > 10
+    assert {"light", "level_pct", "joint1_offset_deg", "joint2_se_deg"} <= set(sweeps[0])
 
     # the replayed session's report equals the live one's
     replayed = tmp_path / "rep-replay"
     run("replay", session, "--out", replayed, "--quiet", timeout=300)
     run("compare", replayed, ref)
     run("report", replayed)
-    for name in ["report.html", "captures.csv", "pairs.csv", "alarms.csv", "table2.csv", "light_residuals.csv", "table3.csv"]:
+    for name in ["report.html", "captures.csv", "pairs.csv", "alarms.csv", "table2.csv", "light_residuals.csv", "sweeps.csv", "table3.csv"]:
         assert (session / "report" / name).read_bytes() == (replayed / "report" / name).read_bytes(), name
 
 

@@ -9,6 +9,7 @@ use crate::engine::Summary;
 use crate::measure::alarm::{Alarm, Severity};
 use crate::measure::checks::{CaptureRecord, PairRecord, Table2};
 use crate::measure::plan::SamplingPlan;
+use crate::measure::sweeps::SweepRecord;
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -22,6 +23,8 @@ pub struct ReportInputs {
     pub captures: Vec<CaptureRecord>,
     pub pairs: Vec<PairRecord>,
     pub alarms: Vec<Alarm>,
+    /// The light sweeps (isotropic samples; empty when the checks did not run).
+    pub sweeps: Vec<SweepRecord>,
     pub crossval: Option<CompareReport>,
 }
 
@@ -72,6 +75,12 @@ pub fn load(dir: &Path) -> Result<ReportInputs> {
         captures: read_jsonl(&dir.join("captures.jsonl"))?,
         pairs: read_jsonl(&dir.join("pairs.jsonl"))?,
         alarms: read_jsonl(&dir.join("alarms.jsonl"))?,
+        // sessions recorded before the sweep checks existed have no sweeps.jsonl
+        sweeps: if dir.join("sweeps.jsonl").exists() {
+            read_jsonl(&dir.join("sweeps.jsonl"))?
+        } else {
+            Vec::new()
+        },
         crossval,
     })
 }
@@ -460,6 +469,77 @@ fn drift_plot(inp: &ReportInputs) -> String {
     p.finish()
 }
 
+/// The light sweeps: each sweep's fitted offset of joints 1 and 2 (± 1 SE) and its gain level
+/// against the earlier sweeps, over controller time, with the drift and positioning alarms.
+fn sweeps_plot(inp: &ReportInputs) -> String {
+    let t_end = inp
+        .captures
+        .iter()
+        .map(|c| c.t / 3600.0)
+        .fold(0.0f64, f64::max)
+        .max(0.1);
+    let mut lo: f64 = -0.5;
+    let mut hi: f64 = 0.5;
+    for r in &inp.sweeps {
+        for j in &r.joints {
+            lo = lo.min(j.offset_deg - j.se_deg);
+            hi = hi.max(j.offset_deg + j.se_deg);
+        }
+    }
+    let (lo, hi) = (lo.max(-5.0), hi.min(5.0));
+    let mut p = Plot::new(
+        720.0,
+        240.0,
+        (0.0, t_end),
+        (lo, hi),
+        "controller time [h]",
+        "fitted joint offset [°]",
+    );
+    let (z0, z1) = (p.sy(0.0), p.sy(0.0));
+    let _ = write!(
+        p.svg,
+        r##"<line x1="{:.1}" y1="{z0:.1}" x2="{:.1}" y2="{z1:.1}" stroke="#8a96a3" stroke-dasharray="4 3"/>"##,
+        p.sx(0.0),
+        p.sx(t_end)
+    );
+    for (joint, colour, dx) in [(1usize, "#1f5fa8", -0.004), (2, "#d9822b", 0.004)] {
+        for r in &inp.sweeps {
+            let Some(j) = r.joints.iter().find(|j| j.joint == joint) else {
+                continue;
+            };
+            let x = p.sx(r.t / 3600.0 + dx * t_end);
+            let (y, ya, yb) = (
+                p.sy(j.offset_deg.clamp(lo, hi)),
+                p.sy((j.offset_deg - j.se_deg).clamp(lo, hi)),
+                p.sy((j.offset_deg + j.se_deg).clamp(lo, hi)),
+            );
+            let _ = write!(
+                p.svg,
+                r##"<line x1="{x:.1}" y1="{ya:.1}" x2="{x:.1}" y2="{yb:.1}" stroke="{colour}"/><circle cx="{x:.1}" cy="{y:.1}" r="2.5" fill="{colour}"><title>light {}: joint {joint} {:+.2}° ± {:.2}</title></circle>"##,
+                r.light, j.offset_deg, j.se_deg
+            );
+        }
+    }
+    let base = p.h - p.b;
+    for a in inp.alarms.iter().filter(|a| {
+        matches!(
+            a.code.as_str(),
+            "joint-offset-suspected" | "gain-step" | "gain-drift" | "encoder-mismatch"
+        )
+    }) {
+        let Some(t) = a.t else { continue };
+        let x = p.sx(t / 3600.0);
+        let _ = write!(
+            p.svg,
+            r##"<line x1="{x:.1}" y1="{:.1}" x2="{x:.1}" y2="{base:.1}" stroke="{}" stroke-width="1.5"><title>{}</title></line>"##,
+            base - 14.0,
+            alarm_colour(a),
+            esc(&format!("{} {:.2} h: {}", a.code, t / 3600.0, a.message))
+        );
+    }
+    p.finish()
+}
+
 fn histogram(inp: &ReportInputs) -> String {
     let mut exact: Vec<f64> = Vec::new();
     let mut interp: Vec<f64> = Vec::new();
@@ -633,6 +713,14 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
     }
     h.push_str(&drift_plot(inp));
 
+    if !inp.sweeps.is_empty() {
+        let last = inp.sweeps.last();
+        let _ = write!(h, "<h2>Light sweeps</h2><p>{} completed light directions were each compared with the earlier ones (isotropy classes; ARCHITECTURE.md). A slipped arm joint shows as a run of sweeps whose fitted offset (dots ± 1 standard error; blue joint 1, orange joint 2) leaves zero; the estimates are biased towards zero, so read them as a lower bound. Joint 3 cannot be seen on an isotropic sample. Ticks are drift and positioning alarms. The last sweep's gain level against the earlier ones: {}. sweeps.csv has every sweep.</p>",
+            inp.sweeps.len(),
+            last.map(|r| format!("{:+.2} % ± {:.2}", r.level_pct, r.level_se_pct)).unwrap_or_default());
+        h.push_str(&sweeps_plot(inp));
+    }
+
     if let Some(cv) = &inp.crossval {
         h.push_str("<h2>Cross-validation (the paper's Table 3)</h2>");
         h.push_str(&table3_html(cv));
@@ -707,7 +795,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
         "<h2>Configuration</h2><pre>{}</pre>",
         esc(&inp.config_text)
     );
-    h.push_str("<p class=muted>Tables as CSV beside this file: captures.csv, pairs.csv, alarms.csv, table2.csv, light_residuals.csv (and table3.csv after a cross-validation).</p></body></html>\n");
+    h.push_str("<p class=muted>Tables as CSV beside this file: captures.csv, pairs.csv, alarms.csv, table2.csv, light_residuals.csv, sweeps.csv (isotropic samples) and table3.csv (after a cross-validation).</p></body></html>\n");
     Ok(h)
 }
 
@@ -859,6 +947,34 @@ pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
         ("table2.csv", t2),
         ("light_residuals.csv", lights),
     ];
+    if !inp.sweeps.is_empty() {
+        let mut sw = String::from("light,idx,t_s,captures,level_pct,level_se_pct,level_z,level_cusum,joint1_offset_deg,joint1_se_deg,joint1_z,joint1_cusum,joint2_offset_deg,joint2_se_deg,joint2_z,joint2_cusum,residual_sd\n");
+        for r in &inp.sweeps {
+            let j = |k: usize| r.joints.iter().find(|f| f.joint == k);
+            let _ = writeln!(
+                sw,
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                r.light,
+                r.idx,
+                r.t,
+                r.captures,
+                r.level_pct,
+                r.level_se_pct,
+                opt(r.level_z),
+                r.level_cusum,
+                opt(j(1).map(|f| f.offset_deg)),
+                opt(j(1).map(|f| f.se_deg)),
+                opt(j(1).and_then(|f| f.z)),
+                opt(j(1).map(|f| f.cusum)),
+                opt(j(2).map(|f| f.offset_deg)),
+                opt(j(2).map(|f| f.se_deg)),
+                opt(j(2).and_then(|f| f.z)),
+                opt(j(2).map(|f| f.cusum)),
+                r.residual_sd
+            );
+        }
+        out.push(("sweeps.csv", sw));
+    }
     if let Some(cv) = &inp.crossval {
         let mut t3 = String::from("table,metric,max,avg,median,condition\n");
         let x = &cv.result;
