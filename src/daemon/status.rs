@@ -351,6 +351,27 @@ pub fn metrics(s: &Snapshot) -> String {
             d.se_pct_per_h,
         );
     }
+    if let Some(sw) = &s.summary.sweeps {
+        g(
+            "sweeps_tested",
+            "Light sweeps tested against the earlier ones.",
+            sw.tested as f64,
+        );
+        if let Some(r) = &sw.last {
+            g(
+                "sweep_level_pct",
+                "The last light sweep's gain level against the earlier ones (%).",
+                r.level_pct,
+            );
+            for j in &r.joints {
+                g(
+                    &format!("sweep_joint{}_offset_deg", j.joint),
+                    "The last light sweep's fitted offset of this arm joint (degrees; biased towards zero).",
+                    j.offset_deg,
+                );
+            }
+        }
+    }
     if let Some(d) = &s.summary.probe_drift {
         g(
             "drift_rate_pct_per_h",
@@ -475,5 +496,43 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("# TYPE goniowatch_rate_captures_per_hour gauge"));
+        assert!(
+            !text.contains("sweep"),
+            "no sweep metrics where no sweep ran"
+        );
+
+        // the light sweeps' state, when they run
+        let mut s4 = s2.clone();
+        s4.summary.sweeps = Some(crate::measure::sweeps::SweepSummary {
+            tested: 12,
+            last: Some(crate::measure::sweeps::SweepRecord {
+                light: 13,
+                idx: 1133,
+                t: 7931.0,
+                captures: 70,
+                level_pct: -0.4,
+                level_se_pct: 0.2,
+                level_z: Some(-1.0),
+                level_cusum: 0.0,
+                joints: vec![crate::measure::sweeps::JointFit {
+                    joint: 2,
+                    offset_deg: 0.75,
+                    se_deg: 0.1,
+                    z: Some(2.0),
+                    cusum: 1.0,
+                }],
+                residual_sd: 0.01,
+                thresholds: [3.23, 3.57],
+                model_layers: 2,
+                model_builds: 3,
+            }),
+        });
+        let text = metrics(&s4);
+        assert!(text.contains("goniowatch_sweeps_tested 12\n"), "{text}");
+        assert!(
+            text.contains("goniowatch_sweep_joint2_offset_deg 0.75\n"),
+            "{text}"
+        );
+        assert!(text.contains("goniowatch_sweep_level_pct -0.4\n"), "{text}");
     }
 }
