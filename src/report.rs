@@ -353,12 +353,7 @@ fn drift_plot(inp: &ReportInputs) -> String {
             first_y.entry(c.entry).or_insert(xyz[1]);
         }
     }
-    let t_end = inp
-        .captures
-        .iter()
-        .map(|c| c.t / 3600.0)
-        .fold(0.0f64, f64::max)
-        .max(0.1);
+    let t_end = end_hours(inp);
     let est = inp.summary.probe_drift;
     // the estimate covers the probes since its last reset (a step restarts it): draw its line
     // through them, pivoting the ± 2 SE band about their mean time
@@ -454,8 +449,15 @@ fn drift_plot(inp: &ReportInputs) -> String {
         );
     }
     // alarms on the time axis
+    alarm_ticks(&mut p, inp.alarms.iter());
+    p.finish()
+}
+
+/// A tick per alarm on a time plot's axis (controller hours), coloured by severity, with the
+/// message as its tooltip.
+fn alarm_ticks<'a>(p: &mut Plot, alarms: impl Iterator<Item = &'a Alarm>) {
     let base = p.h - p.b;
-    for a in &inp.alarms {
+    for a in alarms {
         let Some(t) = a.t else { continue };
         let x = p.sx(t / 3600.0);
         let _ = write!(
@@ -466,18 +468,21 @@ fn drift_plot(inp: &ReportInputs) -> String {
             esc(&format!("{} {}: {}", a.code, t / 3600.0, a.message))
         );
     }
-    p.finish()
+}
+
+/// The last capture's controller time (hours; at least 0.1), the end of the time axes.
+fn end_hours(inp: &ReportInputs) -> f64 {
+    inp.captures
+        .iter()
+        .map(|c| c.t / 3600.0)
+        .fold(0.0f64, f64::max)
+        .max(0.1)
 }
 
 /// The light sweeps: each sweep's fitted offset of joints 1 and 2 (± 1 SE) and its gain level
 /// against the earlier sweeps, over controller time, with the drift and positioning alarms.
 fn sweeps_plot(inp: &ReportInputs) -> String {
-    let t_end = inp
-        .captures
-        .iter()
-        .map(|c| c.t / 3600.0)
-        .fold(0.0f64, f64::max)
-        .max(0.1);
+    let t_end = end_hours(inp);
     let mut lo: f64 = -0.5;
     let mut hi: f64 = 0.5;
     for r in &inp.sweeps {
@@ -520,23 +525,15 @@ fn sweeps_plot(inp: &ReportInputs) -> String {
             );
         }
     }
-    let base = p.h - p.b;
-    for a in inp.alarms.iter().filter(|a| {
-        matches!(
-            a.code.as_str(),
-            "joint-offset-suspected" | "gain-step" | "gain-drift" | "encoder-mismatch"
-        )
-    }) {
-        let Some(t) = a.t else { continue };
-        let x = p.sx(t / 3600.0);
-        let _ = write!(
-            p.svg,
-            r##"<line x1="{x:.1}" y1="{:.1}" x2="{x:.1}" y2="{base:.1}" stroke="{}" stroke-width="1.5"><title>{}</title></line>"##,
-            base - 14.0,
-            alarm_colour(a),
-            esc(&format!("{} {:.2} h: {}", a.code, t / 3600.0, a.message))
-        );
-    }
+    alarm_ticks(
+        &mut p,
+        inp.alarms.iter().filter(|a| {
+            matches!(
+                a.code.as_str(),
+                "joint-offset-suspected" | "gain-step" | "gain-drift" | "encoder-mismatch"
+            )
+        }),
+    );
     p.finish()
 }
 

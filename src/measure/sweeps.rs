@@ -822,12 +822,26 @@ mod model_tests {
     use super::*;
     use crate::measure::geometry::Spherical;
     use crate::measure::kinematics::Incidence;
-    use crate::measure::plan::SamplingPlan;
+    use crate::measure::plan::{PlanDirection, SamplingPlan};
 
     /// A smooth isotropic BRDF: Lambert plus a Phong lobe about the mirror direction.
-    fn brdf(wi: &Vec3, wo: &Vec3) -> f64 {
+    pub(super) fn brdf(wi: &Vec3, wo: &Vec3) -> f64 {
         let m = Vec3::new(-wi.x, -wi.y, wi.z);
         0.3 + 2.0 * m.dot(wo).max(0.0).powi(4)
+    }
+
+    /// The nominal directions and the rig's pose of a plan entry (none where it cannot reach).
+    pub(super) fn plan_pose(
+        rig: &Rig,
+        l: &PlanDirection,
+        c: &PlanDirection,
+    ) -> Option<(Incidence, Pose)> {
+        let inc = Incidence {
+            omega_i: Spherical::from_deg(l.theta_deg, l.phi_deg).to_vector(),
+            omega_o: c.spherical().to_vector(),
+        };
+        let pose = rig.inverse(&inc).ok()?;
+        Some((inc, pose))
     }
 
     fn session() -> (SweepMonitor, Vec<SweepCapture>, Rig) {
@@ -839,11 +853,7 @@ mod model_tests {
         for e in 0..plan.capture_count() {
             let pe = plan.entry(e).unwrap();
             let (l, c) = (dirs[pe.light], dirs[pe.camera]);
-            let inc = Incidence {
-                omega_i: Spherical::from_deg(l.theta_deg, l.phi_deg).to_vector(),
-                omega_o: c.spherical().to_vector(),
-            };
-            let Ok(pose) = rig.inverse(&inc) else {
+            let Some((inc, pose)) = plan_pose(&rig, &l, &c) else {
                 continue;
             };
             let y = brdf(&inc.omega_i, &inc.omega_o) * inc.omega_i.z;
@@ -916,9 +926,9 @@ mod model_tests {
 /// per-light footprint effect, 1 % capture noise, and one fault from `onset`.
 #[cfg(test)]
 mod session_tests {
+    use super::model_tests::{brdf, plan_pose};
     use super::*;
-    use crate::measure::geometry::{azimuth_difference_deg, Spherical};
-    use crate::measure::kinematics::Incidence;
+    use crate::measure::geometry::azimuth_difference_deg;
     use crate::measure::plan::SamplingPlan;
 
     #[derive(Clone, Copy)]
@@ -928,11 +938,6 @@ mod session_tests {
         Joint(usize, f64),
         /// gain factor
         Step(f64),
-    }
-
-    fn brdf(wi: &Vec3, wo: &Vec3) -> f64 {
-        let m = Vec3::new(-wi.x, -wi.y, wi.z);
-        0.3 + 2.0 * m.dot(wo).max(0.0).powi(4)
     }
 
     /// A deterministic standard normal draw (splitmix64 + Box–Muller).
@@ -979,11 +984,7 @@ mod session_tests {
                 current = Some(pe.light);
             }
             let (l, c) = (dirs[pe.light], dirs[pe.camera]);
-            let inc = Incidence {
-                omega_i: Spherical::from_deg(l.theta_deg, l.phi_deg).to_vector(),
-                omega_o: c.spherical().to_vector(),
-            };
-            let Ok(pose) = rig.inverse(&inc) else {
+            let Some((inc, pose)) = plan_pose(&rig, &l, &c) else {
                 continue;
             };
             let mut actual = pose;
