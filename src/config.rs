@@ -344,7 +344,7 @@ impl Config {
             (
                 "checks.sweeps.sensitivity_step_deg",
                 sw.sensitivity_step_deg,
-                f64::MIN_POSITIVE,
+                0.01,
             ),
         ] {
             if !(v.is_finite() && v >= min) {
@@ -510,6 +510,10 @@ mod tests {
             ),
             (
                 "[checks.sweeps]\nsensitivity_step_deg = 45\n",
+                "checks.sweeps.sensitivity_step_deg",
+            ),
+            (
+                "[checks.sweeps]\nsensitivity_step_deg = 0.001\n",
                 "checks.sweeps.sensitivity_step_deg",
             ),
             ("[checks.sweeps]\njoint_tolerance = 1\n", "joint_tolerance"),

@@ -174,7 +174,8 @@ pub struct Interpolation {
     pub method: String,
     /// Captures used as nodes.
     pub nodes: usize,
-    /// The interpolated partner's uncertainty: the nodal functions' spread per XYZ channel.
+    /// The interpolated partner's uncertainty: the nodal functions' spread per XYZ channel, in
+    /// the units of the re-corrected partner `xyz_b`.
     pub spread_xyz: Option<Xyz>,
     /// ΔE00 between the partner and the partner moved by one spread: the pair's ΔE00 is only
     /// meaningful beyond this.
@@ -617,6 +618,9 @@ impl Checker {
             bucket,
             sigma: (spread[1] / b[1]).abs(),
         };
+        if !(obs.d.is_finite() && obs.sigma.is_finite()) {
+            return;
+        }
         let at = (Some(p.capture.idx), Some(p.capture.t));
         if let Some(det) = self.isotropy_drift.as_mut() {
             for ev in det.add(obs) {
@@ -713,12 +717,20 @@ impl Checker {
                     self.colour.min_cos,
                 ) {
                     Ok(r) => {
+                        // the spread in the units of the re-corrected partner (xyz_b): the
+                        // cosine re-correction scales the partner by one factor
+                        let f = if v.value[1] > 0.0 {
+                            r.xyz2[1] / v.value[1]
+                        } else {
+                            1.0
+                        };
+                        let spread = [f * v.spread[0], f * v.spread[1], f * v.spread[2]];
                         let moved = [
-                            r.xyz2[0] + v.spread[0],
-                            r.xyz2[1] + v.spread[1],
-                            r.xyz2[2] + v.spread[2],
+                            r.xyz2[0] + spread[0],
+                            r.xyz2[1] + spread[1],
+                            r.xyz2[2] + spread[2],
                         ];
-                        info.spread_xyz = Some(v.spread);
+                        info.spread_xyz = Some(spread);
                         info.sigma_de2000 =
                             Some(colour_difference(r.xyz2, moved, self.colour.white).de2000);
                         rec.xyz_a = Some(r.xyz1);

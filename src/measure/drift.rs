@@ -190,7 +190,12 @@ impl DriftDetector {
     /// Add one pair; returns the events it caused.
     pub fn add(&mut self, o: PairObservation) -> Vec<DriftEvent> {
         let mut ev = Vec::new();
-        if !(o.d.is_finite() && o.t_a_h.is_finite() && o.t_b_h.is_finite()) {
+        if !(o.d.is_finite()
+            && o.t_a_h.is_finite()
+            && o.t_b_h.is_finite()
+            && o.sigma.is_finite()
+            && o.sigma >= 0.0)
+        {
             return ev;
         }
         // CUSUM on the standardized residual of the new pair against the current fit
@@ -209,7 +214,8 @@ impl DriftDetector {
                     .copied()
                     .unwrap_or(est.residual_scale)
                     .max(est.residual_scale * 0.25);
-                let sd = bucket_sd * (1.0 + 1.0 / nb as f64).sqrt();
+                let sd =
+                    (bucket_sd * bucket_sd * (1.0 + 1.0 / nb as f64) + o.sigma * o.sigma).sqrt();
                 let z = ((o.d - r * (o.t_b_h - o.t_a_h) - beta) / sd).clamp(-4.0, 4.0);
                 self.cusum_hi = (self.cusum_hi + z - self.spec.cusum_k).max(0.0);
                 self.cusum_lo = (self.cusum_lo - z - self.spec.cusum_k).max(0.0);
@@ -259,13 +265,12 @@ impl DriftDetector {
         let n = self.obs.len();
         // precision weights from each observation's own uncertainty, relative to the residual
         // scale (unknown in the first pass: equal weights)
+        // (`add` admits only finite σ ≥ 0; the floor keeps every bucket's weight positive)
         let prior = |scale: f64, o: &PairObservation| {
-            if o.sigma > 0.0 && o.sigma.is_finite() && scale > 0.0 {
-                1.0 / (1.0 + (o.sigma / scale).powi(2))
-            } else if o.sigma.is_finite() {
-                1.0
+            if o.sigma > 0.0 && scale > 0.0 {
+                (1.0 / (1.0 + (o.sigma / scale).powi(2))).max(1e-12)
             } else {
-                0.0
+                1.0
             }
         };
         let mut w: Vec<f64> = self.obs.iter().map(|o| prior(0.0, o)).collect();
@@ -286,6 +291,10 @@ impl DriftDetector {
             let (mut sxx, mut sxy) = (0.0, 0.0);
             for (o, wi) in self.obs.iter().zip(&w) {
                 let (sw, sx, sy, _) = acc[&o.bucket];
+                // a bucket whose every observation has zero weight adds nothing
+                if !(sw > 0.0) {
+                    continue;
+                }
                 let x = (o.t_b_h - o.t_a_h) - sx / sw;
                 let y = o.d - sy / sw;
                 sxx += wi * x * x;
@@ -433,25 +442,27 @@ mod tests {
             (weighted + 1.0).abs() < (plain + 1.0).abs(),
             "{plain} {weighted}"
         );
-        // a non-finite uncertainty: the observation is left out
+        // a non-finite uncertainty: the observation is refused (and cannot stall the fit)
         let mut det = DriftDetector::new(DriftSpec {
             refit_every: 1,
             min_pairs: 3,
             ..DriftSpec::default()
         });
-        for (i, sigma) in [0.0, 0.0, 0.0, f64::NAN].iter().enumerate() {
+        for (i, sigma) in [0.0, 0.0, 0.0, f64::NAN, f64::INFINITY, 0.0]
+            .iter()
+            .enumerate()
+        {
+            let odd = !sigma.is_finite();
             det.add(PairObservation {
                 t_a_h: 0.0,
                 t_b_h: 1.0 + i as f64,
-                d: if sigma.is_nan() {
-                    10.0
-                } else {
-                    -0.01 * (1.0 + i as f64)
-                },
-                bucket: (0, 0),
+                d: if odd { 10.0 } else { -0.01 * (1.0 + i as f64) },
+                // alone in a bucket of its own, as an interpolated pair often is
+                bucket: (if odd { 1 } else { 0 }, 0),
                 sigma: *sigma,
             });
         }
+        assert_eq!(det.estimate().unwrap().pairs, 4);
         assert!((det.estimate().unwrap().rate_pct_per_h + 1.0).abs() < 1e-6);
     }
 

@@ -537,7 +537,13 @@ impl SweepMonitor {
         let caps: Vec<f64> = (0..2)
             .map(|j| {
                 let v: Vec<f64> = rows.iter().map(|r| r.1[j]).collect();
-                LEVERAGE_CAP * robust_scale(&v)
+                let cap = LEVERAGE_CAP * robust_scale(&v);
+                // most sensitivities exactly 0 (or none): no cap rather than a cap at 0
+                if cap > 0.0 {
+                    cap
+                } else {
+                    f64::INFINITY
+                }
             })
             .collect();
         rows.retain(|r| r.1[0].abs() <= caps[0] && r.1[1].abs() <= caps[1]);
@@ -546,17 +552,22 @@ impl SweepMonitor {
         let mut inv = None;
         // then least squares, twice trimmed of rows beyond 3 robust residual scales (a
         // capture the interpolant gets wrong, a bad frame) and refitted
-        for _pass in 0..=TRIM_PASSES {
+        for pass in 0..=TRIM_PASSES {
             let n = rows.len();
             if n < self.spec.min_captures {
-                inv = None;
+                // too few rows left after a trim: the previous pass's fit stands
+                if pass == 0 {
+                    inv = None;
+                }
                 break;
             }
             let x = DMatrix::from_fn(n, 3, |i, j| if j == 0 { 1.0 } else { rows[i].1[j - 1] });
             let yv = DVector::from_iterator(n, rows.iter().map(|r| r.0));
             let svd = x.clone().svd(true, true);
             let Ok(b) = svd.solve(&yv, 1e-12) else {
-                inv = None;
+                if pass == 0 {
+                    inv = None;
+                }
                 break;
             };
             let resid = &yv - &x * &b;
@@ -618,7 +629,7 @@ impl SweepMonitor {
                 for (sign, stat, run) in [(1i8, cs.up, cs.up_run), (-1i8, cs.down, cs.down_run)] {
                     let mean = if run.2 > 0 { run.0 / run.2 as f64 } else { 0.0 };
                     if stat > self.h_level
-                        && 100.0 * mean.abs() >= self.spec.level_tolerance_pct
+                        && 100.0 * f64::from(sign) * mean >= self.spec.level_tolerance_pct
                         && self.latched.insert((0, sign, layer))
                     {
                         alarms.push(
@@ -676,14 +687,15 @@ impl SweepMonitor {
                     fit.z = Some(z);
                     self.joint_cusum[j].add(z, k, b, scale, last_idx);
                     let cs = &self.joint_cusum[j];
-                    for (stat, run) in [(cs.up, cs.up_run), (cs.down, cs.down_run)] {
+                    for (sign, stat, run) in [(1.0, cs.up, cs.up_run), (-1.0, cs.down, cs.down_run)]
+                    {
                         if run.2 == 0 {
                             continue;
                         }
                         let mean = run.0 / run.2 as f64;
                         let mean_se = run.1.sqrt() / run.2 as f64;
                         if stat > self.h_joint
-                            && mean.abs() >= self.spec.joint_tolerance_deg
+                            && sign * mean >= self.spec.joint_tolerance_deg
                             && crossing.is_none_or(|c| stat > c.1)
                         {
                             crossing = Some((j, stat, mean, mean_se, run.2, run.3));
@@ -698,6 +710,8 @@ impl SweepMonitor {
         // across its cameras) raises no positioning alarm; the joint CUSUMs carry on, so a real
         // offset is named at the next sweep
         let crossing = if level_alarm { None } else { crossing };
+        // a crossing in a layer that already has its positioning alarm restarts the CUSUMs
+        // without a second alarm (the operator has it; the next layer may raise one again)
         if let Some((j, stat, mean, mean_se, sweeps, since)) = crossing {
             if self.latched.insert((1, 0, layer)) {
                 let other: Vec<serde_json::Value> = rec
