@@ -6,8 +6,14 @@ drift-rate estimate of that path against the truth, and the daemon's CPU time pe
 of it: link, decoding, checks).
 
 Run (after `cargo build --release`):
-  python3 benches/detection.py [--seeds 3] [--every 100] [--presets realistic,clean] [--only "no fault"]
-Prints a Markdown table. GONIOWATCH_BIN overrides the binary."""
+  python3 benches/detection.py [--seeds 3] [--every 100] [--presets realistic,clean] [--only "no fault"] [--keep DIR]
+  python3 benches/detection.py --replay DIR [--seeds ...] [--presets ...] [--only ...]
+Prints a Markdown table. GONIOWATCH_BIN overrides the binary. `--keep DIR` keeps every recorded
+session (DIR/<scenario>-<preset>-<seed>/s, with its captures); `--replay DIR` re-evaluates kept
+sessions with the current binary through `goniowatch replay` (byte-identical to a live run of
+that binary on the same rig data), in seconds per session instead of a minute: the way to
+re-measure detection after a change to the checks. With `--replay` the CPU column is the
+replay's (decoding included) per capture."""
 
 import argparse
 import resource
@@ -37,8 +43,49 @@ SCENARIOS = [
 ]
 
 
-def run(tmp, name, preset, faults, seed, every):
-    d = os.path.join(tmp, f"{name}-{preset}-{seed}")
+CURVE_H = [1, 2, 3, 4, 6, 8, 10, 12]
+
+
+def curve(captures_path):
+    """The isotropy drift estimate at hours into the run: each capture's gain correction
+    (g = exp(r·t) from the rate known at its time) gives r = ln g / t and its SE = σ_rel / t."""
+    pts = {}
+    for line in open(captures_path):
+        c = json.loads(line)
+        g = c.get("gain_corrected")
+        t_h = c["t"] / 3600.0
+        if not g or g.get("source") != "isotropy classes" or t_h <= 0 or c.get("probe"):
+            continue
+        for h in CURVE_H:
+            if t_h <= h:
+                pts[h] = (100 * math.log(g["gain"]) / t_h, 100 * g["sigma_rel"] / t_h)
+    return pts
+
+
+def slug(name):
+    return re.sub(r"[^a-z0-9.]+", "-", name.lower()).strip("-")
+
+
+def replay(keep, name, preset, seed):
+    d = os.path.join(keep, f"{slug(name)}-{preset}-{seed}")
+    if not os.path.isdir(os.path.join(d, "s")):
+        return None
+    out = tempfile.mkdtemp(prefix="gw-replay-")
+    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    r = subprocess.run([BIN, "replay", f"{d}/s", "--out", f"{out}/r", "--quiet"], capture_output=True, text=True, timeout=900)
+    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
+    alarms = [json.loads(l) for l in open(f"{out}/r/alarms.jsonl") if l.strip()]
+    summary = json.load(open(f"{out}/r/summary.json"))
+    pts = curve(f"{out}/r/captures.jsonl")
+    shutil.rmtree(out, ignore_errors=True)
+    return r.returncode, alarms, summary, cpu, pts
+
+
+def run(tmp, name, preset, faults, seed, every, keep=None):
+    d = os.path.join(keep or tmp, f"{slug(name) if keep else name.split()[0]}-{preset}-{seed}")
+    if keep:
+        shutil.rmtree(d, ignore_errors=True)
     os.makedirs(d)
     sc = os.path.join(d, "sc.toml")
     lines = [f'rig_config = "{REPO}/config/sim.toml"', "[session]", f'id = "r"', f'capture_root = "{d}/cap"',
@@ -64,8 +111,10 @@ def run(tmp, name, preset, faults, seed, every):
     sim.wait()
     alarms = [json.loads(l) for l in open(f"{d}/s/alarms.jsonl") if l.strip()]
     summary = json.load(open(f"{d}/s/summary.json"))
-    shutil.rmtree(d, ignore_errors=True)
-    return r.returncode, alarms, summary, daemon_cpu
+    pts = curve(f"{d}/s/captures.jsonl")
+    if not keep:
+        shutil.rmtree(d, ignore_errors=True)
+    return r.returncode, alarms, summary, daemon_cpu, pts
 
 
 def main():
@@ -74,20 +123,34 @@ def main():
     ap.add_argument("--every", type=int, default=100)
     ap.add_argument("--presets", default="realistic,clean")
     ap.add_argument("--only", help="run only the scenarios whose name contains this text")
+    ap.add_argument("--keep", help="keep the recorded sessions in this folder")
+    ap.add_argument("--replay", help="re-evaluate the sessions kept in this folder instead of running the rig")
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="gw-detect-")
     path = f"probes every {a.every} captures" if a.every else "no probes: isotropy classes"
     key = "probe_drift" if a.every else "isotropy_drift"
-    print(f"{path}, {a.seeds} seeds per row, full 6,561-capture runs.\n")
+    how = f"replayed from {a.replay} with the current binary" if a.replay else "live"
+    print(f"{path}, {a.seeds} seeds per row, full 6,561-capture runs, {how}.\n")
     print("| preset | scenario | runs with a drift alarm (first code) | first alarm: captures after onset (hours) | final rate %/h (truth) | positioning / outlier alarms after onset (first: joint, estimate, captures after onset) | daemon CPU per capture |")
     print("|---|---|---|---|---|---|---|")
+    curves = []
     for preset in a.presets.split(","):
         for name, faults, truth in SCENARIOS:
             if a.only and a.only not in name:
                 continue
             hits, delays, rates, cpu, geo, kinds = 0, [], [], [], [], []
+            runs = 0
             for seed in range(1, a.seeds + 1):
-                code, alarms, summary, daemon_cpu = run(tmp, name.split()[0], preset, faults, seed, a.every)
+                if a.replay:
+                    got = replay(a.replay, name, preset, seed)
+                    if got is None:
+                        continue
+                    code, alarms, summary, daemon_cpu, pts = got
+                else:
+                    code, alarms, summary, daemon_cpu, pts = run(tmp, name, preset, faults, seed, a.every, a.keep)
+                if truth and truth[0] == "rate" and not a.every:
+                    curves.append((preset, name, seed, truth[2], pts))
+                runs += 1
                 cpu.append(1000 * daemon_cpu / max(1, summary["checked"]["captures"]))
                 drift = [x for x in alarms if x["kind"] == "drift" and x["code"] != "gain-drift-cleared"]
                 kinds.append(min(drift, key=lambda x: x["idx"] or 0)["code"] if drift else "–")
@@ -112,7 +175,25 @@ def main():
                 # ln of a linear gain decay averaged over the run (13 h)
                 truth_rate = f" ({100 * math.log(1 - truth[2] / 100 * 12.76) / 12.76:+.3f})"
             rate = ", ".join(f"{r:+.3f}" for r in rates) + truth_rate
-            print(f"| {preset} | {name} | {hits} of {a.seeds} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
+            if runs == 0:
+                continue
+            print(f"| {preset} | {name} | {hits} of {runs} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
+    if curves:
+        # the estimate's error against hours into the run; truth up to t: the mean ln-gain slope
+        # of the linear decay 1 − a·t over [0, t]
+        print("\nDrift-rate estimate against hours into the run (isotropy classes): error in %/h "
+              "(estimate − truth), ± its standard error; – where no estimate existed yet.\n")
+        print("| preset | scenario | seed | " + " | ".join(f"{h} h" for h in CURVE_H) + " |")
+        print("|---|---|---|" + "---|" * len(CURVE_H))
+        for preset, name, seed, rate, pts in curves:
+            cells = []
+            for h in CURVE_H:
+                if h in pts:
+                    truth_h = 100 * math.log(1 - rate / 100 * h) / h
+                    cells.append(f"{pts[h][0] - truth_h:+.3f} ± {pts[h][1]:.3f}")
+                else:
+                    cells.append("–")
+            print(f"| {preset} | {name} | {seed} | " + " | ".join(cells) + " |", flush=True)
     shutil.rmtree(tmp, ignore_errors=True)
 
 

@@ -462,10 +462,10 @@ fn alarm_ticks<'a>(p: &mut Plot, alarms: impl Iterator<Item = &'a Alarm>) {
         let x = p.sx(t / 3600.0);
         let _ = write!(
             p.svg,
-            r##"<line x1="{x:.1}" y1="{:.1}" x2="{x:.1}" y2="{base:.1}" stroke="{}" stroke-width="1.5"><title>{}</title></line>"##,
-            base - 14.0,
+            r##"<line x1="{x:.1}" y1="{:.1}" x2="{x:.1}" y2="{base:.1}" stroke="{}" stroke-width="2.5"><title>{}</title></line>"##,
+            base - 20.0,
             alarm_colour(a),
-            esc(&format!("{} {}: {}", a.code, t / 3600.0, a.message))
+            esc(&format!("{} at {:.2} h: {}", a.code, t / 3600.0, a.message))
         );
     }
 }
