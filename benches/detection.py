@@ -167,14 +167,16 @@ def main():
                     delays.append(first - onset)
                 pd = summary.get(key) or {}
                 if "rate_pct_per_h" in pd:
-                    rates.append(pd["rate_pct_per_h"])
+                    steps = "".join(f" (step {100 * math.expm1(st['ln_size']):+.2f} % at {st['t_h']:.2f} h)"
+                                    for st in summary.get("isotropy_steps") or [])
+                    rates.append(f"{pd['rate_pct_per_h']:+.3f}{steps}")
             delay = (f"{sorted(delays)[len(delays) // 2]} ({sorted(delays)[len(delays) // 2] * T_CAPTURE_H:.2f} h), "
                      f"max {max(delays)}") if delays else "–"
             truth_rate = ""
             if truth and truth[0] == "rate":
                 # ln of a linear gain decay averaged over the run (13 h)
                 truth_rate = f" ({100 * math.log(1 - truth[2] / 100 * 12.76) / 12.76:+.3f})"
-            rate = ", ".join(f"{r:+.3f}" for r in rates) + truth_rate
+            rate = ", ".join(rates) + truth_rate
             if runs == 0:
                 continue
             print(f"| {preset} | {name} | {hits} of {runs} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)

@@ -6,6 +6,7 @@ onset part-way through light sweep 25 (θi = 45°), 700 captures after it. Repla
 bytes."""
 
 import json
+import math
 
 import pytest
 
@@ -55,6 +56,13 @@ def test_a_lamp_step_is_a_gain_step_from_the_sweeps(hil, tmp_path):
     assert -4.0 < a["evidence"]["level_pct"] < -1.0, a
     assert ONSET <= a["idx"] <= ONSET + 300, a
     assert first(alarms, "joint-offset-suspected") is None, alarms
+    # the step enters the isotropy drift model, and the corrected output divides it out
+    s = json.load(open(session / "summary.json"))
+    (step,) = s["isotropy_steps"]
+    assert abs(step["ln_size"] - math.log(0.97)) < 0.01 and abs(step["t_h"] * 3600 / 7 - ONSET) < 81, step
+    g = read_jsonl(session / "captures.jsonl")[-1]["gain_corrected"]
+    assert g["source"] == "isotropy classes" and abs(g["gain"] - 0.97) < 0.01, g
+    assert "with a gain step at" in out
 
 
 def test_a_fault_free_realistic_run_raises_no_drift_or_positioning_alarm(hil, tmp_path):

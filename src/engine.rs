@@ -106,6 +106,9 @@ pub struct Summary {
     /// Gain drift estimate from isotropy classes (isotropic samples).
     #[serde(default)]
     pub isotropy_drift: Option<crate::measure::drift::DriftEstimate>,
+    /// Gain steps the light sweeps found, as fitted in the isotropy drift model.
+    #[serde(default)]
+    pub isotropy_steps: Vec<crate::measure::drift::StepEffect>,
     /// The light-sweep checks (isotropic samples in a light-outer order).
     #[serde(default)]
     pub sweeps: Option<crate::measure::sweeps::SweepSummary>,
@@ -365,6 +368,7 @@ impl Engine {
             interpolated: self.checker.interpolated_table().clone(),
             probe_drift: self.checker.probe_drift(),
             isotropy_drift: self.checker.isotropy_drift(),
+            isotropy_steps: self.checker.isotropy_steps(),
             sweeps: self.checker.sweeps(),
             alarms: self.alarm_counts.clone(),
             link: self.stats.clone(),

@@ -463,6 +463,15 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
             "gain drift from isotropy classes: {:+.3} %/h ± {:.3} (standard error, {} comparisons)",
             d.rate_pct_per_h, d.se_pct_per_h, d.pairs
         )?;
+        for st in &s.isotropy_steps {
+            writeln!(
+                out,
+                "  with a gain step at {:.2} h of {:+.2} % ± {:.2} (found by the light sweeps)",
+                st.t_h,
+                100.0 * st.ln_size.exp_m1(),
+                100.0 * st.se
+            )?;
+        }
     }
     if let Some(sw) = &s.sweeps {
         match &sw.last {

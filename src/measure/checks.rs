@@ -427,13 +427,9 @@ impl Checker {
             // isotropy rate would leave the step out, so nothing rather than a wrong correction
             return None;
         } else {
-            let e = self.isotropy_drift()?;
-            let r = e.rate_pct_per_h / 100.0;
-            (
-                (r * t_h).exp(),
-                t_h * e.se_pct_per_h / 100.0,
-                "isotropy classes",
-            )
+            // the rate and any steps the light sweeps found
+            let (ln_g, sigma) = self.isotropy_drift.as_ref()?.ln_gain_at(t_h)?;
+            (ln_g.exp(), sigma, "isotropy classes")
         };
         (gain > 0.0 && gain.is_finite()).then(|| GainCorrected {
             xyz: [xyz[0] / gain, xyz[1] / gain, xyz[2] / gain],
@@ -444,6 +440,14 @@ impl Checker {
     }
 
     /// The gain drift estimate from isotropy classes (isotropic samples), once there are enough.
+    /// Gain steps in the isotropy drift model (found by the light sweeps).
+    pub fn isotropy_steps(&self) -> Vec<super::drift::StepEffect> {
+        self.isotropy_drift
+            .as_ref()
+            .map(|d| d.steps().to_vec())
+            .unwrap_or_default()
+    }
+
     /// The light-sweep checks' state (none when they do not run for this session).
     pub fn sweeps(&self) -> Option<super::sweeps::SweepSummary> {
         self.sweeps.as_ref().map(|m| m.summary())
@@ -509,6 +513,15 @@ impl Checker {
                         let level_test = !self.probes_enabled;
                         if let Some(m) = self.sweeps.as_mut() {
                             let (rec, alarms) = m.light_complete(light, level_test);
+                            // a gain step the sweeps found becomes a step term of the isotropy
+                            // drift model, at the start of the sweep where its run began
+                            if let Some(det) = self.isotropy_drift.as_mut() {
+                                for a in alarms.iter().filter(|a| a.code == "gain-step") {
+                                    if let Some(t) = a.evidence["since_t"].as_f64() {
+                                        det.add_step(t / 3600.0);
+                                    }
+                                }
+                            }
                             out.sweeps.extend(rec);
                             self.counts.alarms += alarms.len() as u64;
                             out.alarms.extend(alarms);
@@ -1563,5 +1576,33 @@ mod tests {
         }
         assert!(records.len() >= 15, "{}", records.len());
         assert!(records.windows(2).all(|w| w[0].idx < w[1].idx));
+    }
+
+    #[test]
+    fn a_step_found_by_the_sweeps_enters_the_gain_correction() {
+        // −3 % from capture 2,000 (inside light sweep 24), no drift otherwise
+        let t_step = 2000.0 * 7.0;
+        let mut ch = checker();
+        let mut steps = Vec::new();
+        let mut last = None;
+        for input in session_with_gain(2600, |t_h| if t_h * 3600.0 >= t_step { 0.97 } else { 1.0 })
+        {
+            let out = ch.check(&input);
+            steps.extend(out.alarms.into_iter().filter(|a| a.code == "gain-step"));
+            last = out.capture;
+        }
+        assert_eq!(steps.len(), 1, "{steps:?}");
+        let since_t = steps[0].evidence["since_t"].as_f64().unwrap();
+        assert!(
+            since_t <= t_step && since_t > t_step - 81.0 * 7.0,
+            "{since_t}"
+        );
+        let det = ch.isotropy_drift.as_ref().unwrap();
+        let st = det.steps()[0];
+        assert!((st.ln_size - 0.97f64.ln()).abs() < 0.005, "{st:?}");
+        assert!(ch.isotropy_drift().unwrap().rate_pct_per_h.abs() < 0.05);
+        // the last capture's correction carries the step
+        let g = last.unwrap().gain_corrected.unwrap();
+        assert!((g.gain - 0.97).abs() < 0.005, "{g:?}");
     }
 }

@@ -35,6 +35,7 @@
 //! approximation) so that a whole 3,240-pair run raises a false alarm in at most 1 of
 //! `false_alarm_runs` runs.
 
+use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -130,6 +131,19 @@ pub struct DriftEstimate {
     pub residual_scale: f64,
 }
 
+/// Per bucket: the sum of weights, the weighted sums of each column and of d, the count.
+type BucketSums = (f64, Vec<f64>, f64, usize);
+
+/// A known gain step (its time found elsewhere, e.g. by the light sweeps) and its fitted size.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StepEffect {
+    /// When the step happened (controller hours; pairs spanning it carry it).
+    pub t_h: f64,
+    /// ln of the gain ratio across the step, and its standard error.
+    pub ln_size: f64,
+    pub se: f64,
+}
+
 /// What the detector says after one pair.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum DriftEvent {
@@ -161,6 +175,9 @@ pub struct DriftDetector {
     cusum_lo: f64,
     cusum_n: usize,
     h: f64,
+    /// Known step times (hours) and, after a fit, their sizes.
+    step_times: Vec<f64>,
+    step_effects: Vec<StepEffect>,
 }
 
 impl DriftDetector {
@@ -177,7 +194,43 @@ impl DriftDetector {
             cusum_lo: 0.0,
             cusum_n: 0,
             h,
+            step_times: Vec::new(),
+            step_effects: Vec::new(),
         }
+    }
+
+    /// A gain step at `t_h` (hours), found by another source: from now on the model is
+    /// ln g(t) = r·t + Σ s_k·[t ≥ τ_k], so the step neither bends the rate nor stays in the
+    /// corrected output. Refits at once when there are enough pairs.
+    pub fn add_step(&mut self, t_h: f64) {
+        if !t_h.is_finite() || self.step_times.iter().any(|&t| (t - t_h).abs() < 1e-9) {
+            return;
+        }
+        self.step_times.push(t_h);
+        self.step_times.sort_by(f64::total_cmp);
+        if self.obs.len() >= self.spec.min_pairs {
+            if let Some(est) = self.fit() {
+                self.estimate = Some(est);
+            }
+        }
+    }
+
+    /// The fitted steps (empty without known step times).
+    pub fn steps(&self) -> &[StepEffect] {
+        &self.step_effects
+    }
+
+    /// ln g(t) relative to t = 0 and its standard error (rate and steps, covariances left
+    /// out), once there is an estimate.
+    pub fn ln_gain_at(&self, t_h: f64) -> Option<(f64, f64)> {
+        let e = self.estimate?;
+        let mut v = e.rate_pct_per_h / 100.0 * t_h;
+        let mut var = (t_h * e.se_pct_per_h / 100.0).powi(2);
+        for st in self.step_effects.iter().filter(|st| st.t_h <= t_h) {
+            v += st.ln_size;
+            var += st.se * st.se;
+        }
+        Some((v, var.sqrt()))
     }
 
     pub fn estimate(&self) -> Option<DriftEstimate> {
@@ -262,6 +315,9 @@ impl DriftDetector {
 
     /// IRLS with Huber weights and bucket fixed effects (within-bucket centring).
     fn fit(&mut self) -> Option<DriftEstimate> {
+        if !self.step_times.is_empty() {
+            return self.fit_with_steps();
+        }
         let n = self.obs.len();
         // precision weights from each observation's own uncertainty, relative to the residual
         // scale (unknown in the first pass: equal weights)
@@ -349,6 +405,133 @@ impl DriftDetector {
             residual_scale: scale,
         })
     }
+
+    /// The same IRLS with one indicator column per known step (a pair spanning τ_k carries
+    /// s_k): the centred weighted design solved by SVD least squares, the covariance from its
+    /// pseudo-inverse. Deterministic: fixed passes, buckets in BTreeMap order.
+    fn fit_with_steps(&mut self) -> Option<DriftEstimate> {
+        let n = self.obs.len();
+        let k = self.step_times.len();
+        let p = 1 + k;
+        let row = |o: &PairObservation| -> Vec<f64> {
+            let mut x = Vec::with_capacity(p);
+            x.push(o.t_b_h - o.t_a_h);
+            for &tau in &self.step_times {
+                x.push(if o.t_a_h < tau && tau <= o.t_b_h {
+                    1.0
+                } else {
+                    0.0
+                });
+            }
+            x
+        };
+        let rows: Vec<Vec<f64>> = self.obs.iter().map(row).collect();
+        let prior = |scale: f64, o: &PairObservation| {
+            if o.sigma > 0.0 && scale > 0.0 {
+                (1.0 / (1.0 + (o.sigma / scale).powi(2))).max(1e-12)
+            } else {
+                1.0
+            }
+        };
+        let mut w: Vec<f64> = self.obs.iter().map(|o| prior(0.0, o)).collect();
+        let mut coef = DVector::<f64>::zeros(p);
+        let mut cov = DMatrix::<f64>::zeros(p, p);
+        let mut beta: BTreeMap<(i64, i64), (f64, usize)> = BTreeMap::new();
+        let mut scale = 0.0;
+        for _ in 0..5 {
+            // weighted bucket means of every column and of d
+            let mut acc: BTreeMap<(i64, i64), BucketSums> = BTreeMap::new();
+            for ((o, x), wi) in self.obs.iter().zip(&rows).zip(&w) {
+                let e = acc
+                    .entry(o.bucket)
+                    .or_insert_with(|| (0.0, vec![0.0; p], 0.0, 0));
+                e.0 += wi;
+                for j in 0..p {
+                    e.1[j] += wi * x[j];
+                }
+                e.2 += wi * o.d;
+                e.3 += 1;
+            }
+            let mut a = DMatrix::<f64>::zeros(n, p);
+            let mut b = DVector::<f64>::zeros(n);
+            for (i, ((o, x), wi)) in self.obs.iter().zip(&rows).zip(&w).enumerate() {
+                let (sw, sx, sy, _) = &acc[&o.bucket];
+                if !(*sw > 0.0) {
+                    continue;
+                }
+                let r = wi.sqrt();
+                for j in 0..p {
+                    a[(i, j)] = r * (x[j] - sx[j] / sw);
+                }
+                b[i] = r * (o.d - sy / sw);
+            }
+            let svd = a.clone().svd(true, true);
+            coef = svd.solve(&b, 1e-12).ok()?;
+            if !coef.iter().all(|c| c.is_finite()) {
+                return None;
+            }
+            beta = acc
+                .iter()
+                .map(|(key, (sw, sx, sy, nb))| {
+                    let fx: f64 = (0..p).map(|j| coef[j] * sx[j]).sum();
+                    (*key, ((sy - fx) / sw, *nb))
+                })
+                .collect();
+            let res: Vec<f64> = self
+                .obs
+                .iter()
+                .zip(&rows)
+                .map(|(o, x)| o.d - (0..p).map(|j| coef[j] * x[j]).sum::<f64>() - beta[&o.bucket].0)
+                .collect();
+            let mut abs: Vec<f64> = res.iter().map(|x| x.abs()).collect();
+            abs.sort_by(f64::total_cmp);
+            scale = 1.4826 * abs[abs.len() / 2];
+            if !(scale > 0.0) {
+                scale = 1e-9;
+            }
+            let c = 1.345 * scale;
+            for ((wi, e), o) in w.iter_mut().zip(&res).zip(&self.obs) {
+                *wi = prior(scale, o) * if e.abs() <= c { 1.0 } else { c / e.abs() };
+            }
+            let dof = (n as f64 - beta.len() as f64 - p as f64).max(1.0);
+            let sse: f64 = res.iter().zip(&w).map(|(e, wi)| wi * e * e).sum();
+            let ata = a.transpose() * &a;
+            // a step no pair spans yet has a zero column: its variance is left infinite
+            cov = ata.pseudo_inverse(1e-12).ok()?.map(|v| v * sse / dof);
+        }
+        self.bucket_scale = {
+            let mut per: BTreeMap<(i64, i64), Vec<f64>> = BTreeMap::new();
+            for (o, x) in self.obs.iter().zip(&rows) {
+                let e = o.d - (0..p).map(|j| coef[j] * x[j]).sum::<f64>() - beta[&o.bucket].0;
+                per.entry(o.bucket).or_default().push(e.abs());
+            }
+            per.into_iter()
+                .map(|(key, mut v)| {
+                    v.sort_by(f64::total_cmp);
+                    (key, 1.4826 * v[v.len() / 2])
+                })
+                .collect()
+        };
+        self.beta = beta;
+        self.step_effects = self
+            .step_times
+            .iter()
+            .enumerate()
+            // a step no pair spans yet (a zero column) is not estimable: left out until it is
+            .filter(|(j, _)| cov[(1 + j, 1 + j)] > 0.0 && cov[(1 + j, 1 + j)].is_finite())
+            .map(|(j, &t_h)| StepEffect {
+                t_h,
+                ln_size: coef[1 + j],
+                se: cov[(1 + j, 1 + j)].sqrt(),
+            })
+            .collect();
+        Some(DriftEstimate {
+            pairs: n,
+            rate_pct_per_h: 100.0 * coef[0],
+            se_pct_per_h: 100.0 * cov[(0, 0)].max(0.0).sqrt(),
+            residual_scale: scale,
+        })
+    }
 }
 
 #[cfg(test)]
@@ -406,6 +589,70 @@ mod tests {
             }
         }
         (det, events)
+    }
+
+    #[test]
+    fn a_known_step_is_fitted_and_keeps_the_rate_unbiased() {
+        // −1 %/h and a −3 % step at 6.5 h
+        let step = (0.97f64).ln();
+        let fit = |known: bool| {
+            let mut s = 5;
+            let mut det = DriftDetector::new(DriftSpec {
+                refit_every: 3000,
+                min_pairs: 100,
+                step_detection: false,
+                ..DriftSpec::default()
+            });
+            if known {
+                det.add_step(6.5);
+            }
+            for i in 0..3000 {
+                let t_b = 13.0 * (i as f64 + 1.0) / 3000.0;
+                let t_a = t_b * lcg(&mut s);
+                let lg = |t: f64| -0.01 * t + if t >= 6.5 { step } else { 0.0 };
+                det.add(PairObservation {
+                    t_a_h: t_a,
+                    t_b_h: t_b,
+                    d: lg(t_b) - lg(t_a) + 0.01 * gauss(&mut s),
+                    bucket: ((i % 5) as i64, 0),
+                    sigma: 0.0,
+                });
+            }
+            det
+        };
+        let blind = fit(false);
+        let told = fit(true);
+        let (rb, rt) = (
+            blind.estimate().unwrap().rate_pct_per_h,
+            told.estimate().unwrap().rate_pct_per_h,
+        );
+        assert!((rt + 1.0).abs() < 0.02, "{rt}");
+        assert!((rb + 1.0).abs() > 5.0 * (rt + 1.0).abs(), "{rb} {rt}");
+        let st = told.steps()[0];
+        assert!((st.ln_size - step).abs() < 0.003, "{st:?}");
+        assert!(st.se > 0.0 && st.se < 0.003);
+        assert!(blind.steps().is_empty());
+        assert_eq!(told.steps().len(), 1);
+        // the gain curve: the step is in it after 6.5 h, not before
+        let (before, _) = told.ln_gain_at(6.4).unwrap();
+        let (after, sigma) = told.ln_gain_at(6.6).unwrap();
+        assert!(
+            (after - before - step + 0.002).abs() < 0.004,
+            "{before} {after}"
+        );
+        assert!(sigma > 0.0 && sigma.is_finite());
+        // a step time nobody's pairs span yet changes nothing
+        let mut late = fit(true);
+        late.add_step(20.0);
+        assert!((late.estimate().unwrap().rate_pct_per_h - rt).abs() < 1e-9);
+        let (a, b) = (
+            late.ln_gain_at(13.0).unwrap(),
+            told.ln_gain_at(13.0).unwrap(),
+        );
+        assert!(
+            (a.0 - b.0).abs() < 1e-12 && (a.1 / b.1 - 1.0).abs() < 1e-3,
+            "{a:?} {b:?}"
+        );
     }
 
     #[test]

@@ -198,6 +198,8 @@ pub struct SweepMonitor {
     h_joint: f64,
     last: Option<SweepRecord>,
     tested: usize,
+    /// (last capture index, first capture time) of every completed sweep, in order.
+    sweep_starts: Vec<(u64, f64)>,
 }
 
 /// The light-sweep checks in the session summary.
@@ -309,6 +311,7 @@ impl SweepMonitor {
             latched: HashSet::new(),
             last: None,
             tested: 0,
+            sweep_starts: Vec::new(),
         }
     }
 
@@ -320,6 +323,15 @@ impl SweepMonitor {
     /// The latest sweep's record.
     pub fn last(&self) -> Option<&SweepRecord> {
         self.last.as_ref()
+    }
+
+    /// Controller time of the first capture of the sweep that ended at capture `last_idx`.
+    fn sweep_start(&self, last_idx: u64) -> Option<f64> {
+        self.sweep_starts
+            .iter()
+            .find(|(i, _)| *i == last_idx)
+            .map(|(_, t)| *t)
+            .filter(|t| t.is_finite())
     }
 
     pub fn summary(&self) -> SweepSummary {
@@ -468,6 +480,11 @@ impl SweepMonitor {
         };
         let (last_idx, last_t) = (self.captures[last].idx, self.captures[last].t);
         let layer = self.captures[last].layer;
+        let first_t = current
+            .iter()
+            .map(|&k| self.captures[k].t)
+            .fold(f64::INFINITY, f64::min);
+        self.sweep_starts.push((last_idx, first_t));
 
         // the F + L + C reference over the earlier sweeps (back-fitting)
         let n_class = self.class_ids.len();
@@ -647,7 +664,7 @@ impl SweepMonitor {
                                 ),
                             )
                             .at(at.0, at.1)
-                            .with(json!({"source": "light sweeps", "level_pct": 100.0 * mean, "sweeps": run.2, "since_idx": run.3, "statistic": stat, "threshold": self.h_level})),
+                            .with(json!({"source": "light sweeps", "level_pct": 100.0 * mean, "sweeps": run.2, "since_idx": run.3, "since_t": self.sweep_start(run.3), "statistic": stat, "threshold": self.h_level})),
                         );
                         self.level_cusum.reset();
                         alarmed = true;
