@@ -131,6 +131,32 @@ pub struct DriftEstimate {
     pub residual_scale: f64,
 }
 
+/// An observation's weight from its own σ relative to the residual scale: 1 / (1 + (σ/scale)²).
+/// (`add` admits only finite σ ≥ 0; the floor keeps every bucket's weight positive.)
+fn prior_weight(scale: f64, o: &PairObservation) -> f64 {
+    if o.sigma > 0.0 && scale > 0.0 {
+        (1.0 / (1.0 + (o.sigma / scale).powi(2))).max(1e-12)
+    } else {
+        1.0
+    }
+}
+
+/// One IRLS reweighting: the residuals' robust scale (MAD), then Huber weights (c = 1.345 of
+/// it) times each observation's prior weight. Returns the scale.
+fn huber_reweight(res: &[f64], obs: &[PairObservation], w: &mut [f64]) -> f64 {
+    let mut abs: Vec<f64> = res.iter().map(|x| x.abs()).collect();
+    abs.sort_by(f64::total_cmp);
+    let mut scale = 1.4826 * abs[abs.len() / 2];
+    if !(scale > 0.0) {
+        scale = 1e-9;
+    }
+    let c = 1.345 * scale;
+    for ((wi, e), o) in w.iter_mut().zip(res).zip(obs) {
+        *wi = prior_weight(scale, o) * if e.abs() <= c { 1.0 } else { c / e.abs() };
+    }
+    scale
+}
+
 /// Per bucket: the sum of weights, the weighted sums of each column and of d, the count.
 type BucketSums = (f64, Vec<f64>, f64, usize);
 
@@ -319,17 +345,8 @@ impl DriftDetector {
             return self.fit_with_steps();
         }
         let n = self.obs.len();
-        // precision weights from each observation's own uncertainty, relative to the residual
-        // scale (unknown in the first pass: equal weights)
-        // (`add` admits only finite σ ≥ 0; the floor keeps every bucket's weight positive)
-        let prior = |scale: f64, o: &PairObservation| {
-            if o.sigma > 0.0 && scale > 0.0 {
-                (1.0 / (1.0 + (o.sigma / scale).powi(2))).max(1e-12)
-            } else {
-                1.0
-            }
-        };
-        let mut w: Vec<f64> = self.obs.iter().map(|o| prior(0.0, o)).collect();
+        // precision weights from each observation's own uncertainty (equal in the first pass)
+        let mut w: Vec<f64> = self.obs.iter().map(|o| prior_weight(0.0, o)).collect();
         let mut r = 0.0;
         let mut beta: BTreeMap<(i64, i64), (f64, usize)> = BTreeMap::new();
         let mut scale = 0.0;
@@ -369,16 +386,7 @@ impl DriftDetector {
                 .iter()
                 .map(|o| o.d - r * (o.t_b_h - o.t_a_h) - beta[&o.bucket].0)
                 .collect();
-            let mut abs: Vec<f64> = res.iter().map(|x| x.abs()).collect();
-            abs.sort_by(f64::total_cmp);
-            scale = 1.4826 * abs[abs.len() / 2];
-            if !(scale > 0.0) {
-                scale = 1e-9;
-            }
-            let c = 1.345 * scale;
-            for ((wi, e), o) in w.iter_mut().zip(&res).zip(&self.obs) {
-                *wi = prior(scale, o) * if e.abs() <= c { 1.0 } else { c / e.abs() };
-            }
+            scale = huber_reweight(&res, &self.obs, &mut w);
             // variance of r: σ² / Sxx with the weighted residual variance
             let dof = (n as f64 - beta.len() as f64 - 1.0).max(1.0);
             let sse: f64 = res.iter().zip(&w).map(|(e, wi)| wi * e * e).sum();
@@ -426,14 +434,7 @@ impl DriftDetector {
             x
         };
         let rows: Vec<Vec<f64>> = self.obs.iter().map(row).collect();
-        let prior = |scale: f64, o: &PairObservation| {
-            if o.sigma > 0.0 && scale > 0.0 {
-                (1.0 / (1.0 + (o.sigma / scale).powi(2))).max(1e-12)
-            } else {
-                1.0
-            }
-        };
-        let mut w: Vec<f64> = self.obs.iter().map(|o| prior(0.0, o)).collect();
+        let mut w: Vec<f64> = self.obs.iter().map(|o| prior_weight(0.0, o)).collect();
         let mut coef = DVector::<f64>::zeros(p);
         let mut cov = DMatrix::<f64>::zeros(p, p);
         let mut beta: BTreeMap<(i64, i64), (f64, usize)> = BTreeMap::new();
@@ -483,16 +484,7 @@ impl DriftDetector {
                 .zip(&rows)
                 .map(|(o, x)| o.d - (0..p).map(|j| coef[j] * x[j]).sum::<f64>() - beta[&o.bucket].0)
                 .collect();
-            let mut abs: Vec<f64> = res.iter().map(|x| x.abs()).collect();
-            abs.sort_by(f64::total_cmp);
-            scale = 1.4826 * abs[abs.len() / 2];
-            if !(scale > 0.0) {
-                scale = 1e-9;
-            }
-            let c = 1.345 * scale;
-            for ((wi, e), o) in w.iter_mut().zip(&res).zip(&self.obs) {
-                *wi = prior(scale, o) * if e.abs() <= c { 1.0 } else { c / e.abs() };
-            }
+            scale = huber_reweight(&res, &self.obs, &mut w);
             let dof = (n as f64 - beta.len() as f64 - p as f64).max(1.0);
             let sse: f64 = res.iter().zip(&w).map(|(e, wi)| wi * e * e).sum();
             let ata = a.transpose() * &a;
