@@ -439,7 +439,6 @@ impl Checker {
         })
     }
 
-    /// The gain drift estimate from isotropy classes (isotropic samples), once there are enough.
     /// Gain steps in the isotropy drift model (found by the light sweeps).
     pub fn isotropy_steps(&self) -> Vec<super::drift::StepEffect> {
         self.isotropy_drift
@@ -453,6 +452,7 @@ impl Checker {
         self.sweeps.as_ref().map(|m| m.summary())
     }
 
+    /// The gain drift estimate from isotropy classes (isotropic samples), once there are enough.
     pub fn isotropy_drift(&self) -> Option<DriftEstimate> {
         self.isotropy_drift.as_ref().and_then(|d| d.estimate())
     }
@@ -512,19 +512,17 @@ impl Checker {
                     if self.seen_per_light[light] == self.plan.direction_count() {
                         let level_test = !self.probes_enabled;
                         if let Some(m) = self.sweeps.as_mut() {
-                            let (rec, alarms) = m.light_complete(light, level_test);
+                            let o = m.light_complete(light, level_test);
                             // a gain step the sweeps found becomes a step term of the isotropy
-                            // drift model, at the start of the sweep where its run began
-                            if let Some(det) = self.isotropy_drift.as_mut() {
-                                for a in alarms.iter().filter(|a| a.code == "gain-step") {
-                                    if let Some(t) = a.evidence["since_t"].as_f64() {
-                                        det.add_step(t / 3600.0);
-                                    }
-                                }
+                            // drift model
+                            if let (Some(det), Some(t)) =
+                                (self.isotropy_drift.as_mut(), o.step_at_s)
+                            {
+                                det.add_step(t / 3600.0);
                             }
-                            out.sweeps.extend(rec);
-                            self.counts.alarms += alarms.len() as u64;
-                            out.alarms.extend(alarms);
+                            out.sweeps.extend(o.record);
+                            self.counts.alarms += o.alarms.len() as u64;
+                            out.alarms.extend(o.alarms);
                         }
                     }
                 }
@@ -644,17 +642,20 @@ impl Checker {
         self.counts.drift_interpolated += 1;
     }
 
-    /// Mean controller time of the captures of one light direction that can be nodes.
+    /// The captures of one light direction that can be interpolation nodes: checked, at their
+    /// exact pose, not dark, not occlusion substitutes.
+    fn light_nodes(&self, light: usize) -> impl Iterator<Item = &Checked> + '_ {
+        (0..self.plan.directions().len())
+            .filter_map(move |c| self.plan.index_of(light, c))
+            .filter_map(|e| self.by_entry.get(e).and_then(|c| c.as_ref()))
+            .filter(|c| c.exact_pose && !c.dark && !c.substitute)
+    }
+
+    /// Mean controller time of a light direction's node captures.
     fn light_mean_time(&self, light: usize) -> Option<f64> {
-        let (mut sum, mut n) = (0.0, 0usize);
-        for e in (0..self.plan.directions().len()).filter_map(|c| self.plan.index_of(light, c)) {
-            if let Some(Some(c)) = self.by_entry.get(e) {
-                if c.exact_pose && !c.dark && !c.substitute {
-                    sum += c.t;
-                    n += 1;
-                }
-            }
-        }
+        let (sum, n) = self
+            .light_nodes(light)
+            .fold((0.0, 0usize), |(s, n), c| (s + c.t, n + 1));
         (n > 0).then(|| sum / n as f64)
     }
 
@@ -666,10 +667,8 @@ impl Checker {
             .ok_or_else(|| format!("no light direction {light}"))?
             .spherical()
             .to_vector();
-        let samples: Vec<Sample> = (0..dirs.len())
-            .filter_map(|c| self.plan.index_of(light, c))
-            .filter_map(|e| self.by_entry.get(e).and_then(|c| c.as_ref()))
-            .filter(|c| c.exact_pose && !c.dark && !c.substitute)
+        let samples: Vec<Sample> = self
+            .light_nodes(light)
             .map(|c| Sample {
                 omega_i: c.omega_i,
                 omega_o: c.omega_o,

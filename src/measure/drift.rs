@@ -157,6 +157,20 @@ fn huber_reweight(res: &[f64], obs: &[PairObservation], w: &mut [f64]) -> f64 {
     scale
 }
 
+/// The robust scale (MAD) of the final residuals per geometry bucket.
+fn bucket_scales(obs: &[PairObservation], res: &[f64]) -> BTreeMap<(i64, i64), f64> {
+    let mut per: BTreeMap<(i64, i64), Vec<f64>> = BTreeMap::new();
+    for (o, e) in obs.iter().zip(res) {
+        per.entry(o.bucket).or_default().push(e.abs());
+    }
+    per.into_iter()
+        .map(|(k, mut v)| {
+            v.sort_by(f64::total_cmp);
+            (k, 1.4826 * v[v.len() / 2])
+        })
+        .collect()
+}
+
 /// Per bucket: the sum of weights, the weighted sums of each column and of d, the count.
 type BucketSums = (f64, Vec<f64>, f64, usize);
 
@@ -350,6 +364,7 @@ impl DriftDetector {
         let mut r = 0.0;
         let mut beta: BTreeMap<(i64, i64), (f64, usize)> = BTreeMap::new();
         let mut scale = 0.0;
+        let mut res: Vec<f64> = Vec::new();
         let mut se = f64::INFINITY;
         for _ in 0..5 {
             // weighted bucket means of Δt and d
@@ -381,7 +396,7 @@ impl DriftDetector {
                 .iter()
                 .map(|(k, (sw, sx, sy, nb))| (*k, ((sy - r * sx) / sw, *nb)))
                 .collect();
-            let res: Vec<f64> = self
+            res = self
                 .obs
                 .iter()
                 .map(|o| o.d - r * (o.t_b_h - o.t_a_h) - beta[&o.bucket].0)
@@ -392,19 +407,7 @@ impl DriftDetector {
             let sse: f64 = res.iter().zip(&w).map(|(e, wi)| wi * e * e).sum();
             se = (sse / dof / sxx).sqrt();
         }
-        // per-bucket robust scale of the final residuals
-        let mut per: BTreeMap<(i64, i64), Vec<f64>> = BTreeMap::new();
-        for o in &self.obs {
-            let e = o.d - r * (o.t_b_h - o.t_a_h) - beta[&o.bucket].0;
-            per.entry(o.bucket).or_default().push(e.abs());
-        }
-        self.bucket_scale = per
-            .into_iter()
-            .map(|(k, mut v)| {
-                v.sort_by(f64::total_cmp);
-                (k, 1.4826 * v[v.len() / 2])
-            })
-            .collect();
+        self.bucket_scale = bucket_scales(&self.obs, &res);
         self.beta = beta;
         Some(DriftEstimate {
             pairs: n,
@@ -439,6 +442,7 @@ impl DriftDetector {
         let mut cov = DMatrix::<f64>::zeros(p, p);
         let mut beta: BTreeMap<(i64, i64), (f64, usize)> = BTreeMap::new();
         let mut scale = 0.0;
+        let mut res: Vec<f64> = Vec::new();
         for _ in 0..5 {
             // weighted bucket means of every column and of d
             let mut acc: BTreeMap<(i64, i64), BucketSums> = BTreeMap::new();
@@ -478,7 +482,7 @@ impl DriftDetector {
                     (*key, ((sy - fx) / sw, *nb))
                 })
                 .collect();
-            let res: Vec<f64> = self
+            res = self
                 .obs
                 .iter()
                 .zip(&rows)
@@ -491,19 +495,7 @@ impl DriftDetector {
             // a step no pair spans yet has a zero column: its variance is left infinite
             cov = ata.pseudo_inverse(1e-12).ok()?.map(|v| v * sse / dof);
         }
-        self.bucket_scale = {
-            let mut per: BTreeMap<(i64, i64), Vec<f64>> = BTreeMap::new();
-            for (o, x) in self.obs.iter().zip(&rows) {
-                let e = o.d - (0..p).map(|j| coef[j] * x[j]).sum::<f64>() - beta[&o.bucket].0;
-                per.entry(o.bucket).or_default().push(e.abs());
-            }
-            per.into_iter()
-                .map(|(key, mut v)| {
-                    v.sort_by(f64::total_cmp);
-                    (key, 1.4826 * v[v.len() / 2])
-                })
-                .collect()
-        };
+        self.bucket_scale = bucket_scales(&self.obs, &res);
         self.beta = beta;
         self.step_effects = self
             .step_times

@@ -13,8 +13,8 @@
 //!   with the gain: a lamp step shows in the sweep it happens in and in every later one;
 //! - the *pattern* across its cameras moves with the pose: a joint offset δ changes ln Y by
 //!   s_j·δ, where s_j = ∂ ln Y / ∂q_j is computed from the session's own interpolant (a
-//!   `LayeredResampler` over the captures so far and their reciprocal swaps) through the rig's
-//!   forward kinematics. Regressing the sweep's residuals on (1, s₁, s₂) gives the level and an
+//!   `LayeredResampler` over the isotropy classes' fitted effects) through the rig's forward
+//!   kinematics. Regressing the sweep's residuals on (1, s₁, s₂) gives the level and an
 //!   offset per joint, each with a standard error.
 //!
 //! Joint 3 turns the sample about its own normal: an isotropic BRDF does not see it, so it is
@@ -202,6 +202,17 @@ pub struct SweepMonitor {
     sweep_starts: Vec<(u64, f64)>,
 }
 
+/// What testing one completed sweep gave.
+#[derive(Debug, Clone, Default)]
+pub struct SweepOutcome {
+    /// The sweep's record (none when it had too few comparable captures).
+    pub record: Option<SweepRecord>,
+    pub alarms: Vec<Alarm>,
+    /// A gain step alarmed in this sweep, placed at the first capture of the sweep where its
+    /// CUSUM run began (controller seconds).
+    pub step_at_s: Option<f64>,
+}
+
 /// The light-sweep checks in the session summary.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SweepSummary {
@@ -320,11 +331,6 @@ impl SweepMonitor {
         (self.h_level, self.h_joint)
     }
 
-    /// The latest sweep's record.
-    pub fn last(&self) -> Option<&SweepRecord> {
-        self.last.as_ref()
-    }
-
     /// Controller time of the first capture of the sweep that ended at capture `last_idx`.
     fn sweep_start(&self, last_idx: u64) -> Option<f64> {
         self.sweep_starts
@@ -358,15 +364,15 @@ impl SweepMonitor {
         self.captures.iter().filter(|c| c.layer == layer).count()
     }
 
-    /// The interpolant of BRDF-like values (Y / cos θi), rebuilt when
-    /// the data grew by a quarter or the current layer doubled. With `class_effect` (the F of
-    /// the back-fit, ln units, per class id; NaN where a class has no earlier member) each class
-    /// is one node at its first member's directions, free of the per-light and per-camera
-    /// effects (measured: raw captures on the realistic preset gave sensitivities uncorrelated
-    /// with the truth); without it every capture is a node. No reciprocal swaps: F(θi, θo)
+    /// The interpolant of BRDF-like values (Y / cos θi), rebuilt when the data grew by a
+    /// quarter or the current layer doubled. `class_effect` is the F of the back-fit (ln units,
+    /// per class id; NaN where a class has no earlier member): each class is one node at its
+    /// first member's directions, free of the per-light and per-camera effects (measured: raw
+    /// captures as nodes on the realistic preset gave sensitivities uncorrelated with the
+    /// truth). No reciprocal swaps: F(θi, θo)
     /// keeps the θi-dependent part of the lamp footprint, so a swapped node can be off by tens
     /// of per cent at grazing light (measured: sensitivities 10× too large and uncorrelated).
-    fn ensure_model(&mut self, layer: i64, class_effect: Option<&[f64]>) {
+    fn ensure_model(&mut self, layer: i64, class_effect: &[f64]) {
         let total = self.captures.len();
         let here = self.layer_count(layer);
         let built_here = self.model_layer_counts.get(&layer).copied().unwrap_or(0);
@@ -376,23 +382,12 @@ impl SweepMonitor {
         if !stale {
             return;
         }
-        let mut samples = Vec::with_capacity(2 * total);
-        let nodes: Vec<(usize, f64)> = match class_effect {
-            Some(fx) => self
-                .class_first
-                .iter()
-                .zip(fx)
-                .filter(|(_, v)| v.is_finite())
-                .map(|(&k, v)| (k, v.exp()))
-                .collect(),
-            None => self
-                .captures
-                .iter()
-                .enumerate()
-                .map(|(k, c)| (k, c.y))
-                .collect(),
-        };
-        for (k, y) in nodes {
+        let mut samples = Vec::with_capacity(self.class_first.len());
+        for (&k, fx) in self.class_first.iter().zip(class_effect) {
+            if !fx.is_finite() {
+                continue;
+            }
+            let y = fx.exp();
             let c = &self.captures[k];
             let ci = c.omega_i.z;
             if ci <= 1e-3 {
@@ -456,14 +451,15 @@ impl SweepMonitor {
     }
 
     /// The light direction `light` is complete: test its sweep against the earlier ones.
-    pub fn light_complete(
-        &mut self,
-        light: usize,
-        level_test: bool,
-    ) -> (Option<SweepRecord>, Vec<Alarm>) {
+    pub fn light_complete(&mut self, light: usize, level_test: bool) -> SweepOutcome {
         let mut alarms = Vec::new();
+        let nothing = |alarms| SweepOutcome {
+            record: None,
+            alarms,
+            step_at_s: None,
+        };
         let Some(done) = self.completed.get_mut(light) else {
-            return (None, alarms);
+            return nothing(alarms);
         };
         *done = true;
         let current: Vec<usize> = (0..self.captures.len())
@@ -476,7 +472,7 @@ impl SweepMonitor {
             })
             .collect();
         let Some(&last) = current.iter().max_by_key(|&&k| self.captures[k].idx) else {
-            return (None, alarms);
+            return nothing(alarms);
         };
         let (last_idx, last_t) = (self.captures[last].idx, self.captures[last].t);
         let layer = self.captures[last].layer;
@@ -524,7 +520,7 @@ impl SweepMonitor {
             .zip(&seen)
             .map(|(v, s)| if *s { *v } else { f64::NAN })
             .collect();
-        self.ensure_model(layer, Some(&effect));
+        self.ensure_model(layer, &effect);
         let mut rows: Vec<(f64, [f64; 2])> = Vec::new();
         let mut all: Vec<f64> = Vec::new();
         for &k in &current {
@@ -539,7 +535,7 @@ impl SweepMonitor {
             }
         }
         if all.len() < self.spec.min_captures {
-            return (None, alarms);
+            return nothing(alarms);
         }
         // the level: the mean residual of every capture with an earlier class member
         let na = all.len() as f64;
@@ -632,6 +628,7 @@ impl SweepMonitor {
 
         // the level, against the earlier sweeps of the same θi layer
         let mut level_alarm = false;
+        let mut step_at_s = None;
         if level_test {
             let hist = self.level_history.entry(layer).or_default();
             let mut tested = false;
@@ -666,6 +663,7 @@ impl SweepMonitor {
                             .at(at.0, at.1)
                             .with(json!({"source": "light sweeps", "level_pct": 100.0 * mean, "sweeps": run.2, "since_idx": run.3, "since_t": self.sweep_start(run.3), "statistic": stat, "threshold": self.h_level})),
                         );
+                        step_at_s = self.sweep_start(run.3);
                         self.level_cusum.reset();
                         alarmed = true;
                         level_alarm = true;
@@ -775,7 +773,11 @@ impl SweepMonitor {
         rec.model_builds = self.model_builds;
         self.last = Some(rec.clone());
         self.tested += 1;
-        (Some(rec), alarms)
+        SweepOutcome {
+            record: Some(rec),
+            alarms,
+            step_at_s,
+        }
     }
 }
 
@@ -828,6 +830,39 @@ mod tests {
             h.record(1.0, true, false);
         }
         assert!(h.len() > 5);
+    }
+
+    #[test]
+    fn bad_luminance_unknown_lights_and_empty_sweeps_give_nothing() {
+        let rig = Rig::new(Default::default()).unwrap();
+        let mut m = SweepMonitor::new(SweepSpec::default(), rig, 81);
+        for (k, y) in [f64::NAN, f64::INFINITY, 0.0, -1.0, 1e-300]
+            .iter()
+            .enumerate()
+        {
+            m.add(SweepCapture {
+                idx: k as u64,
+                t: 7.0 * k as f64,
+                light: 0,
+                camera: k,
+                class: (0, 0, k as i64),
+                layer: 0,
+                omega_i: Vec3::new(0.0, 0.0, 1.0),
+                omega_o: Vec3::new(0.0, 0.0, 1.0),
+                cmd: [0.0; 4],
+                y: *y,
+            });
+        }
+        // only the positive finite value is kept
+        assert_eq!(m.captures.len(), 1);
+        let o = m.light_complete(0, true);
+        assert!(o.record.is_none() && o.alarms.is_empty() && o.step_at_s.is_none());
+        // a light the plan does not have, and a light with no capture at all
+        let o = m.light_complete(500, true);
+        assert!(o.record.is_none() && o.alarms.is_empty());
+        let o = m.light_complete(7, true);
+        assert!(o.record.is_none() && o.alarms.is_empty());
+        assert_eq!(m.summary().tested, 0);
     }
 
     #[test]
@@ -914,7 +949,9 @@ mod model_tests {
     #[test]
     fn sensitivities_follow_the_true_brdf() {
         let (mut m, caps, rig) = session();
-        m.ensure_model(60_000, None);
+        // every capture is its own class here: its effect is its own ln Y
+        let effects: Vec<f64> = caps.iter().map(|c| c.y.ln()).collect();
+        m.ensure_model(60_000, &effects);
         let truth = |cmd: &[f64; 4], j: usize| {
             let f = |d: f64| {
                 let mut p = Pose {
@@ -1005,9 +1042,9 @@ mod session_tests {
             let pe = plan.entry(e).unwrap();
             if current != Some(pe.light) {
                 if let Some(done) = current {
-                    let (rec, a) = m.light_complete(done, level_test);
-                    records.extend(rec);
-                    alarms.extend(a);
+                    let o = m.light_complete(done, level_test);
+                    records.extend(o.record);
+                    alarms.extend(o.alarms);
                     if done == last_light {
                         break;
                     }
