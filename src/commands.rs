@@ -2,7 +2,7 @@
 //! only parses arguments and prints, and tests can call the same code.
 
 use crate::config::Config;
-use crate::decode::{decode, CaptureFormat, DecodeLimits};
+use crate::decode::{decode, CaptureFormat};
 use crate::measure::averaging::{average, AverageOptions, CaptureStats};
 use crate::measure::colour::{xyz_to_lab, Lab, Xyz};
 use serde::Serialize;
@@ -58,8 +58,12 @@ fn average_file_inner(
     opts: &AverageOptions,
 ) -> anyhow::Result<AverageOk> {
     use anyhow::Context;
-    let bytes = std::fs::read(path).context("cannot read file")?;
-    let img = decode(&bytes, &DecodeLimits::default())?;
+    let limits = cfg.ingest.decode_limits();
+    // the same safe read as the daemon's: a FIFO or device is refused at once, never waited on
+    let (bytes, _) = crate::daemon::ingest::read_capture(None, path, &limits)
+        .map_err(|e| anyhow::anyhow!("{}", e.reason))
+        .context("cannot read file")?;
+    let img = decode(&bytes, &limits)?;
     let s: CaptureStats = average(&img.view(), opts)?;
     let xyz = cfg.xyz_of(s.mean_rgb);
     let lab = cfg

@@ -224,6 +224,143 @@ pub struct HttpSpec {
     pub allow_remote: bool,
 }
 
+/// A numeric key's valid range, checked at load (`Config::validate`) and listed in
+/// docs/configuration.md. Integers are compared as f64 (exact below 2⁵³).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KeyRange {
+    pub field: &'static str,
+    pub min: f64,
+    pub max: f64,
+    /// The value must be strictly above `min`.
+    pub min_open: bool,
+    /// The value must be strictly below `max`.
+    pub max_open: bool,
+}
+
+const fn closed(field: &'static str, min: f64, max: f64) -> KeyRange {
+    KeyRange {
+        field,
+        min,
+        max,
+        min_open: false,
+        max_open: false,
+    }
+}
+
+const fn above(field: &'static str, min: f64, max: f64) -> KeyRange {
+    KeyRange {
+        field,
+        min,
+        max,
+        min_open: true,
+        max_open: false,
+    }
+}
+
+impl KeyRange {
+    /// The range as documented, e.g. `(0, 1e12]`.
+    pub fn interval(&self) -> String {
+        let num = |v: f64| {
+            if v.abs() >= 1e7 {
+                format!("{v:e}")
+            } else {
+                format!("{v}")
+            }
+        };
+        format!(
+            "{}{}, {}{}",
+            if self.min_open { "(" } else { "[" },
+            num(self.min),
+            num(self.max),
+            if self.max_open { ")" } else { "]" }
+        )
+    }
+
+    fn check(&self, v: f64) -> Result<(), ConfigError> {
+        let low_ok = if self.min_open {
+            v > self.min
+        } else {
+            v >= self.min
+        };
+        let high_ok = if self.max_open {
+            v < self.max
+        } else {
+            v <= self.max
+        };
+        if v.is_finite() && low_ok && high_ok {
+            Ok(())
+        } else {
+            Err(ConfigError::Invalid {
+                field: self.field,
+                message: format!("{v} is not in {}", self.interval()),
+            })
+        }
+    }
+}
+
+/// Every numeric key's valid range. The bounds keep a 13-hour run safe: durations fit a
+/// `Duration`, thread and queue counts fit the machine, counts fit memory.
+pub const KEY_RANGES: &[KeyRange] = &[
+    above("colour.rgb_scale", 0.0, 1e12),
+    above("capture.clip_level", 0.0, f32::MAX as f64),
+    closed("capture.dark_level", 0.0, f32::MAX as f64),
+    KeyRange {
+        field: "reciprocity.min_cos",
+        min: 0.0,
+        max: 1.0,
+        min_open: true,
+        max_open: true,
+    },
+    closed("checks.pair_tolerance_deg", 0.0, 90.0),
+    closed("checks.pose_tolerance_deg", 0.0, 90.0),
+    closed("checks.encoder_tolerance_deg", 0.0, 90.0),
+    closed("checks.outlier_k", 0.0, 1000.0),
+    closed("checks.outlier_floor_de2000", 0.0, 1000.0),
+    closed("checks.outlier_min_pairs", 1.0, 1e6),
+    closed("checks.nonfinite_max", 0.0, 1e12),
+    closed("checks.clipped_fraction_max", 0.0, 1.0),
+    closed("checks.dark_y", 0.0, 1e12),
+    closed("checks.failures_critical", 1.0, 1e6),
+    closed("checks.sweeps.joint_tolerance_deg", 0.0, 90.0),
+    closed("checks.sweeps.level_tolerance_pct", 0.0, 100.0),
+    closed("checks.sweeps.cusum_k", 0.0, 10.0),
+    above("checks.sweeps.clip", 0.0, 100.0),
+    closed("checks.sweeps.false_alarm_runs", 1.0, 1e6),
+    closed("checks.sweeps.min_sweeps", 1.0, 1e4),
+    closed("checks.sweeps.min_layer_sweeps", 1.0, 1e4),
+    closed("checks.sweeps.min_captures", 4.0, 1e4),
+    closed("checks.sweeps.sensitivity_step_deg", 0.01, 10.0),
+    closed("probes.every", 0.0, 1e6),
+    closed("probes.entry", 0.0, 1e6),
+    closed("probes.rate_tolerance_pct_per_h", 0.0, 100.0),
+    above("probes.z", 0.0, 100.0),
+    closed("probes.min_probes", 2.0, 1e6),
+    above("probes.step_sigmas", 0.0, 1000.0),
+    closed("probes.step_pct", 0.0, 100.0),
+    closed("alarms.crc_errors_alarm", 1.0, 1e6),
+    closed("alarms.crc_window", 1.0, 1e6),
+    closed("link.baud", 50.0, 4_000_000.0),
+    closed("link.reconnect_min_ms", 1.0, 60_000.0),
+    closed("link.reconnect_max_ms", 1.0, 3_600_000.0),
+    closed("ingest.workers", 1.0, 64.0),
+    closed("ingest.queue", 1.0, 10_000.0),
+    closed("ingest.retry_first_ms", 1.0, 60_000.0),
+    closed("ingest.retry_max_ms", 1.0, 600_000.0),
+    closed(
+        "ingest.give_up_s",
+        0.0,
+        crate::daemon::ingest::MAX_GIVE_UP_S,
+    ),
+    closed("ingest.stable_failures", 1.0, 1000.0),
+    closed("ingest.decode_threads", 1.0, 16.0),
+    closed("ingest.settle_ms", 0.0, 600_000.0),
+    closed("ingest.max_decode_mib", 16.0, 65_536.0),
+    closed("rig.joints[0].offset_deg", -360.0, 360.0),
+    closed("rig.joints[1].offset_deg", -360.0, 360.0),
+    closed("rig.joints[2].offset_deg", -360.0, 360.0),
+    closed("rig.wagon.offset_deg", -360.0, 360.0),
+];
+
 impl Config {
     /// Read, parse and validate a config file; also returns its text.
     pub fn load(path: &std::path::Path) -> Result<(Config, String), ConfigError> {
@@ -244,10 +381,44 @@ impl Config {
     pub fn validate(&self) -> Result<(), ConfigError> {
         SamplingPlan::new(&self.plan)?;
         Rig::new(self.rig.clone())?;
-        if !(self.colour.rgb_scale.is_finite() && self.colour.rgb_scale > 0.0) {
+        for (field, v) in self.numeric_values() {
+            let r = KEY_RANGES
+                .iter()
+                .find(|r| r.field == field)
+                .ok_or_else(|| ConfigError::Invalid {
+                    field,
+                    message: "has no documented range".into(),
+                })?;
+            r.check(v)?;
+        }
+        for (field, lower, lower_field, v) in [
+            (
+                "ingest.retry_max_ms",
+                self.ingest.retry_first_ms as f64,
+                "ingest.retry_first_ms",
+                self.ingest.retry_max_ms as f64,
+            ),
+            (
+                "link.reconnect_max_ms",
+                self.link.reconnect_min_ms as f64,
+                "link.reconnect_min_ms",
+                self.link.reconnect_max_ms as f64,
+            ),
+        ] {
+            if v < lower {
+                return Err(ConfigError::Invalid {
+                    field,
+                    message: format!("{v} is below {lower_field} = {lower}"),
+                });
+            }
+        }
+        if self.alarms.crc_errors_alarm > self.alarms.crc_window {
             return Err(ConfigError::Invalid {
-                field: "colour.rgb_scale",
-                message: format!("{} is not a finite positive number", self.colour.rgb_scale),
+                field: "alarms.crc_errors_alarm",
+                message: format!(
+                    "{} is larger than alarms.crc_window = {}: the alarm could never fire",
+                    self.alarms.crc_errors_alarm, self.alarms.crc_window
+                ),
             });
         }
         if !matches!(self.colour.white, WhiteSpec::ReferenceCapture { .. }) {
@@ -259,15 +430,6 @@ impl Config {
                     source,
                 })?;
         }
-        if !(self.capture.clip_level.is_finite() && self.capture.clip_level > 0.0) {
-            return Err(ConfigError::Invalid {
-                field: "capture.clip_level",
-                message: format!(
-                    "{} is not a finite positive number",
-                    self.capture.clip_level
-                ),
-            });
-        }
         if let crate::measure::averaging::Roi::MarginFraction { fraction } = self.capture.roi {
             if !(0.0..0.5).contains(&fraction) {
                 return Err(ConfigError::Invalid {
@@ -276,100 +438,88 @@ impl Config {
                 });
             }
         }
-        if !(self.reciprocity.min_cos > 0.0 && self.reciprocity.min_cos < 1.0) {
-            return Err(ConfigError::Invalid {
-                field: "reciprocity.min_cos",
-                message: format!("{} is not in (0, 1)", self.reciprocity.min_cos),
-            });
-        }
-        if self.ingest.workers == 0 || self.ingest.queue == 0 {
-            return Err(ConfigError::Invalid {
-                field: "ingest.workers",
-                message: "workers and queue must be at least 1".into(),
-            });
-        }
-        if !(self.ingest.give_up_s.is_finite() && self.ingest.give_up_s >= 0.0) {
-            return Err(ConfigError::Invalid {
-                field: "ingest.give_up_s",
-                message: format!(
-                    "{} is not a finite non-negative number",
-                    self.ingest.give_up_s
-                ),
-            });
-        }
         if self.probes.every > 0 {
             self.probe_entry()?;
         }
-        if self.alarms.crc_window == 0 {
-            return Err(ConfigError::Invalid {
-                field: "alarms.crc_window",
-                message: "must be at least 1".into(),
-            });
-        }
-        for (field, v) in [
-            ("checks.pair_tolerance_deg", self.checks.pair_tolerance_deg),
-            ("checks.pose_tolerance_deg", self.checks.pose_tolerance_deg),
-            (
-                "checks.encoder_tolerance_deg",
-                self.checks.encoder_tolerance_deg,
-            ),
-            ("checks.outlier_k", self.checks.outlier_k),
-            (
-                "checks.clipped_fraction_max",
-                self.checks.clipped_fraction_max,
-            ),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(ConfigError::Invalid {
-                    field,
-                    message: format!("{v} is not a finite non-negative number"),
-                });
-            }
-        }
-        let sw = &self.checks.sweeps;
-        for (field, v, min) in [
-            (
-                "checks.sweeps.joint_tolerance_deg",
-                sw.joint_tolerance_deg,
-                0.0,
-            ),
-            (
-                "checks.sweeps.level_tolerance_pct",
-                sw.level_tolerance_pct,
-                0.0,
-            ),
-            ("checks.sweeps.cusum_k", sw.cusum_k, 0.0),
-            ("checks.sweeps.clip", sw.clip, f64::MIN_POSITIVE),
-            ("checks.sweeps.false_alarm_runs", sw.false_alarm_runs, 1.0),
+        Ok(())
+    }
+
+    /// Every numeric key of the file with its value, for the range check.
+    fn numeric_values(&self) -> Vec<(&'static str, f64)> {
+        let (c, sw, p, l, i, a) = (
+            &self.checks,
+            &self.checks.sweeps,
+            &self.probes,
+            &self.link,
+            &self.ingest,
+            &self.alarms,
+        );
+        let mut v = vec![
+            ("colour.rgb_scale", self.colour.rgb_scale),
+            ("capture.clip_level", self.capture.clip_level as f64),
+            ("capture.dark_level", self.capture.dark_level as f64),
+            ("reciprocity.min_cos", self.reciprocity.min_cos),
+            ("checks.pair_tolerance_deg", c.pair_tolerance_deg),
+            ("checks.pose_tolerance_deg", c.pose_tolerance_deg),
+            ("checks.encoder_tolerance_deg", c.encoder_tolerance_deg),
+            ("checks.outlier_k", c.outlier_k),
+            ("checks.outlier_floor_de2000", c.outlier_floor_de2000),
+            ("checks.outlier_min_pairs", c.outlier_min_pairs as f64),
+            ("checks.nonfinite_max", c.nonfinite_max as f64),
+            ("checks.clipped_fraction_max", c.clipped_fraction_max),
+            ("checks.dark_y", c.dark_y),
+            ("checks.failures_critical", c.failures_critical as f64),
+            ("checks.sweeps.joint_tolerance_deg", sw.joint_tolerance_deg),
+            ("checks.sweeps.level_tolerance_pct", sw.level_tolerance_pct),
+            ("checks.sweeps.cusum_k", sw.cusum_k),
+            ("checks.sweeps.clip", sw.clip),
+            ("checks.sweeps.false_alarm_runs", sw.false_alarm_runs),
+            ("checks.sweeps.min_sweeps", sw.min_sweeps as f64),
+            ("checks.sweeps.min_layer_sweeps", sw.min_layer_sweeps as f64),
+            ("checks.sweeps.min_captures", sw.min_captures as f64),
             (
                 "checks.sweeps.sensitivity_step_deg",
                 sw.sensitivity_step_deg,
-                0.01,
             ),
-        ] {
-            if !(v.is_finite() && v >= min) {
-                return Err(ConfigError::Invalid {
-                    field,
-                    message: format!("{v} is not a finite number ≥ {min}"),
-                });
-            }
+            ("probes.every", p.every as f64),
+            (
+                "probes.rate_tolerance_pct_per_h",
+                p.rate_tolerance_pct_per_h,
+            ),
+            ("probes.z", p.z),
+            ("probes.min_probes", p.min_probes as f64),
+            ("probes.step_sigmas", p.step_sigmas),
+            ("probes.step_pct", p.step_pct),
+            ("alarms.crc_errors_alarm", a.crc_errors_alarm as f64),
+            ("alarms.crc_window", a.crc_window as f64),
+            ("link.baud", l.baud as f64),
+            ("link.reconnect_min_ms", l.reconnect_min_ms as f64),
+            ("link.reconnect_max_ms", l.reconnect_max_ms as f64),
+            ("ingest.workers", i.workers as f64),
+            ("ingest.queue", i.queue as f64),
+            ("ingest.retry_first_ms", i.retry_first_ms as f64),
+            ("ingest.retry_max_ms", i.retry_max_ms as f64),
+            ("ingest.give_up_s", i.give_up_s),
+            ("ingest.stable_failures", i.stable_failures as f64),
+            ("ingest.decode_threads", i.decode_threads as f64),
+            ("ingest.settle_ms", i.settle_ms as f64),
+            ("ingest.max_decode_mib", i.max_decode_mib as f64),
+            ("rig.wagon.offset_deg", self.rig.wagon.offset_deg),
+        ];
+        for (k, j) in self.rig.joints.iter().enumerate() {
+            v.push((
+                [
+                    "rig.joints[0].offset_deg",
+                    "rig.joints[1].offset_deg",
+                    "rig.joints[2].offset_deg",
+                ][k],
+                j.offset_deg,
+            ));
         }
-        if sw.sensitivity_step_deg > 10.0 {
-            return Err(ConfigError::Invalid {
-                field: "checks.sweeps.sensitivity_step_deg",
-                message: format!("{} is larger than 10°", sw.sensitivity_step_deg),
-            });
+        if let Some(e) = p.entry {
+            v.push(("probes.entry", e as f64));
         }
-        if sw.min_captures < 4 {
-            return Err(ConfigError::Invalid {
-                field: "checks.sweeps.min_captures",
-                message: format!(
-                    "{} is below 4 (the fit has three coefficients)",
-                    sw.min_captures
-                ),
-            });
-        }
-        Ok(())
+        v
     }
 
     /// The white for L*a*b* in the live checks (a reference-capture white is for offline use).
@@ -520,6 +670,81 @@ mod tests {
         ] {
             let e = Config::from_toml_str(text).unwrap_err().to_string();
             assert!(e.contains(field), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn every_numeric_key_has_a_range_and_out_of_range_values_name_it() {
+        let c = Config::default();
+        let keys: Vec<&str> = c.numeric_values().iter().map(|(k, _)| *k).collect();
+        let mut with_entry = c.clone();
+        with_entry.probes.entry = Some(3);
+        let all: Vec<&str> = with_entry
+            .numeric_values()
+            .iter()
+            .map(|(k, _)| *k)
+            .collect();
+        for r in KEY_RANGES {
+            assert!(
+                all.contains(&r.field),
+                "{} has a range but no value",
+                r.field
+            );
+        }
+        for k in &keys {
+            assert!(KEY_RANGES.iter().any(|r| r.field == *k), "{k} has no range");
+        }
+        // one past each end of every range is refused with the field's name
+        for r in KEY_RANGES {
+            for v in [f64::NAN, f64::INFINITY, r.max * 2.0 + 1.0] {
+                let e = r.check(v).unwrap_err().to_string();
+                assert!(e.contains(r.field), "{e}");
+            }
+            assert!(r.check(r.max).is_ok() || r.max_open, "{}", r.field);
+            assert!(r.check(r.min).is_ok() || r.min_open, "{}", r.field);
+            assert!(r.check(r.min).is_err() || !r.min_open, "{}", r.field);
+        }
+        for (text, field) in [
+            ("[ingest]\ngive_up_s = 1e308\n", "ingest.give_up_s"),
+            ("[ingest]\nworkers = 100000000\n", "ingest.workers"),
+            (
+                "[ingest]\ndecode_threads = 1000000\n",
+                "ingest.decode_threads",
+            ),
+            ("[link]\nbaud = 0\n", "link.baud"),
+            ("[link]\nreconnect_min_ms = 0\n", "link.reconnect_min_ms"),
+            (
+                "[link]\nreconnect_min_ms = 500\nreconnect_max_ms = 100\n",
+                "link.reconnect_max_ms",
+            ),
+            (
+                "[alarms]\ncrc_errors_alarm = 300\n",
+                "alarms.crc_errors_alarm",
+            ),
+            (
+                "[rig]\nwagon = { offset_deg = 1e300 }\n",
+                "rig.wagon.offset_deg",
+            ),
+            ("[probes]\nevery = 10\nentry = 99999999\n", "probes.entry"),
+        ] {
+            let e = Config::from_toml_str(text).unwrap_err().to_string();
+            assert!(e.contains(field), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn the_documented_ranges_are_the_checked_ones() {
+        let doc = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/docs/configuration.md"
+        ))
+        .unwrap();
+        for r in KEY_RANGES {
+            let row = format!("| `{}` | {} |", r.field, r.interval());
+            assert!(
+                doc.contains(&row),
+                "docs/configuration.md lacks the row {row}"
+            );
         }
     }
 

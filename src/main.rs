@@ -70,9 +70,13 @@ enum Command {
         /// max, realtime, or a factor of real time (e.g. 60).
         #[arg(long, default_value = "max")]
         speed: goniowatch::daemon::replay::Speed,
-        /// Decoding threads.
-        #[arg(long, default_value_t = 2)]
-        workers: usize,
+        /// Decoding threads (1–64).
+        #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u16).range(1..=64))]
+        workers: u16,
+        /// Read the captures from here instead of the session's recorded capture root (a
+        /// capture set that moved).
+        #[arg(long)]
+        capture_root: Option<PathBuf>,
         #[arg(long)]
         quiet: bool,
     },
@@ -258,11 +262,19 @@ fn run(cli: Cli) -> Result<ExitCode> {
             out: out_dir,
             speed,
             workers,
+            capture_root,
             quiet,
         } => {
             use goniowatch::daemon::replay::replay;
             use goniowatch::daemon::run::print_summary;
-            let r = replay(&session, out_dir.as_deref(), speed, workers, !quiet)?;
+            let r = replay(
+                &session,
+                out_dir.as_deref(),
+                speed,
+                workers as usize,
+                !quiet,
+                capture_root.as_deref(),
+            )?;
             print_summary(&r.summary, &mut out)?;
             writeln!(
                 out,

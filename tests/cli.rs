@@ -122,6 +122,26 @@ fn bad_config_names_the_field_and_exits_2() {
         ),
         ("[rig.joints]\n", "joints"),
         ("this is not toml", "expected"),
+        // accepted before range checks, then crashed, hung or exhausted memory at run time
+        ("[ingest]\ngive_up_s = 1e308\n", "ingest.give_up_s"),
+        ("[ingest]\nworkers = 100000000\n", "ingest.workers"),
+        (
+            "[ingest]\ndecode_threads = 1000000\n",
+            "ingest.decode_threads",
+        ),
+        ("[link]\nbaud = 0\n", "link.baud"),
+        (
+            "[plan]\nthetas_deg = [0, 15, 30]\ndelta_phi_deg = [0, 1e-9, 30]\n",
+            "plan.delta_phi_deg[1]",
+        ),
+        ("[ingest]\nretry_first_ms = 0\n", "ingest.retry_first_ms"),
+        (
+            "[ingest]\nretry_first_ms = 5000\nretry_max_ms = 100\n",
+            "ingest.retry_max_ms",
+        ),
+        ("[alarms]\ncrc_window = 0\n", "alarms.crc_window"),
+        ("[probes]\nz = nan\n", "probes.z"),
+        ("[ingest]\nmax_decode_mib = 1\n", "ingest.max_decode_mib"),
     ] {
         let p = dir.join("bad.toml");
         std::fs::write(&p, text).unwrap();

@@ -75,6 +75,26 @@ pub struct IngestSpec {
     pub stable_failures: u32,
     /// Threads per EXR decode (1 inside the pool).
     pub decode_threads: usize,
+    /// A capture is accepted once it decodes and has not changed for this long (last modified
+    /// this long ago, or seen unchanged this long apart). 0: accept as soon as it decodes at a
+    /// stable size, for writers that rename finished files into place.
+    pub settle_ms: u64,
+    /// Memory one decode may use, from the file's header (channels × pixels × bytes), checked
+    /// before any pixel buffer is allocated.
+    pub max_decode_mib: u64,
+}
+
+/// The largest accepted `give_up_s` (a day).
+pub const MAX_GIVE_UP_S: f64 = 86_400.0;
+
+impl IngestSpec {
+    /// The decoder's limits for this spec.
+    pub fn decode_limits(&self) -> DecodeLimits {
+        DecodeLimits {
+            threads: self.decode_threads.max(1),
+            ..DecodeLimits::default()
+        }
+    }
 }
 
 impl Default for IngestSpec {
@@ -88,56 +108,126 @@ impl Default for IngestSpec {
             give_up_s: 30.0,
             stable_failures: 3,
             decode_threads: 1,
+            settle_ms: 500,
+            max_decode_mib: 1024,
         }
     }
 }
 
-/// Read, decode and average one file once. `Err` carries the reason and the size seen.
-pub fn measure_file(
-    root: &Path,
+/// Why one attempt at a capture file failed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AttemptError {
+    pub reason: String,
+    /// The file's size when it was seen (None: it could not be opened).
+    pub size: Option<u64>,
+    /// Retrying cannot help (not a regular file, too large, outside the root).
+    pub permanent: bool,
+}
+
+impl AttemptError {
+    fn retry(reason: String, size: Option<u64>) -> Self {
+        AttemptError {
+            reason,
+            size,
+            permanent: false,
+        }
+    }
+    fn permanent(reason: String, size: Option<u64>) -> Self {
+        AttemptError {
+            reason,
+            size,
+            permanent: true,
+        }
+    }
+}
+
+/// Size and modification time of a file as read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FileStamp {
+    pub size: u64,
+    pub modified: Option<std::time::SystemTime>,
+}
+
+/// The largest file that can hold a capture within `limits`: its pixels as uncompressed f32
+/// RGBA plus headers.
+fn max_file_bytes(limits: &DecodeLimits) -> u64 {
+    (limits.max_pixels as u64)
+        .saturating_mul(16)
+        .saturating_add(64 << 20)
+}
+
+/// Read a capture file's bytes safely: opened without blocking (a FIFO or device cannot hang
+/// the reader), checked with `fstat` to be a regular file no larger than any capture within the
+/// limits, and read through the same descriptor the checks used. When `root` is given, the
+/// opened file must lie under it (a link swapped in after name resolution cannot leave it).
+pub fn read_capture(
+    root: Option<&Path>,
     path: &Path,
-    opts: &AverageOptions,
     limits: &DecodeLimits,
-) -> Result<Outcome, (String, Option<u64>)> {
+) -> Result<(Vec<u8>, FileStamp), AttemptError> {
     use std::io::Read;
-    // open once, then check where the open file really is: a link swapped in after `resolve`
-    // cannot take us out of the root, since the checks and the read use the same descriptor
-    let mut file = std::fs::File::open(path).map_err(|e| (format!("cannot open: {e}"), None))?;
-    if let (Some(real), Ok(real_root)) = (opened_path(&file), root.canonicalize()) {
-        if !real.starts_with(&real_root) {
-            return Err((
-                format!(
-                    "refused: the file opened is {} (outside the capture root)",
-                    real.display()
-                ),
-                None,
-            ));
+    use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
+    let mut file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK | libc::O_NOCTTY)
+        .open(path)
+        .map_err(|e| AttemptError::retry(format!("cannot open: {e}"), None))?;
+    if let Some(root) = root {
+        if let (Some(real), Ok(real_root)) = (opened_path(&file), root.canonicalize()) {
+            if !real.starts_with(&real_root) {
+                return Err(AttemptError::permanent(
+                    format!(
+                        "refused: the file opened is {} (outside the capture root)",
+                        real.display()
+                    ),
+                    None,
+                ));
+            }
         }
     }
     let before = file
         .metadata()
-        .map_err(|e| (format!("cannot stat: {e}"), None))?;
-    if !before.is_file() {
-        return Err(("not a regular file".into(), None));
+        .map_err(|e| AttemptError::retry(format!("cannot stat: {e}"), None))?;
+    let ft = before.file_type();
+    if !ft.is_file() {
+        let what = if ft.is_fifo() {
+            "a FIFO (named pipe)"
+        } else if ft.is_dir() {
+            "a directory"
+        } else if ft.is_socket() {
+            "a socket"
+        } else if ft.is_char_device() || ft.is_block_device() {
+            "a device"
+        } else {
+            "not a regular file"
+        };
+        return Err(AttemptError::permanent(
+            format!("refused: {what}, not a regular capture file"),
+            None,
+        ));
     }
-    // a capture can hardly be larger than its pixels as uncompressed f32 RGBA plus headers;
-    // refuse before reading so a huge file cannot exhaust memory
-    let max_bytes = (limits.max_pixels as u64)
-        .saturating_mul(16)
-        .saturating_add(64 << 20);
+    let max_bytes = max_file_bytes(limits);
     if before.len() > max_bytes {
-        return Err((
-            format!("file of {} bytes is larger than any capture within the decode limits ({max_bytes} bytes)", before.len()),
+        return Err(AttemptError::permanent(
+            format!(
+                "file of {} bytes is larger than any capture within the decode limits ({max_bytes} bytes)",
+                before.len()
+            ),
             Some(before.len()),
         ));
     }
     let mut bytes = Vec::with_capacity(before.len() as usize);
-    file.read_to_end(&mut bytes)
-        .map_err(|e| (format!("cannot read: {e}"), None))?;
+    // one byte more than the limit at most: a file that grows past it is refused, not read on
+    (&mut file)
+        .take(max_bytes + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| AttemptError::retry(format!("cannot read: {e}"), Some(before.len())))?;
     let size = bytes.len() as u64;
-    let after = std::fs::metadata(path).map_err(|e| (format!("cannot stat: {e}"), Some(size)))?;
+    let after = file
+        .metadata()
+        .map_err(|e| AttemptError::retry(format!("cannot stat: {e}"), Some(size)))?;
     if after.len() != size || before.len() != size {
-        return Err((
+        return Err(AttemptError::retry(
             format!(
                 "file is still growing ({} → {} bytes)",
                 before.len(),
@@ -146,16 +236,47 @@ pub fn measure_file(
             Some(after.len()),
         ));
     }
-    let img = decode(&bytes, limits).map_err(|e| (e.to_string(), Some(size)))?;
-    let stats = average(&img.view(), opts).map_err(|e| (e.to_string(), Some(size)))?;
+    Ok((
+        bytes,
+        FileStamp {
+            size,
+            modified: after.modified().ok(),
+        },
+    ))
+}
+
+/// Read, decode and average one file once.
+pub fn measure_file(
+    root: &Path,
+    path: &Path,
+    opts: &AverageOptions,
+    limits: &DecodeLimits,
+) -> Result<Outcome, AttemptError> {
+    measure_file_stamped(root, path, opts, limits).map(|(o, _)| o)
+}
+
+fn measure_file_stamped(
+    root: &Path,
+    path: &Path,
+    opts: &AverageOptions,
+    limits: &DecodeLimits,
+) -> Result<(Outcome, FileStamp), AttemptError> {
+    let (bytes, stamp) = read_capture(Some(root), path, limits)?;
+    let size = stamp.size;
+    let img = decode(&bytes, limits).map_err(|e| AttemptError::retry(e.to_string(), Some(size)))?;
+    let stats =
+        average(&img.view(), opts).map_err(|e| AttemptError::retry(e.to_string(), Some(size)))?;
     let sha256 = hex(&Sha256::digest(&bytes));
-    Ok(Outcome::Ok {
-        stats,
-        width: img.width,
-        height: img.height,
-        size,
-        sha256,
-    })
+    Ok((
+        Outcome::Ok {
+            stats,
+            width: img.width,
+            height: img.height,
+            size,
+            sha256,
+        },
+        stamp,
+    ))
 }
 
 /// The path of an open file as the kernel sees it (Linux: /proc/self/fd). None elsewhere.
@@ -168,6 +289,20 @@ fn hex(b: &[u8]) -> String {
     b.iter().map(|x| format!("{x:02x}")).collect()
 }
 
+/// Whether a file read at `stamp` has stopped changing: last modified at least `settle` ago,
+/// or seen with the same size and modification time at least `settle` ago.
+fn settled(stamp: &FileStamp, settle: Duration, earlier: Option<(FileStamp, Instant)>) -> bool {
+    if settle.is_zero() {
+        return true;
+    }
+    let old_enough = stamp
+        .modified
+        .and_then(|m| std::time::SystemTime::now().duration_since(m).ok())
+        .is_some_and(|age| age >= settle);
+    let unchanged = earlier.is_some_and(|(s, at)| s == *stamp && at.elapsed() >= settle);
+    old_enough || unchanged
+}
+
 /// Ingest one announced capture with the retry policy; blocks the calling (worker) thread.
 pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions) -> Outcome {
     let path = match resolve(root, name) {
@@ -178,16 +313,16 @@ pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions)
             }
         }
     };
-    let limits = DecodeLimits {
-        threads: spec.decode_threads.max(1),
-        ..DecodeLimits::default()
-    };
+    let limits = spec.decode_limits();
     let start = Instant::now();
-    let give_up = Duration::from_secs_f64(spec.give_up_s.max(0.0));
+    // the config bounds give_up_s; the clamp keeps a hand-built spec from panicking here
+    let give_up = Duration::from_secs_f64(spec.give_up_s.clamp(0.0, MAX_GIVE_UP_S));
+    let settle = Duration::from_millis(spec.settle_ms);
     let mut delay = Duration::from_millis(spec.retry_first_ms.max(1));
     let mut last_size: Option<u64> = None;
     let mut same_size_failures = 0u32;
     let mut attempts = 0u32;
+    let mut first_seen: Option<(FileStamp, Instant)> = None;
     loop {
         attempts += 1;
         // re-check the path each time: a link could be swapped in while we wait
@@ -196,41 +331,61 @@ pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions)
                 error: e.to_string(),
             };
         }
-        match measure_file(root, &path, opts, &limits) {
-            Ok(o) => return o,
-            Err((reason, size)) => {
-                let exists = size.is_some();
-                if exists && size == last_size {
+        let wait = match measure_file_stamped(root, &path, opts, &limits) {
+            Ok((o, stamp)) => {
+                if settled(&stamp, settle, first_seen) {
+                    return o;
+                }
+                if start.elapsed() >= give_up {
+                    return Outcome::Failed {
+                        error: format!(
+                            "file kept changing for {:.1} s (last {} bytes); not accepted as a finished capture (after {attempts} attempts)",
+                            spec.give_up_s, stamp.size
+                        ),
+                    };
+                }
+                if first_seen.is_none_or(|(s, _)| s != stamp) {
+                    first_seen = Some((stamp, Instant::now()));
+                }
+                settle
+            }
+            Err(e) => {
+                if e.permanent {
+                    return Outcome::Failed { error: e.reason };
+                }
+                let exists = e.size.is_some();
+                if exists && e.size == last_size {
                     same_size_failures += 1;
                 } else {
                     same_size_failures = if exists { 1 } else { 0 };
                 }
-                last_size = size;
+                last_size = e.size;
                 let stable_bad = exists
                     && same_size_failures >= spec.stable_failures.max(1)
-                    && !reason.contains("growing");
+                    && !e.reason.contains("growing");
                 if stable_bad || start.elapsed() >= give_up {
                     return if exists {
                         Outcome::Failed {
-                            error: format!("{reason} (after {attempts} attempts)"),
+                            error: format!("{} (after {attempts} attempts)", e.reason),
                         }
                     } else {
                         Outcome::Missing {
                             reason: format!(
-                                "file not found after {:.1} s ({reason})",
-                                spec.give_up_s
+                                "file not found after {:.1} s ({})",
+                                spec.give_up_s, e.reason
                             ),
                         }
                     };
                 }
-                std::thread::sleep(
-                    delay
-                        .min(give_up.saturating_sub(start.elapsed()))
-                        .max(Duration::from_millis(1)),
-                );
+                let d = delay;
                 delay = (delay * 2).min(Duration::from_millis(spec.retry_max_ms.max(1)));
+                d
             }
-        }
+        };
+        std::thread::sleep(
+            wait.min(give_up.saturating_sub(start.elapsed()))
+                .max(Duration::from_millis(1)),
+        );
     }
 }
 
@@ -333,7 +488,7 @@ mod tests {
             &DecodeLimits::default(),
         );
         assert!(
-            matches!(&r, Err((e, _)) if e.contains("outside the capture root")),
+            matches!(&r, Err(e) if e.reason.contains("outside the capture root") && e.permanent),
             "{r:?}"
         );
         std::fs::remove_dir_all(&base).ok();

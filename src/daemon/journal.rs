@@ -51,66 +51,168 @@ pub fn now_ms() -> u64 {
         .unwrap_or(0)
 }
 
-/// Cut a torn last line (no LF, or not valid JSON) off a JSON-lines file. Returns the lines cut.
+/// The checksum field that ends every journal line: `,"sum":"<16 hex digits>"}`. It covers
+/// the line's JSON without it (the bytes up to the field, then `}`), so any changed byte of an
+/// entry is found on resume and replay.
+const SUM_PREFIX: &str = ",\"sum\":\"";
+const SUM_HEX: usize = 16;
+const SUM_SUFFIX_LEN: usize = SUM_PREFIX.len() + SUM_HEX + 2;
+
+fn line_sum(body: &[u8]) -> String {
+    use sha2::{Digest, Sha256};
+    Sha256::digest(body)[..SUM_HEX / 2]
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// One journal entry as its line (LF included), checksum appended.
+pub fn encode_entry(entry: &JournalEntry) -> Result<Vec<u8>> {
+    let mut line = serde_json::to_vec(entry)?;
+    if line.last() != Some(&b'}') {
+        anyhow::bail!("a journal entry did not serialise to a JSON object");
+    }
+    let sum = line_sum(&line);
+    line.pop();
+    line.extend_from_slice(SUM_PREFIX.as_bytes());
+    line.extend_from_slice(sum.as_bytes());
+    line.extend_from_slice(b"\"}\n");
+    Ok(line)
+}
+
+/// Why a journal cannot be trusted. Nothing is rebuilt from a damaged journal.
+#[derive(Debug, thiserror::Error)]
+pub enum JournalError {
+    #[error("cannot read {path}: {source}")]
+    Read {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("{path} line {line} is damaged ({reason}); goniowatch will not rebuild or replay a session from a damaged journal. Nothing was changed. Restore the journal from a backup, or start a new session folder")]
+    Damaged {
+        path: String,
+        line: usize,
+        reason: String,
+    },
+}
+
+/// A journal as read: its entries, and what was left out.
+#[derive(Debug, Clone, Default)]
+pub struct JournalRead {
+    pub entries: Vec<JournalEntry>,
+    /// An unterminated last line (a write cut short by a crash); not an entry.
+    pub torn_tail: bool,
+    /// The journal has no checksums at all (written before journal lines carried them): read,
+    /// but not verified.
+    pub unverified: bool,
+}
+
+/// Check one complete journal line and parse it. A line with a checksum must match it; a line
+/// without one is accepted only when `legacy` (no line of the journal has one).
+fn parse_line(text: &str, legacy: bool) -> std::result::Result<JournalEntry, String> {
+    let body = if legacy {
+        text.to_string()
+    } else {
+        let n = text.len();
+        let has_sum = n > SUM_SUFFIX_LEN
+            && text.is_char_boundary(n - SUM_SUFFIX_LEN)
+            && text[n - SUM_SUFFIX_LEN..].starts_with(SUM_PREFIX)
+            && text.ends_with("\"}");
+        if !has_sum {
+            return Err("no checksum, although the journal's other lines have one".into());
+        }
+        let want = &text[n - SUM_HEX - 2..n - 2];
+        let body = format!("{}}}", &text[..n - SUM_SUFFIX_LEN]);
+        let got = line_sum(body.as_bytes());
+        if got != want {
+            return Err(format!(
+                "checksum {want} does not match its content ({got})"
+            ));
+        }
+        body
+    };
+    serde_json::from_str(&body).map_err(|e| format!("not a journal entry: {e}"))
+}
+
+/// Read and verify a journal. A missing file reads as empty. Every complete line must verify;
+/// an unterminated last line is left out and reported (`torn_tail`). A journal with no checksum
+/// at all is read unverified unless `require_sums` (the session was created with them).
+pub fn read_journal(
+    path: &Path,
+    require_sums: bool,
+) -> std::result::Result<JournalRead, JournalError> {
+    let data = match std::fs::read(path) {
+        Ok(d) => d,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(JournalRead::default()),
+        Err(source) => {
+            return Err(JournalError::Read {
+                path: path.display().to_string(),
+                source,
+            })
+        }
+    };
+    let damaged = |line: usize, reason: String| JournalError::Damaged {
+        path: path.display().to_string(),
+        line,
+        reason,
+    };
+    let complete = data
+        .iter()
+        .rposition(|b| *b == b'\n')
+        .map(|p| p + 1)
+        .unwrap_or(0);
+    let mut out = JournalRead {
+        torn_tail: complete < data.len(),
+        ..JournalRead::default()
+    };
+    let lines: Vec<&[u8]> = data[..complete].split(|b| *b == b'\n').collect();
+    let lines = &lines[..lines.len().saturating_sub(1)]; // the split after the last LF is empty
+    out.unverified = !require_sums
+        && !lines.is_empty()
+        && !lines.iter().any(|l| {
+            l.windows(SUM_PREFIX.len())
+                .any(|w| w == SUM_PREFIX.as_bytes())
+        });
+    for (n, raw) in lines.iter().enumerate() {
+        let text = std::str::from_utf8(raw).map_err(|_| damaged(n + 1, "not UTF-8".into()))?;
+        if text.trim().is_empty() {
+            return Err(damaged(n + 1, "empty line".into()));
+        }
+        out.entries
+            .push(parse_line(text, out.unverified).map_err(|r| damaged(n + 1, r))?);
+    }
+    Ok(out)
+}
+
+/// Cut an unterminated last line (a write cut short by a crash) off a JSON-lines file. Returns
+/// the lines cut (0 or 1). Complete lines are never cut: their damage is reported by the reader.
 pub fn repair_jsonl(path: &Path) -> Result<usize> {
     let Ok(data) = std::fs::read(path) else {
         return Ok(0);
     };
-    let mut keep = data.len();
-    let mut cut = 0;
-    if !data.is_empty() && data[data.len() - 1] != b'\n' {
-        keep = data
-            .iter()
-            .rposition(|b| *b == b'\n')
-            .map(|p| p + 1)
-            .unwrap_or(0);
-        cut += 1;
+    if data.is_empty() || data[data.len() - 1] == b'\n' {
+        return Ok(0);
     }
-    // the last complete line must parse too (a crash can leave a full but garbled line only on
-    // a broken disk, but check anyway)
-    if keep > 0 {
-        let start = data[..keep - 1]
-            .iter()
-            .rposition(|b| *b == b'\n')
-            .map(|p| p + 1)
-            .unwrap_or(0);
-        if serde_json::from_slice::<serde_json::Value>(&data[start..keep - 1]).is_err() {
-            keep = start;
-            cut += 1;
-        }
-    }
-    if keep != data.len() {
-        let f = OpenOptions::new()
-            .write(true)
-            .open(path)
-            .with_context(|| format!("cannot repair {}", path.display()))?;
-        f.set_len(keep as u64)?;
-        f.sync_all()?;
-    }
-    Ok(cut)
+    let keep = data
+        .iter()
+        .rposition(|b| *b == b'\n')
+        .map(|p| p + 1)
+        .unwrap_or(0);
+    let f = OpenOptions::new()
+        .write(true)
+        .open(path)
+        .with_context(|| format!("cannot repair {}", path.display()))?;
+    f.set_len(keep as u64)
+        .with_context(|| format!("cannot repair {}", path.display()))?;
+    f.sync_all()
+        .with_context(|| format!("cannot repair {}", path.display()))?;
+    Ok(1)
 }
 
-/// Read the journal (after repairing it).
-pub fn read_journal(path: &Path) -> Result<Vec<JournalEntry>> {
-    let text = match std::fs::read_to_string(path) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
-    };
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(n, l)| {
-            serde_json::from_str(l).with_context(|| {
-                format!("{}: line {} is not a journal entry", path.display(), n + 1)
-            })
-        })
-        .collect()
-}
-
-/// An append-only JSON-lines file.
+/// An append-only JSON-lines file. Every error names the file.
 pub struct JsonlFile {
     file: File,
+    path: PathBuf,
     dirty: bool,
 }
 
@@ -121,23 +223,43 @@ impl JsonlFile {
             .append(true)
             .open(path)
             .with_context(|| format!("cannot open {}", path.display()))?;
-        Ok(JsonlFile { file, dirty: false })
+        Ok(JsonlFile {
+            file,
+            path: path.to_path_buf(),
+            dirty: false,
+        })
     }
     pub fn create(path: &Path) -> Result<Self> {
         let file =
             File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-        Ok(JsonlFile { file, dirty: false })
+        Ok(JsonlFile {
+            file,
+            path: path.to_path_buf(),
+            dirty: false,
+        })
     }
     pub fn write<T: Serialize>(&mut self, value: &T) -> Result<()> {
         let mut line = serde_json::to_vec(value)?;
         line.push(b'\n');
-        self.file.write_all(&line)?;
+        self.write_line(&line)
+    }
+    /// Append one journal entry with its checksum.
+    pub fn write_entry(&mut self, entry: &JournalEntry) -> Result<()> {
+        let line = encode_entry(entry)?;
+        self.write_line(&line)
+    }
+    fn write_line(&mut self, line: &[u8]) -> Result<()> {
+        self.file
+            .write_all(line)
+            .with_context(|| format!("cannot write to {}", self.path.display()))?;
         self.dirty = true;
         Ok(())
     }
     pub fn sync(&mut self) -> Result<()> {
         if self.dirty {
-            self.file.sync_data()?;
+            self.file
+                .sync_data()
+                .with_context(|| format!("cannot flush {} to disk", self.path.display()))?;
             self.dirty = false;
         }
         Ok(())
@@ -227,8 +349,10 @@ pub fn write_atomic(path: &Path, data: &[u8]) -> Result<()> {
     {
         let mut f =
             File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
-        f.write_all(data)?;
-        f.sync_all()?;
+        f.write_all(data)
+            .with_context(|| format!("cannot write {}", tmp.display()))?;
+        f.sync_all()
+            .with_context(|| format!("cannot flush {} to disk", tmp.display()))?;
     }
     std::fs::rename(&tmp, path).with_context(|| format!("cannot rename {}", tmp.display()))?;
     Ok(())
@@ -267,21 +391,131 @@ impl SessionLock {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::engine::Input;
+
+    fn temp(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("gw-journal-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&dir).ok();
+        dir.join("journal.jsonl")
+    }
+
+    fn entries() -> Vec<JournalEntry> {
+        vec![
+            JournalEntry {
+                wall_ms: 1,
+                item: JournalItem::In(Input::Connected),
+            },
+            JournalEntry {
+                wall_ms: 2,
+                item: JournalItem::Out("0 HELLO proto=1*4537".into()),
+            },
+            JournalEntry {
+                wall_ms: 3,
+                item: JournalItem::In(Input::Rx {
+                    line: "4 CAPTURE idx=0 entry=0 file=demo/cap_0.hdr t=0.000*8B6D".into(),
+                }),
+            },
+        ]
+    }
+
+    fn write(path: &Path, e: &[JournalEntry]) -> Vec<u8> {
+        let mut f = JsonlFile::create(path).unwrap();
+        for x in e {
+            f.write_entry(x).unwrap();
+        }
+        f.sync().unwrap();
+        std::fs::read(path).unwrap()
+    }
 
     #[test]
-    fn torn_lines_are_cut() -> Result<()> {
-        let dir = std::env::temp_dir().join(format!("gw-journal-{}", std::process::id()));
-        std::fs::create_dir_all(&dir)?;
-        let p = dir.join("j.jsonl");
-        std::fs::write(&p, b"{\"a\":1}\n{\"a\":2}\n{\"a\":")?;
-        assert_eq!(repair_jsonl(&p)?, 1);
-        assert_eq!(std::fs::read(&p)?, b"{\"a\":1}\n{\"a\":2}\n");
-        std::fs::write(&p, b"{\"a\":1}\n{\"a\"::}\n")?;
-        assert_eq!(repair_jsonl(&p)?, 1);
-        assert_eq!(std::fs::read(&p)?, b"{\"a\":1}\n");
-        std::fs::write(&p, b"{\"a\":1}\n")?;
-        assert_eq!(repair_jsonl(&p)?, 0);
-        std::fs::remove_dir_all(&dir).ok();
-        Ok(())
+    fn entries_round_trip_with_their_checksums() {
+        let p = temp("rt");
+        let bytes = write(&p, &entries());
+        for line in bytes.split(|b| *b == b'\n').filter(|l| !l.is_empty()) {
+            // every line stays one JSON object
+            let v: serde_json::Value = serde_json::from_slice(line).unwrap();
+            assert_eq!(v["sum"].as_str().unwrap().len(), 16);
+        }
+        let r = read_journal(&p, true).unwrap();
+        assert_eq!(r.entries, entries());
+        assert!(!r.torn_tail && !r.unverified);
+    }
+
+    #[test]
+    fn every_changed_byte_is_found_and_named_by_line() {
+        let p = temp("flip");
+        let good = write(&p, &entries());
+        let line_of = |pos: usize| good[..pos].iter().filter(|b| **b == b'\n').count() + 1;
+        for pos in 0..good.len() {
+            if good[pos] == b'\n' {
+                continue;
+            }
+            for bit in [0x01u8, 0x08, 0x20] {
+                let mut bad = good.clone();
+                bad[pos] ^= bit;
+                if bad[pos] == b'\n' {
+                    continue;
+                }
+                std::fs::write(&p, &bad).unwrap();
+                match read_journal(&p, true) {
+                    Err(JournalError::Damaged { line, .. }) => {
+                        assert_eq!(line, line_of(pos), "byte {pos}")
+                    }
+                    other => panic!("byte {pos} bit {bit:#x}: {other:?}"),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_torn_tail_is_left_out_and_cut_only_by_repair() {
+        let p = temp("torn");
+        let mut bytes = write(&p, &entries());
+        bytes.extend_from_slice(b"{\"wall_ms\":4,\"in\":{\"ty");
+        std::fs::write(&p, &bytes).unwrap();
+        let r = read_journal(&p, true).unwrap();
+        assert!(r.torn_tail);
+        assert_eq!(r.entries.len(), 3);
+        assert_eq!(repair_jsonl(&p).unwrap(), 1);
+        assert_eq!(repair_jsonl(&p).unwrap(), 0);
+        assert!(!read_journal(&p, true).unwrap().torn_tail);
+    }
+
+    #[test]
+    fn a_journal_without_checksums_is_read_unverified_and_a_mixed_one_refused() {
+        let p = temp("legacy");
+        let legacy: Vec<u8> = entries()
+            .iter()
+            .flat_map(|e| {
+                let mut l = serde_json::to_vec(e).unwrap();
+                l.push(b'\n');
+                l
+            })
+            .collect();
+        std::fs::write(&p, &legacy).unwrap();
+        // a session created with checksums never reads a line without one
+        assert!(matches!(
+            read_journal(&p, true),
+            Err(JournalError::Damaged { line: 1, .. })
+        ));
+        let r = read_journal(&p, false).unwrap();
+        assert!(r.unverified);
+        assert_eq!(r.entries, entries());
+        // one checksummed line among plain ones: the plain ones are damaged
+        let mut mixed = legacy.clone();
+        mixed.extend_from_slice(&encode_entry(&entries()[0]).unwrap());
+        std::fs::write(&p, &mixed).unwrap();
+        assert!(matches!(
+            read_journal(&p, true),
+            Err(JournalError::Damaged { line: 1, .. })
+        ));
+        // an empty line in the middle is damage, not a gap to skip
+        let mut gap = write(&p, &entries());
+        gap.splice(0..0, b"\n".iter().copied());
+        std::fs::write(&p, &gap).unwrap();
+        assert!(matches!(
+            read_journal(&p, true),
+            Err(JournalError::Damaged { line: 1, .. })
+        ));
     }
 }

@@ -7,8 +7,8 @@
 //! that moment of the live run cannot be recovered. The session folder is only read.
 
 use super::ingest::{measure_file, resolve};
-use super::journal::{read_journal, Results};
-use super::session::{inputs, Session};
+use super::journal::Results;
+use super::session::{inputs, verified_journal, Session};
 use crate::decode::DecodeLimits;
 use crate::engine::{Input, Summary};
 use crate::measure::checks::Outcome;
@@ -56,8 +56,17 @@ pub fn replay(
     speed: Speed,
     workers: usize,
     progress: bool,
+    capture_root: Option<&Path>,
 ) -> Result<ReplayReport> {
-    let session = Session::open_read_only(session_dir)?;
+    let mut session = Session::open_read_only(session_dir)?;
+    if let Some(c) = capture_root {
+        session.info.capture_root = c.to_path_buf();
+    } else if session.info.capture_root.is_relative() {
+        tracing::warn!(
+            "the session's capture root {} is relative (recorded by an older goniowatch); it is taken from the working directory; give --capture-root if the captures are elsewhere",
+            session.info.capture_root.display()
+        );
+    }
     let out_dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| session_dir.join("replay"));
@@ -70,8 +79,27 @@ pub fn replay(
     let config_text = std::fs::read(session_dir.join("config.toml"))
         .with_context(|| format!("cannot read {}", session_dir.join("config.toml").display()))?;
     super::journal::write_atomic(&out_dir.join("config.toml"), &config_text)?;
-    let entries = read_journal(&session_dir.join("journal.jsonl"))?;
-    let all: Vec<(u64, Input)> = inputs(&entries).map(|(w, i)| (w, i.clone())).collect();
+    let journal_path = session_dir.join("journal.jsonl");
+    let read = verified_journal(&journal_path, session.info.journal_checksums)?;
+    if read.torn_tail {
+        tracing::warn!(
+            "{} ends in a torn line (a write cut short); it is left out",
+            journal_path.display()
+        );
+    }
+    let all: Vec<(u64, Input)> = inputs(&read.entries).map(|(w, i)| (w, i.clone())).collect();
+    if all.is_empty() {
+        bail!(
+            "{} has no journaled inputs ({} is {}): there is nothing to replay",
+            session_dir.display(),
+            journal_path.display(),
+            if journal_path.exists() {
+                "empty"
+            } else {
+                "missing"
+            }
+        );
+    }
 
     // the captures to measure again, in journal order
     let jobs: Vec<(usize, String)> = {
@@ -104,6 +132,10 @@ pub fn replay(
     let (res_tx, res_rx) = crossbeam_channel::unbounded::<(usize, Result<Outcome, String>)>();
     let root = session.info.capture_root.clone();
     let opts = session.config.capture;
+    let limits = DecodeLimits {
+        threads: 1,
+        ..session.config.ingest.decode_limits()
+    };
     let mut handles = Vec::new();
     for _ in 0..workers.max(1) {
         let (rx, tx, root) = (job_rx.clone(), res_tx.clone(), root.clone());
@@ -111,9 +143,7 @@ pub fn replay(
             while let Ok((n, file)) = rx.recv() {
                 let r = resolve(&root, &file)
                     .map_err(|e| e.to_string())
-                    .and_then(|p| {
-                        measure_file(&root, &p, &opts, &DecodeLimits::default()).map_err(|(e, _)| e)
-                    });
+                    .and_then(|p| measure_file(&root, &p, &opts, &limits).map_err(|e| e.reason));
                 if tx.send((n, r)).is_err() {
                     return;
                 }

@@ -97,7 +97,7 @@ impl Live {
 
     fn process(&mut self, input: Input) -> Result<()> {
         let is_outcome = matches!(input, Input::Outcome { .. });
-        self.journal.write(&JournalEntry {
+        self.journal.write_entry(&JournalEntry {
             wall_ms: now_ms(),
             item: JournalItem::In(input.clone()),
         })?;
@@ -119,7 +119,7 @@ impl Live {
             }
             match &o {
                 Output::Send(line) => {
-                    self.journal.write(&JournalEntry {
+                    self.journal.write_entry(&JournalEntry {
                         wall_ms: now_ms(),
                         item: JournalItem::Out(line.clone()),
                     })?;

@@ -2,7 +2,8 @@
 //! fresh engine (shared by crash recovery and replay).
 
 use super::journal::{
-    read_journal, repair_jsonl, write_atomic, JournalEntry, JournalItem, Results,
+    read_journal, repair_jsonl, write_atomic, JournalEntry, JournalItem, JournalRead, Results,
+    RESULT_FILES,
 };
 use crate::config::Config;
 use crate::engine::{Engine, Input, Output};
@@ -21,6 +22,9 @@ pub struct SessionInfo {
     pub port: PathBuf,
     /// The config file the session was created from.
     pub config_source: PathBuf,
+    /// Every journal line carries a checksum (sessions created before they did have none).
+    #[serde(default)]
+    pub journal_checksums: bool,
 }
 
 /// A session directory, opened.
@@ -41,6 +45,27 @@ pub fn resolve_against(base: &Path, p: &Path) -> PathBuf {
     }
 }
 
+/// `p` as an absolute path (against the working directory), so that a session folder means
+/// the same from wherever it is later read.
+fn absolute(p: &Path) -> Result<PathBuf> {
+    std::path::absolute(p).with_context(|| format!("cannot make {} absolute", p.display()))
+}
+
+/// Whether a file exists with at least one byte.
+fn non_empty(p: &Path) -> bool {
+    std::fs::metadata(p).map(|m| m.len() > 0).unwrap_or(false)
+}
+
+/// The result files of `dir` that hold data.
+fn results_present(dir: &Path) -> Vec<&'static str> {
+    RESULT_FILES
+        .iter()
+        .copied()
+        .chain(["summary.json"])
+        .filter(|n| non_empty(&dir.join(n)))
+        .collect()
+}
+
 impl Session {
     /// Create `dir` from a config file, or reopen it (then its stored config is used).
     pub fn open_or_create(
@@ -53,13 +78,27 @@ impl Session {
             .with_context(|| format!("cannot create session folder {}", dir.display()))?;
         let stored = dir.join("config.toml");
         let info_path = dir.join("session.json");
+        let journal = dir.join("journal.jsonl");
+        let has_journal = non_empty(&journal);
+        let results = results_present(dir);
         if stored.exists() && info_path.exists() {
+            if !has_journal && !results.is_empty() {
+                bail!(
+                    "{} has results ({}) but its journal.jsonl is {}; the results cannot be rebuilt or checked without it, and goniowatch will not overwrite them. Restore journal.jsonl from a backup to resume, or give a new --session folder to start over",
+                    dir.display(),
+                    results.join(", "),
+                    if journal.exists() { "empty" } else { "missing" }
+                );
+            }
             let text = std::fs::read_to_string(&stored)
                 .with_context(|| format!("cannot read {}", stored.display()))?;
             let config = Config::from_toml_str(&text)
                 .with_context(|| format!("invalid stored config {}", stored.display()))?;
-            let mut info: SessionInfo = serde_json::from_slice(&std::fs::read(&info_path)?)
-                .with_context(|| format!("cannot read {}", info_path.display()))?;
+            let mut info: SessionInfo = serde_json::from_slice(
+                &std::fs::read(&info_path)
+                    .with_context(|| format!("cannot read {}", info_path.display()))?,
+            )
+            .with_context(|| format!("cannot parse {}", info_path.display()))?;
             if let Some(p) = config_path {
                 let given = std::fs::read_to_string(p).unwrap_or_default();
                 if given != text {
@@ -73,15 +112,26 @@ impl Session {
                 info.port = p.to_path_buf();
             }
             if let Some(c) = capture_root {
-                info.capture_root = c.to_path_buf();
+                info.capture_root = absolute(c)?;
             }
-            let resumed = dir.join("journal.jsonl").exists();
             return Ok(Session {
                 dir: dir.to_path_buf(),
                 config,
                 info,
-                resumed,
+                resumed: has_journal,
             });
+        }
+        if has_journal || !results.is_empty() {
+            let mut held: Vec<&str> = results;
+            if has_journal {
+                held.insert(0, "journal.jsonl");
+            }
+            bail!(
+                "{} holds session data ({}) but no {}; it is not a complete goniowatch session and will not be overwritten. Give a new --session folder to start one",
+                dir.display(),
+                held.join(", "),
+                if stored.exists() { "session.json" } else { "config.toml" }
+            );
         }
         let Some(config_path) = config_path else {
             bail!(
@@ -102,13 +152,15 @@ impl Session {
         let info = SessionInfo {
             created_ms: super::journal::now_ms(),
             goniowatch: env!("CARGO_PKG_VERSION").into(),
-            capture_root: capture_root
-                .map(Path::to_path_buf)
-                .unwrap_or_else(|| resolve_against(&base, &config.ingest.capture_root)),
+            capture_root: match capture_root {
+                Some(c) => absolute(c)?,
+                None => absolute(&resolve_against(&base, &config.ingest.capture_root))?,
+            },
             port: port
                 .map(Path::to_path_buf)
                 .unwrap_or_else(|| config.link.port.clone()),
             config_source: config_path.to_path_buf(),
+            journal_checksums: true,
         };
         write_atomic(&stored, text.as_bytes())?;
         write_atomic(&info_path, &serde_json::to_vec_pretty(&info)?)?;
@@ -150,15 +202,19 @@ impl Session {
 /// input to a fresh engine, and rewrite the result files from scratch. Returns the engine.
 pub fn recover(session: &Session) -> Result<(Engine, usize)> {
     let journal_path = session.dir.join("journal.jsonl");
-    let cut = repair_jsonl(&journal_path)?;
-    if cut > 0 {
-        tracing::warn!("cut {cut} torn line(s) off {}", journal_path.display());
+    // verify first: a damaged journal leaves every file as it was
+    let read = verified_journal(&journal_path, session.info.journal_checksums)?;
+    if read.torn_tail {
+        repair_jsonl(&journal_path)?;
+        tracing::warn!(
+            "cut a torn last line (a write cut short) off {}",
+            journal_path.display()
+        );
     }
-    let entries = read_journal(&journal_path)?;
     let mut engine = session.config.engine()?;
     let mut results = Results::open(&session.dir, true)?;
     let mut n = 0;
-    for e in &entries {
+    for e in &read.entries {
         if let JournalItem::In(input) = &e.item {
             for o in engine.handle(input) {
                 results.record(&o)?;
@@ -169,6 +225,18 @@ pub fn recover(session: &Session) -> Result<(Engine, usize)> {
     results.sync()?;
     results.write_summary(&engine.summary())?;
     Ok((engine, n))
+}
+
+/// Read and verify a session's journal, warning when it predates checksums.
+pub fn verified_journal(path: &Path, require_sums: bool) -> Result<JournalRead> {
+    let read = read_journal(path, require_sums)?;
+    if read.unverified {
+        tracing::warn!(
+            "{} has no checksums (written by an older goniowatch); it is read but cannot be verified",
+            path.display()
+        );
+    }
+    Ok(read)
 }
 
 /// The inputs of a journal, in order.

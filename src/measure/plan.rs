@@ -18,9 +18,15 @@ pub enum PlanError {
         "plan.delta_phi_deg[{index}] = {value}: Δφ must divide 360° into a whole number of steps"
     )]
     BadDeltaPhi { index: usize, value: f64 },
+    #[error("plan.delta_phi_deg[{index}] = {value}: the plan would have more than {MAX_DIRECTIONS} directions ({MAX_DIRECTIONS}² captures); use a coarser Δφ")]
+    TooLarge { index: usize, value: f64 },
     #[error("capture index {index} is outside the plan (0..{captures})")]
     IndexOutOfRange { index: usize, captures: usize },
 }
+
+/// The most directions a plan may have: 1,000 directions are 1,000,000 captures, far beyond any
+/// gonioreflectometer run, and bound the memory the checks allocate per capture.
+pub const MAX_DIRECTIONS: usize = 1000;
 
 /// In which order the rig visits the (light, camera) combinations.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -136,6 +142,13 @@ impl SamplingPlan {
             let steps = 360.0 / dp;
             if !(dp.is_finite() && dp > 0.0 && (steps - steps.round()).abs() < 1e-9) {
                 return Err(PlanError::BadDeltaPhi {
+                    index: i,
+                    value: dp,
+                });
+            }
+            // checked before a single direction of the ring is made
+            if directions.len() as f64 + steps.round() > MAX_DIRECTIONS as f64 {
+                return Err(PlanError::TooLarge {
                     index: i,
                     value: dp,
                 });
@@ -349,6 +362,14 @@ mod tests {
             Err(PlanError::BadTheta { index: 1, .. })
         ));
         assert_eq!(bad(vec![], vec![]), Err(PlanError::Empty));
+        assert!(matches!(
+            bad(vec![0.0, 15.0], vec![0.0, 1e-9]),
+            Err(PlanError::TooLarge { index: 1, .. })
+        ));
+        assert!(matches!(
+            bad(vec![0.0, 15.0, 30.0, 45.0], vec![0.0, 1.0, 1.0, 1.0]),
+            Err(PlanError::TooLarge { index: 3, .. })
+        ));
         assert!(SamplingPlan::ubo().entry(6561).is_err());
     }
 }
