@@ -184,10 +184,47 @@ pub struct Engine {
     probe_every: u64,
     probe_entry: usize,
     regular_checked: u64,
+    /// Lines received since the last RESYNC was sent (the backoff's clock).
+    lines_since_resync: u64,
+    /// The `from` of the last RESYNC sent, and how many times in a row it was sent.
+    last_resync: Option<(u64, u32)>,
+    /// Capture indices whose CAPTURE line could not be accepted, and how many times.
+    refused: BTreeMap<u64, u32>,
+    /// Inputs handled so far (the alarm aggregation's clock).
+    inputs: u64,
+    /// Per alarm code: the aggregation window and what it held back.
+    storms: BTreeMap<String, Storm>,
 }
 
 /// An outstanding RESYNC whose ACK has not come after this many received lines is sent again.
 const RESYNC_LINES: u32 = 64;
+
+/// A RESYNC from the same capture as the one before waits 2ⁿ received lines (n: how often it
+/// was sent in a row), at most this many; the idle timer sends it regardless. A controller that
+/// answers every RESYNC with the same unacceptable line is thus asked at a falling rate, not in
+/// a loop.
+const RESYNC_BACKOFF_MAX_LINES: u64 = 1024;
+
+/// Alarm aggregation: per code, at most `ALARM_BURST` alarms in full per window of
+/// `ALARM_WINDOW` inputs; the rest are counted and reported as one alarm when the window ends.
+/// Counted in inputs, not wall time, so a replay aggregates exactly as the live run did.
+const ALARM_BURST: u32 = 5;
+const ALARM_WINDOW: u64 = 2000;
+/// Capture indices an aggregated alarm lists at most.
+const ALARM_LIST_MAX: usize = 200;
+
+/// Controller times outside this range (seconds) are refused as garbage.
+const MAX_CONTROLLER_T: f64 = 1e7;
+
+/// The alarms of one code held back in the current window.
+#[derive(Debug, Clone, Default)]
+struct Storm {
+    window_start: u64,
+    emitted: u32,
+    held: u64,
+    captures: Vec<u64>,
+    latest: Option<Alarm>,
+}
 
 /// Capture indices beyond the plan's count by more than this are refused as garbage (probes
 /// add captures beyond the plan, but not millions).
@@ -207,6 +244,11 @@ fn announcement(m: &Message, limit: u64) -> Result<(u64, Announcement), String> 
         .ok_or("missing file")?
         .to_string();
     let t = m.get_f64("t").ok_or("missing or bad t")?;
+    if !(0.0..=MAX_CONTROLLER_T).contains(&t) {
+        return Err(format!(
+            "t = {t} s is outside any plausible controller time [0, {MAX_CONTROLLER_T:e}]"
+        ));
+    }
     let cmd = m
         .get("cmd")
         .and_then(protocol::parse_pose)
@@ -273,6 +315,11 @@ impl Engine {
             probe_every: 0,
             probe_entry: 0,
             regular_checked: 0,
+            lines_since_resync: 0,
+            last_resync: None,
+            refused: BTreeMap::new(),
+            inputs: 0,
+            storms: BTreeMap::new(),
         }
     }
 
@@ -392,6 +439,8 @@ impl Engine {
         );
     }
 
+    /// Raise an alarm: counted always (the summary counts every occurrence), emitted in full
+    /// unless its code is storming, in which case it is held for the window's aggregate.
     fn alarm(&mut self, out: &mut Vec<Output>, a: Alarm) {
         let key = serde_json::to_value(a.kind)
             .ok()
@@ -406,7 +455,77 @@ impl Engine {
             self.paused_for.insert(a.code.clone());
             self.send(out, "PAUSE", &[]);
         }
-        out.push(Output::Alarm(a));
+        let inputs = self.inputs;
+        let storm = self.storms.entry(a.code.clone()).or_insert_with(|| Storm {
+            window_start: inputs,
+            ..Storm::default()
+        });
+        if storm.emitted < ALARM_BURST {
+            storm.emitted += 1;
+            out.push(Output::Alarm(a));
+        } else {
+            storm.held += 1;
+            if let Some(i) = a.idx {
+                if storm.captures.len() < ALARM_LIST_MAX {
+                    storm.captures.push(i);
+                }
+            }
+            storm.latest = Some(a);
+        }
+    }
+
+    /// End the aggregation windows that are over (all of them when `all`): each code that held
+    /// alarms back gets one alarm with their count, their captures and the latest of them.
+    fn flush_storms(&mut self, out: &mut Vec<Output>, all: bool) {
+        let now = self.inputs;
+        for (code, storm) in self.storms.iter_mut() {
+            if !all && now < storm.window_start.saturating_add(ALARM_WINDOW) {
+                continue;
+            }
+            if let Some(latest) = storm.latest.take() {
+                let first = storm.window_start;
+                let mut a = Alarm::new(
+                    latest.kind,
+                    latest.severity,
+                    code,
+                    format!(
+                        "{} more '{code}' alarm(s) were held back (more than {ALARM_BURST} in {ALARM_WINDOW} inputs){}; the latest: {}",
+                        storm.held,
+                        if storm.captures.is_empty() {
+                            String::new()
+                        } else {
+                            format!(
+                                " for captures {}",
+                                storm
+                                    .captures
+                                    .iter()
+                                    .take(20)
+                                    .map(u64::to_string)
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            ) + if storm.captures.len() > 20 { ", …" } else { "" }
+                        },
+                        latest.message
+                    ),
+                )
+                .at(None, latest.t)
+                .with(json!({
+                    "aggregated": storm.held,
+                    "window_inputs": [first, now],
+                    "captures": storm.captures,
+                    "latest": latest,
+                }));
+                a.idx = None;
+                out.push(Output::Alarm(a));
+            }
+            *storm = Storm {
+                window_start: now,
+                ..Storm::default()
+            };
+        }
+        if all {
+            self.storms.clear();
+        }
     }
 
     /// Capture indices at or above this are garbage.
@@ -424,22 +543,96 @@ impl Engine {
     }
 
     fn request_resync(&mut self, out: &mut Vec<Output>) {
+        self.resync(out, false);
+    }
+
+    /// Send `RESYNC from=lowest unseen`, unless one is outstanding, the link is not ready, or
+    /// (without `now`) the same `from` was asked too recently: then it stays needed.
+    fn resync(&mut self, out: &mut Vec<Output>, now: bool) {
         if !self.connected || !self.subscribed || self.outstanding_resync.is_some() {
+            self.resync_needed = true;
+            return;
+        }
+        let from = self.lowest_unseen();
+        let repeats = match self.last_resync {
+            Some((f, n)) if f == from => n,
+            _ => 0,
+        };
+        let spacing = 1u64
+            .checked_shl(repeats)
+            .unwrap_or(u64::MAX)
+            .min(RESYNC_BACKOFF_MAX_LINES);
+        if !now && repeats > 0 && self.lines_since_resync < spacing {
             self.resync_needed = true;
             return;
         }
         self.resync_needed = false;
         self.gap_during_resync = false;
-        let from = self.lowest_unseen();
         let seq = self.send(out, "RESYNC", &[("from", from.to_string())]);
         self.outstanding_resync = Some(seq);
         self.resync_age = 0;
+        self.lines_since_resync = 0;
+        self.last_resync = Some((from, repeats.saturating_add(1).min(32)));
         self.stats.resyncs += 1;
+    }
+
+    /// A CAPTURE line for `idx` that cannot be accepted. The first time, the controller is asked
+    /// to send it again (it may have been garbled at the source); when it comes again just as
+    /// unacceptable, the capture is skipped with an alarm and checking goes on past it.
+    fn refuse_announcement(&mut self, out: &mut Vec<Output>, idx: Option<u64>, why: String) {
+        self.stats.framing_errors += 1;
+        let Some(i) = idx.filter(|i| *i < self.index_limit()) else {
+            self.alarm(
+                out,
+                Alarm::new(
+                    AlarmKind::Link,
+                    Severity::Warning,
+                    "bad-announcement",
+                    format!("a CAPTURE line was malformed and names no readable capture index ({why}); asking the controller again"),
+                ),
+            );
+            self.request_resync(out);
+            return;
+        };
+        if i < self.next_check || self.announced.contains_key(&i) {
+            return; // already have it: a stray bad copy changes nothing
+        }
+        let n = self.refused.entry(i).or_default();
+        *n += 1;
+        if *n == 1 {
+            self.alarm(
+                out,
+                Alarm::new(
+                    AlarmKind::Link,
+                    Severity::Warning,
+                    "bad-announcement",
+                    format!("the CAPTURE line for capture {i} was malformed ({why}); asking the controller to send it again"),
+                )
+                .at(Some(i), None),
+            );
+            self.request_resync(out);
+        } else if *n == 2 {
+            self.missing_announcements.insert(i);
+            self.alarm(
+                out,
+                Alarm::new(
+                    AlarmKind::CaptureQuality,
+                    Severity::Warning,
+                    "announcement-refused",
+                    format!("the controller sent the same malformed CAPTURE line for capture {i} again ({why}); capture {i} is skipped and checking goes on"),
+                )
+                .at(Some(i), None)
+                .with(json!({"idx": i, "reason": why})),
+            );
+            self.drain(out);
+        }
     }
 
     /// Feed one input; returns what to do, in order.
     pub fn handle(&mut self, input: &Input) -> Vec<Output> {
         let mut out = Vec::new();
+        self.inputs += 1;
+        self.flush_storms(&mut out, false);
         match input {
             Input::Connected => {
                 self.connected = true;
@@ -513,7 +706,7 @@ impl Engine {
                 if self.connected && !self.finished && !self.version_refused {
                     if self.subscribed {
                         self.outstanding_resync = None;
-                        self.request_resync(&mut out);
+                        self.resync(&mut out, true);
                     } else {
                         // the HELLO or its IDENT was lost: ask again
                         self.hello(&mut out);
@@ -572,6 +765,7 @@ impl Engine {
     fn rx(&mut self, out: &mut Vec<Output>, line: &str) {
         self.stats.lines += 1;
         self.stats.bytes += line.len() as u64 + 1;
+        self.lines_since_resync = self.lines_since_resync.saturating_add(1);
         // replayed CAPTURE lines are the answer arriving, not silence
         if self.outstanding_resync.is_some() && !line.contains(" replay=1") {
             self.resync_age += 1;
@@ -581,9 +775,9 @@ impl Engine {
                 self.resync_needed = true;
             }
         }
-        let m = match protocol::parse(line) {
-            Ok(m) => m,
-            Err(e) => {
+        let (seq, verb, parsed) = match protocol::parse_line(line) {
+            Ok(m) => (m.seq, m.verb.clone(), Ok(m)),
+            Err(protocol::LineError::Frame(e)) => {
                 if matches!(e, protocol::FrameError::BadCrc { .. }) {
                     self.stats.crc_errors += 1;
                 } else {
@@ -592,25 +786,44 @@ impl Engine {
                 self.note_crc(out, true, &e.to_string());
                 return;
             }
+            // intact on the wire: its sequence number counts, its content is refused below
+            Err(protocol::LineError::Content {
+                seq,
+                verb,
+                idx,
+                error,
+            }) => (seq, verb.clone(), Err((verb, idx, error))),
         };
         self.note_crc(out, false, "");
         // sequence check (an IDENT with seq 0 starts a new count: reboot or first contact)
-        let restart = m.verb == "IDENT" && m.seq == 0;
-        if let Some(e) = self.expect_seq {
-            if m.seq != e && !restart {
-                self.stats.sequence_gaps += 1;
-                if self.outstanding_resync.is_some() {
-                    self.gap_during_resync = true;
-                }
-                self.expect_seq = Some((m.seq + 1) % protocol::SEQ_MOD);
-                self.handle_message(out, &m);
-                self.request_resync(out);
-                return;
+        let restart = verb == "IDENT" && seq == 0;
+        let gap = self.expect_seq.is_some_and(|e| seq != e && !restart);
+        if gap {
+            self.stats.sequence_gaps += 1;
+            if self.outstanding_resync.is_some() {
+                self.gap_during_resync = true;
             }
         }
-        self.expect_seq = Some((m.seq + 1) % protocol::SEQ_MOD);
-        self.handle_message(out, &m);
-        if self.resync_needed && self.outstanding_resync.is_none() {
+        self.expect_seq = Some((seq + 1) % protocol::SEQ_MOD);
+        match parsed {
+            Ok(m) => self.handle_message(out, &m),
+            Err((verb, idx, error)) if verb == "CAPTURE" => {
+                self.refuse_announcement(out, idx, error.to_string())
+            }
+            Err((verb, _, error)) => {
+                self.stats.framing_errors += 1;
+                self.alarm(
+                    out,
+                    Alarm::new(
+                        AlarmKind::Link,
+                        Severity::Warning,
+                        "bad-line",
+                        format!("a {verb} line from the controller was intact but malformed ({error}); it is ignored"),
+                    ),
+                );
+            }
+        }
+        if gap || (self.resync_needed && self.outstanding_resync.is_none()) {
             self.request_resync(out);
         }
     }
@@ -708,7 +921,9 @@ impl Engine {
                     }
                     Some("fault") => {
                         let reason = m.get("reason").unwrap_or("no reason given").to_string();
-                        let t = m.get_f64("t");
+                        let t = m
+                            .get_f64("t")
+                            .filter(|t| (0.0..=MAX_CONTROLLER_T).contains(t));
                         self.alarm(
                             out,
                             Alarm::new(
@@ -726,24 +941,13 @@ impl Engine {
             "CAPTURE" => match announcement(m, self.index_limit()) {
                 Ok((idx, a)) => self.announce(out, idx, a),
                 Err(e) => {
-                    self.stats.framing_errors += 1;
-                    self.alarm(
-                        out,
-                        Alarm::new(
-                            AlarmKind::Link,
-                            Severity::Warning,
-                            "bad-announcement",
-                            format!(
-                                "a CAPTURE line was malformed ({e}): {}",
-                                m.fields
-                                    .iter()
-                                    .map(|(k, v)| format!("{k}={v}"))
-                                    .collect::<Vec<_>>()
-                                    .join(" ")
-                            ),
-                        ),
-                    );
-                    self.request_resync(out);
+                    let fields = m
+                        .fields
+                        .iter()
+                        .map(|(k, v)| format!("{k}={v}"))
+                        .collect::<Vec<_>>()
+                        .join(" ");
+                    self.refuse_announcement(out, m.get_u64("idx"), format!("{e}: {fields}"));
                 }
             },
             "POSE" | "ERR" => {}
@@ -946,6 +1150,7 @@ impl Engine {
             for al in res.alarms {
                 self.alarm(out, al);
             }
+            self.flush_storms(out, true);
             out.push(Output::Finished);
         }
     }

@@ -107,8 +107,55 @@ impl Message {
     }
 }
 
+/// Why a received line was not accepted.
+#[derive(Debug, Error, Clone, PartialEq, Eq)]
+pub enum LineError {
+    /// Not an intact line of the protocol (CRC, sequence number or verb unreadable): corrupted
+    /// on the wire, so nothing in it can be trusted and a resend may fix it.
+    #[error("{0}")]
+    Frame(FrameError),
+    /// The frame is intact (CRC, sequence number and verb check out) but a field is malformed:
+    /// the controller sent it so, and a resend repeats it. `idx` is the capture index when the
+    /// line names one that reads as a number.
+    #[error("line {seq} {verb} from the controller is malformed: {error}")]
+    Content {
+        seq: u32,
+        verb: String,
+        idx: Option<u64>,
+        error: FrameError,
+    },
+}
+
 /// Parse one line (without or with its CR LF).
 pub fn parse(line: &str) -> Result<Message, FrameError> {
+    parse_line(line).map_err(|e| match e {
+        LineError::Frame(f) => f,
+        LineError::Content { error, .. } => error,
+    })
+}
+
+/// Parse one line, telling a line corrupted on the wire from an intact line with bad content.
+pub fn parse_line(line: &str) -> Result<Message, LineError> {
+    let (seq, verb, rest) = frame(line).map_err(LineError::Frame)?;
+    let fields = parse_fields(rest).map_err(|error| LineError::Content {
+        seq,
+        verb: verb.to_string(),
+        idx: rest
+            .split(' ')
+            .find_map(|t| t.strip_prefix("idx="))
+            .and_then(|v| v.parse().ok()),
+        error,
+    })?;
+    Ok(Message {
+        seq,
+        verb: verb.to_string(),
+        fields,
+    })
+}
+
+/// Check a line's frame: length, characters, CRC, sequence number and verb. Returns them and
+/// the unparsed fields.
+fn frame(line: &str) -> Result<(u32, &str, &str), FrameError> {
     if line.len() + 1 > MAX_LINE {
         return Err(FrameError::TooLong);
     }
@@ -144,8 +191,21 @@ pub fn parse(line: &str) -> Result<Message, FrameError> {
         .next()
         .filter(|v| !v.is_empty())
         .ok_or(FrameError::MissingVerb)?;
+    // everything after the verb: empty, or a space and the fields
+    let rest = payload.get(seq_text.len() + 1 + verb.len()..).unwrap_or("");
+    Ok((seq, verb, rest))
+}
+
+/// The `key=value` fields after the verb.
+fn parse_fields(rest: &str) -> Result<Vec<(String, String)>, FrameError> {
     let mut fields: Vec<(String, String)> = Vec::new();
-    for tok in tokens {
+    if rest.is_empty() {
+        return Ok(fields);
+    }
+    let rest = rest
+        .strip_prefix(' ')
+        .ok_or_else(|| FrameError::BadField(rest.to_string()))?;
+    for tok in rest.split(' ') {
         let (k, v) = tok
             .split_once('=')
             .ok_or_else(|| FrameError::BadField(tok.to_string()))?;
@@ -157,11 +217,7 @@ pub fn parse(line: &str) -> Result<Message, FrameError> {
         }
         fields.push((k.to_string(), decode_value(v)?));
     }
-    Ok(Message {
-        seq,
-        verb: verb.to_string(),
-        fields,
-    })
+    Ok(fields)
 }
 
 /// Build one line, without the LF.
@@ -243,6 +299,8 @@ mod tests {
             (with_crc("1 HELLO a=1 a=2"), "dup"),
             (with_crc("1 HELLO f=%4"), "escape"),
             (with_crc("1 HELLO =3"), "empty key"),
+            (with_crc("1 HELLO "), "trailing space"),
+            (with_crc("1 HELLO  a=1"), "double space"),
             ("1 HEL\u{1}LO*0000".to_string(), "control"),
             ("1 HÉLLO*0000".to_string(), "non-ascii"),
             ("x".repeat(600), "long"),
@@ -255,6 +313,28 @@ mod tests {
         if lower != format(1, "POSE?", &[]) {
             assert!(parse(&lower).is_err());
         }
+    }
+
+    #[test]
+    fn an_intact_line_with_a_bad_field_is_told_from_a_corrupt_one() {
+        let with_crc = |p: &str| format!("{p}*{:04X}", crc16(p.as_bytes()));
+        assert_eq!(
+            parse_line(&with_crc("17 CAPTURE idx=42 file=a%ZZ.exr")),
+            Err(LineError::Content {
+                seq: 17,
+                verb: "CAPTURE".into(),
+                idx: Some(42),
+                error: FrameError::BadField("a%ZZ.exr".into())
+            })
+        );
+        assert!(matches!(
+            parse_line(&with_crc("17 CAPTURE idx=x4 file=%")),
+            Err(LineError::Content { idx: None, .. })
+        ));
+        assert!(matches!(
+            parse_line("17 CAPTURE idx=42 file=a%ZZ.exr*0000"),
+            Err(LineError::Frame(FrameError::BadCrc { .. }))
+        ));
     }
 
     #[test]

@@ -178,7 +178,12 @@ fn garbled_lines_are_counted_and_never_fatal() {
             ("enc", "1,2,3,4".into()),
         ],
     ));
-    assert!(alarms(&out).contains(&"bad-announcement".to_string()));
+    // the same capture malformed again after the resend: skipped, and checking goes on
+    assert!(
+        alarms(&out).contains(&"announcement-refused".to_string()),
+        "{:?}",
+        alarms(&out)
+    );
     // unknown verbs are counted and ignored
     e.handle(&c.line("FROB", &[]));
     assert_eq!(e.summary().link.unknown_verbs, 1);
@@ -614,4 +619,202 @@ fn probes_are_requested_only_when_enabled() {
             .replace("# entry = 19", "entry = 99999"),
     );
     assert!(bad.is_err_and(|e| e.to_string().contains("probes.entry")));
+}
+
+/// The RESYNCs an engine sent.
+fn resyncs(out: &[Output]) -> usize {
+    sent(out).iter().filter(|l| l.starts_with("RESYNC")).count()
+}
+
+/// A controller that answers every RESYNC by resending its capture log from `from`, where
+/// capture `bad` is an intact line (valid CRC) with a bad `%` escape in `file`.
+fn hostile_replay(e: &mut Engine, c: &mut Ctl, out: &[Output], bad: u64, next: u64) -> Vec<Output> {
+    let mut got = Vec::new();
+    for o in out {
+        let Output::Send(l) = o else { continue };
+        let m = parse(l).unwrap();
+        if m.verb != "RESYNC" {
+            continue;
+        }
+        let from = m.get_u64("from").unwrap();
+        for i in from..next {
+            let line = if i == bad {
+                let p = format!(
+                    "{} CAPTURE idx={i} entry={} file=s/cap_%ZZ.hdr t=7 cmd=0,90,-90,15 enc=0,90,-90,15 exp=x replay=1",
+                    c.seq,
+                    i + 1
+                );
+                c.seq += 1;
+                Input::Rx {
+                    line: format!("{p}*{:04X}", goniowatch::protocol::crc16(p.as_bytes())),
+                }
+            } else {
+                c.capture(i)
+            };
+            got.extend(e.handle(&line));
+        }
+        let ack = c.line(
+            "ACK",
+            &[
+                ("ref", m.seq.to_string()),
+                ("count", "0".into()),
+                ("next", next.to_string()),
+                ("state", "running".into()),
+            ],
+        );
+        got.extend(e.handle(&ack));
+    }
+    got
+}
+
+#[test]
+fn an_intact_but_unacceptable_capture_line_is_skipped_after_one_resend() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let out = connected(&mut e, &mut c);
+    let mut all = hostile_replay(&mut e, &mut c, &out, 1, 0);
+    // live traffic: capture 0, the bad capture 1, then captures 2..40
+    let mut next = 0;
+    for i in 0..40u64 {
+        next = i + 1;
+        let out = if i == 1 {
+            let p = format!(
+                "{} CAPTURE idx=1 entry=2 file=s/cap_%ZZ.hdr t=7 cmd=0,90,-90,15 enc=0,90,-90,15 exp=x",
+                c.seq
+            );
+            c.seq += 1;
+            e.handle(&Input::Rx {
+                line: format!("{p}*{:04X}", goniowatch::protocol::crc16(p.as_bytes())),
+            })
+        } else {
+            e.handle(&c.capture(i))
+        };
+        all.extend(out.clone());
+        // the controller answers each RESYNC at once, the bad line included
+        let mut pending = out;
+        for _ in 0..10 {
+            let got = hostile_replay(&mut e, &mut c, &pending, 1, next);
+            if got.is_empty() {
+                break;
+            }
+            all.extend(got.clone());
+            pending = got;
+        }
+    }
+    assert!(
+        resyncs(&all) <= 3,
+        "one resend is asked, not a loop: {} RESYNCs",
+        resyncs(&all)
+    );
+    let codes = alarms(&all);
+    assert_eq!(
+        codes.iter().filter(|c| *c == "bad-announcement").count(),
+        1,
+        "{codes:?}"
+    );
+    assert_eq!(
+        codes
+            .iter()
+            .filter(|c| *c == "announcement-refused")
+            .count(),
+        1,
+        "{codes:?}"
+    );
+    assert_eq!(
+        e.summary().link.sequence_gaps,
+        0,
+        "an intact line's seq counts"
+    );
+    // checking goes on past the skipped capture
+    for i in (0..40u64).filter(|i| *i != 1) {
+        e.handle(&Input::Outcome {
+            idx: i,
+            outcome: ok_outcome(),
+        });
+    }
+    assert_eq!(e.checked_through(), 40);
+}
+
+#[test]
+fn resyncs_for_the_same_capture_back_off() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let out = connected(&mut e, &mut c);
+    assert_eq!(resyncs(&out), 1);
+    // every ACK is lost and every line arrives after a sequence gap: without a backoff each
+    // line would ask again
+    let mut n = resyncs(&out);
+    for _ in 0..20_000 {
+        c.seq += 1; // a gap before every line
+        n += resyncs(&e.handle(&c.line("POSE", &[])));
+    }
+    assert!(
+        n < 40,
+        "{n} RESYNCs for 20,000 lines: the backoff bounds them"
+    );
+    assert!(n >= 10, "{n}: still asked now and then");
+    // the idle timer asks at once, whatever the backoff
+    assert_eq!(resyncs(&e.handle(&Input::Idle)), 1);
+}
+
+#[test]
+fn alarm_storms_are_aggregated_and_every_occurrence_is_counted() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    connected(&mut e, &mut c);
+    let mut out = Vec::new();
+    for _ in 0..10_000 {
+        let p = format!("{} POSE t=%ZZ", c.seq);
+        c.seq += 1;
+        out.extend(e.handle(&Input::Rx {
+            line: format!("{p}*{:04X}", goniowatch::protocol::crc16(p.as_bytes())),
+        }));
+    }
+    let emitted: Vec<&goniowatch::measure::alarm::Alarm> = out
+        .iter()
+        .filter_map(|o| match o {
+            Output::Alarm(a) if a.code == "bad-line" => Some(a),
+            _ => None,
+        })
+        .collect();
+    assert!(
+        emitted.len() <= 6 * (10_000 / 2000 + 1),
+        "{} bad-line alarms written for 10,000 lines",
+        emitted.len()
+    );
+    let held: u64 = emitted
+        .iter()
+        .filter_map(|a| a.evidence.get("aggregated").and_then(|v| v.as_u64()))
+        .sum();
+    let full = emitted
+        .iter()
+        .filter(|a| a.evidence.get("aggregated").is_none())
+        .count() as u64;
+    // what is written in full or as a count adds up to what was seen, but for the last window
+    // (2,000 inputs), which is still open
+    assert!(
+        full + held <= 10_000 && full + held >= 8_000,
+        "{full} + {held}"
+    );
+    assert_eq!(e.summary().alarms.get("link"), Some(&10_000));
+}
+
+#[test]
+fn absurd_controller_times_are_refused() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    connected(&mut e, &mut c);
+    for t in ["1e308", "-1e308", "-5"] {
+        let out = e.handle(&c.line(
+            "CAPTURE",
+            &[
+                ("idx", "0".into()),
+                ("entry", "1".into()),
+                ("file", "a.hdr".into()),
+                ("t", t.into()),
+                ("cmd", "0,90,-90,15".into()),
+                ("enc", "0,90,-90,15".into()),
+            ],
+        ));
+        assert!(
+            out.iter().all(|o| !matches!(o, Output::Ingest { .. })),
+            "t = {t} accepted"
+        );
+    }
 }
