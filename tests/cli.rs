@@ -158,3 +158,38 @@ fn bad_config_names_the_field_and_exits_2() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read config"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn average_refuses_a_fifo_at_once() {
+    let dir = std::env::temp_dir().join(format!("gw-cli-fifo-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let fifo = dir.join("cap.exr");
+    let _ = std::fs::remove_file(&fifo);
+    let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+    // SAFETY: a valid NUL-terminated path; mkfifo only creates a file system entry.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    let mut child = bin()
+        .args(["average", "--json"])
+        .arg(&fifo)
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // a guard against a hang, not a timing check: reading a FIFO with no writer never ends
+    let mut status = None;
+    for _ in 0..600 {
+        if let Some(s) = child.try_wait().unwrap() {
+            status = Some(s);
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    let Some(status) = status else {
+        child.kill().ok();
+        panic!("average hung on a FIFO");
+    };
+    let mut text = String::new();
+    std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut text).unwrap();
+    assert_eq!(status.code(), Some(1), "{text}");
+    assert!(text.contains("FIFO"), "{text}");
+    std::fs::remove_dir_all(&dir).ok();
+}

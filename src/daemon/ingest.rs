@@ -289,17 +289,24 @@ fn hex(b: &[u8]) -> String {
     b.iter().map(|x| format!("{x:02x}")).collect()
 }
 
-/// Whether a file read at `stamp` has stopped changing: last modified at least `settle` ago,
-/// or seen with the same size and modification time at least `settle` ago.
-fn settled(stamp: &FileStamp, settle: Duration, earlier: Option<(FileStamp, Instant)>) -> bool {
+/// Whether a file read at `stamp` has stopped changing: last modified at least `settle` before
+/// `now`, or seen with the same size and modification time at least `settle` ago (`earlier`:
+/// the stamp and how long ago it was seen). A modification time in the future (a clock that
+/// differs from the camera PC's) only counts through the second rule.
+fn settled(
+    stamp: &FileStamp,
+    settle: Duration,
+    now: std::time::SystemTime,
+    earlier: Option<(FileStamp, Duration)>,
+) -> bool {
     if settle.is_zero() {
         return true;
     }
     let old_enough = stamp
         .modified
-        .and_then(|m| std::time::SystemTime::now().duration_since(m).ok())
+        .and_then(|m| now.duration_since(m).ok())
         .is_some_and(|age| age >= settle);
-    let unchanged = earlier.is_some_and(|(s, at)| s == *stamp && at.elapsed() >= settle);
+    let unchanged = earlier.is_some_and(|(s, ago)| s == *stamp && ago >= settle);
     old_enough || unchanged
 }
 
@@ -333,7 +340,8 @@ pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions)
         }
         let wait = match measure_file_stamped(root, &path, opts, &limits) {
             Ok((o, stamp)) => {
-                if settled(&stamp, settle, first_seen) {
+                let earlier = first_seen.map(|(s, at)| (s, at.elapsed()));
+                if settled(&stamp, settle, std::time::SystemTime::now(), earlier) {
                     return o;
                 }
                 if start.elapsed() >= give_up {
@@ -467,6 +475,128 @@ mod tests {
         ));
         assert!(matches!(resolve(&root, ".."), Err(PathError::ParentDir(_))));
         assert!(resolve(&root, "demo/./cap_0.hdr").is_ok());
+    }
+
+    fn scratch(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("gw-ingest-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn valid_hdr() -> Vec<u8> {
+        std::fs::read(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/reference/images/valid/scale.hdr"
+        ))
+        .unwrap()
+    }
+
+    #[test]
+    fn a_fifo_or_a_directory_is_refused_at_once_not_waited_on() {
+        let root = scratch("fifo");
+        let fifo = root.join("cap.hdr");
+        let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        // SAFETY: a valid NUL-terminated path; mkfifo only creates a file system entry.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        std::fs::create_dir(root.join("dir.hdr")).unwrap();
+        for (name, what) in [("cap.hdr", "FIFO"), ("dir.hdr", "directory")] {
+            let r = measure_file(
+                &root,
+                &root.join(name),
+                &AverageOptions::default(),
+                &DecodeLimits::default(),
+            );
+            assert!(
+                matches!(&r, Err(e) if e.permanent && e.reason.contains(what)),
+                "{r:?}"
+            );
+            // the retry loop gives up at once on a permanent refusal (give_up_s would be a day)
+            let spec = IngestSpec {
+                give_up_s: MAX_GIVE_UP_S,
+                ..IngestSpec::default()
+            };
+            let o = ingest(&root, name, &spec, &AverageOptions::default());
+            assert!(
+                matches!(&o, Outcome::Failed { error } if error.contains(what)),
+                "{o:?}"
+            );
+        }
+        std::fs::remove_dir_all(&root).ok();
+    }
+
+    #[test]
+    fn settling_needs_an_old_enough_or_an_unchanged_stamp() {
+        let now = std::time::SystemTime::UNIX_EPOCH + Duration::from_secs(1_000_000);
+        let stamp = |size, ago_ms: i64| FileStamp {
+            size,
+            modified: Some(if ago_ms >= 0 {
+                now - Duration::from_millis(ago_ms as u64)
+            } else {
+                now + Duration::from_millis((-ago_ms) as u64)
+            }),
+        };
+        let settle = Duration::from_millis(500);
+        assert!(settled(&stamp(10, 0), Duration::ZERO, now, None));
+        assert!(settled(&stamp(10, 600), settle, now, None));
+        assert!(!settled(&stamp(10, 100), settle, now, None));
+        // a future modification time (another clock) only settles by being seen unchanged
+        assert!(!settled(&stamp(10, -3_600_000), settle, now, None));
+        let seen = Some((stamp(10, -3_600_000), Duration::from_millis(700)));
+        assert!(settled(&stamp(10, -3_600_000), settle, now, seen));
+        // seen before, but at another size: still changing
+        let seen = Some((stamp(9, -3_600_000), Duration::from_millis(700)));
+        assert!(!settled(&stamp(10, -3_600_000), settle, now, seen));
+        let seen = Some((stamp(10, 100), Duration::from_millis(300)));
+        assert!(!settled(&stamp(10, 100), settle, now, seen));
+    }
+
+    #[test]
+    fn a_file_that_keeps_growing_is_never_accepted() {
+        let root = scratch("grow");
+        let path = root.join("cap.hdr");
+        std::fs::write(&path, valid_hdr()).unwrap();
+        // a writer that keeps appending to a file that already decodes
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let writer = {
+            let (stop, path) = (stop.clone(), path.clone());
+            std::thread::spawn(move || {
+                use std::io::Write;
+                let mut f = std::fs::OpenOptions::new()
+                    .append(true)
+                    .open(&path)
+                    .unwrap();
+                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    f.write_all(&[0u8; 16]).unwrap();
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+            })
+        };
+        // settle (10 s) longer than give_up (1 s): only a file modified 10 s ago could pass
+        let spec = IngestSpec {
+            settle_ms: 10_000,
+            give_up_s: 1.0,
+            ..IngestSpec::default()
+        };
+        let o = ingest(&root, "cap.hdr", &spec, &AverageOptions::default());
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        writer.join().unwrap();
+        assert!(
+            matches!(&o, Outcome::Failed { error } if error.contains("kept changing")),
+            "{o:?}"
+        );
+        // once it has stopped changing, it is accepted whole
+        let size = std::fs::metadata(&path).unwrap().len();
+        let spec = IngestSpec {
+            settle_ms: 200,
+            ..IngestSpec::default()
+        };
+        let o = ingest(&root, "cap.hdr", &spec, &AverageOptions::default());
+        assert!(
+            matches!(&o, Outcome::Ok { size: s, .. } if *s == size),
+            "{o:?}"
+        );
+        std::fs::remove_dir_all(&root).ok();
     }
 
     #[test]
