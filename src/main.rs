@@ -172,10 +172,13 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
-            // usage and configuration problems are 2, anything else at run time is 3
+            // usage, configuration and malformed input files named on the command line are 2;
+            // anything else at run time is 3
             let usage = e.chain().any(|c| {
                 c.downcast_ref::<goniowatch::config::ConfigError>()
                     .is_some()
+                    || c.downcast_ref::<goniowatch::reference::ReferenceError>()
+                        .is_some()
                     || c.downcast_ref::<UsageError>().is_some()
             });
             ExitCode::from(if usage { 2 } else { 3 })

@@ -35,6 +35,7 @@ fn read_jsonl<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Vec<T>> {
         Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
     };
     let mut out = Vec::new();
+    let last = text.lines().count();
     for (n, line) in text.lines().enumerate() {
         if line.trim().is_empty() {
             continue;
@@ -42,7 +43,7 @@ fn read_jsonl<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Vec<T>> {
         match serde_json::from_str(line) {
             Ok(v) => out.push(v),
             // a torn last line (a crash mid-write) is left out, as recovery would cut it
-            Err(_) if n + 1 == text.lines().count() => {}
+            Err(_) if n + 1 == last => {}
             Err(e) => return Err(e).with_context(|| format!("{} line {}", path.display(), n + 1)),
         }
     }
@@ -83,6 +84,11 @@ pub fn load(dir: &Path) -> Result<ReportInputs> {
         },
         crossval,
     })
+}
+
+/// Every alarm raised, as the summary counts them (repeats included, with or without a capture).
+fn alarm_total(inp: &ReportInputs) -> u64 {
+    inp.summary.alarms.values().sum()
 }
 
 fn esc(s: &str) -> String {
@@ -682,7 +688,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
 
     // summary
     let _ = write!(h, "<h2>Summary</h2><table><tr><td>captures checked</td><td>{}</td></tr><tr><td>usable</td><td>{}</td></tr><tr><td>failed</td><td>{}</td></tr><tr><td>missing</td><td>{}</td></tr><tr><td>drift probes</td><td>{}</td></tr><tr><td>exact reciprocal pairs</td><td>{}</td></tr><tr><td>occlusion substitutes vs interpolated partner</td><td>{} ({} unresolved)</td></tr><tr><td>pairs needing resampling / grazing</td><td>{} / {}</td></tr><tr><td>isotropy comparisons</td><td>{}</td></tr><tr><td>alarms</td><td>{}</td></tr></table>",
-        c.captures, c.ok, c.failed, c.missing, c.probes, c.pairs_exact, c.pairs_interpolated, c.pairs_unresolved, c.pairs_needs_resampling, c.pairs_grazing, c.isotropy_comparisons, c.alarms);
+        c.captures, c.ok, c.failed, c.missing, c.probes, c.pairs_exact, c.pairs_interpolated, c.pairs_unresolved, c.pairs_needs_resampling, c.pairs_grazing, c.isotropy_comparisons, alarm_total(inp));
 
     let _ = write!(h, "<h2>Reciprocity (the paper's Table 2)</h2><p class=muted>Means over pairs after the cosine re-correction; XYZ on the configured scale, L*a*b* under the configured white.</p>");
     let mut sets: Vec<(&str, &Table2)> = vec![("exact reciprocal pairs", &s.table2)];
@@ -746,7 +752,15 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
     let _ = write!(h, "<h2>Link</h2><table><tr><td>lines received</td><td>{}</td></tr><tr><td>CRC errors</td><td>{}</td></tr><tr><td>framing errors</td><td>{}</td></tr><tr><td>sequence gaps</td><td>{}</td></tr><tr><td>port opened / lost</td><td>{} / {}</td></tr><tr><td>controller reboots</td><td>{}</td></tr><tr><td>resyncs</td><td>{}</td></tr><tr><td>daemon restarts</td><td>{}</td></tr></table>",
         l.lines, l.crc_errors, l.framing_errors, l.sequence_gaps, l.connects, l.disconnects, l.reboots, l.resyncs, l.restarts);
 
-    let _ = write!(h, "<h2>Alarms ({})</h2>", inp.alarms.len());
+    let total = alarm_total(inp);
+    let _ = write!(h, "<h2>Alarms ({total})</h2>");
+    if total > inp.alarms.len() as u64 {
+        let _ = write!(
+            h,
+            "<p class=muted>{total} alarms were raised; repeats of one kind beyond five in a short span are written as one line with their count, so alarms.jsonl has {} lines.</p>",
+            inp.alarms.len()
+        );
+    }
     if inp.alarms.is_empty() {
         h.push_str("<p>None.</p>");
     } else {

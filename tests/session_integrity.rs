@@ -95,6 +95,11 @@ fn make_session(base: &Path) -> PathBuf {
             ],
         ));
     }
+    // a link blip: two alarms without a capture index
+    inputs.push(Input::Disconnected {
+        reason: "EIO".into(),
+    });
+    inputs.push(Input::Connected);
     for i in 0..CAPTURES {
         let p = root.join(format!("s/cap_{i}.img"));
         let outcome =
@@ -273,4 +278,65 @@ fn a_changed_digit_in_a_journaled_measurement_is_refused() {
         "\"mean_rgb\":[157.",
         "\"mean_rgb\":[158.",
     );
+}
+
+#[test]
+fn compare_refuses_a_malformed_reference_as_bad_input() {
+    let base = scratch("badref");
+    let dir = make_session(&base);
+    let reference = base.join("bad.ref");
+    std::fs::write(&reference, "this is not a reference file\n1 2 3\n").unwrap();
+    let r = bin()
+        .arg("compare")
+        .arg(&dir)
+        .arg(&reference)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("invalid reference") && err.contains("line"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&base).ok();
+}
+
+#[test]
+fn the_report_counts_every_alarm_the_summary_counts() {
+    let base = scratch("report");
+    let dir = make_session(&base);
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("summary.json")).unwrap()).unwrap();
+    let total: u64 = summary["alarms"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    let lines = std::fs::read_to_string(dir.join("alarms.jsonl"))
+        .unwrap()
+        .lines()
+        .count() as u64;
+    assert!(total >= 2 && total == lines, "{total} vs {lines}");
+    let out = base.join("report");
+    let r = bin()
+        .arg("report")
+        .arg(&dir)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(
+        r.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(
+        html.contains(&format!("<td>alarms</td><td>{total}</td>")),
+        "summary table"
+    );
+    assert!(html.contains(&format!("<h2>Alarms ({total})</h2>")));
+    std::fs::remove_dir_all(&base).ok();
 }

@@ -309,8 +309,8 @@ pub fn metrics(s: &Snapshot) -> String {
     );
     g(
         "alarms_total",
-        "Alarms raised in this session.",
-        c.alarms as f64,
+        "Alarms raised in this session (every occurrence, repeats included).",
+        s.summary.alarms.values().sum::<u64>() as f64,
     );
     g(
         "link_lines",
