@@ -18,7 +18,10 @@ def test_probes_catch_a_lamp_step_and_stay_quiet_without_one(hil, tmp_path):
     assert len(probes) >= 10, len(probes)
     steps = [a for a in read_jsonl(session / "alarms.jsonl") if a["code"] == "gain-step"]
     assert len(steps) == 1 and steps[0]["evidence"]["direction"] == -1
-    assert 200 <= steps[0]["idx"] <= 200 + 25 + len(probes), steps[0]
+    # judged in probes, which the daemon controls, not in capture indices: how many captures
+    # pass before the rig takes a requested probe depends on how busy the machine is
+    after_onset = [p for p in probes if 200 <= p["idx"] <= steps[0]["idx"]]
+    assert 1 <= len(after_onset) <= 2, (steps[0], [p["idx"] for p in probes])
     assert "gain drift from probes" in out
     assert_replay_identical(session, tmp_path)
 
