@@ -70,6 +70,22 @@ def test_capture_faults(hil, tmp_path):
     assert_replay_identical(session, tmp_path)
 
 
+def test_an_unacceptable_announcement_is_skipped_after_one_resend(hil, tmp_path):
+    needs_simulator()
+    rig = hil("badann", [{"kind": "malformed-announcement", "at_capture": 30}], captures=120, speed=7.0 / 0.02)
+    session = tmp_path / "badann-session"
+    code, out, err = run_daemon(rig, session, daemon_config(tmp_path, "badann"), timeout=180)
+    assert code == 0, out + err[-3000:]
+    caps = {c["idx"] for c in read_jsonl(session / "captures.jsonl")}
+    assert caps == set(range(120)) - {30}, "checking went on past the skipped capture"
+    al = alarms_by_code(session)
+    assert [a["idx"] for a in al["announcement-refused"]] == [30], al.keys()
+    s = json.load(open(session / "summary.json"))
+    # one resend asked for, not a loop (the handshake and the idle timer ask a few more)
+    assert s["link"]["resyncs"] <= 6, s["link"]
+    assert_replay_identical(session, tmp_path)
+
+
 def test_link_faults(hil, tmp_path):
     needs_simulator()
     faults = [

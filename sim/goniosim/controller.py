@@ -268,6 +268,9 @@ class Controller:
             fields["sub"] = f"{sub:.4f}"
         if probe:
             fields["probe"] = 1
+        if "malformed-announcement" in kinds:
+            # an intact line (valid CRC) with a bad percent escape, live and in every resend
+            fields["file"] = P.Raw(P.encode_value(rel) + "%ZZ")
         self.captures.append(CaptureRecord(idx, entry, fields))
         announced = dict(fields)
         if "duplicate-index" in kinds and idx > 0:

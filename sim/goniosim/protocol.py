@@ -63,11 +63,15 @@ class Message:
         return self.fields.get(key, default)
 
 
+class Raw(str):
+    """A field value sent exactly as given, not percent-encoded (to inject malformed fields)."""
+
+
 def frame(seq: int, verb: str, fields: dict[str, object] | None = None) -> bytes:
-    """Build one line (with the LF). Values are str()'d and percent-encoded."""
+    """Build one line (with the LF). Values are str()'d and percent-encoded, except `Raw` ones."""
     parts = [str(seq % SEQ_MOD), verb]
     for k, v in (fields or {}).items():
-        parts.append(f"{k}={encode_value(str(v))}")
+        parts.append(f"{k}={v if isinstance(v, Raw) else encode_value(str(v))}")
     payload = " ".join(parts)
     line = f"{payload}*{crc16_ccitt_false(payload.encode('ascii')):04X}\n".encode("ascii")
     if len(line) > MAX_LINE:

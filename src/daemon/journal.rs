@@ -428,6 +428,21 @@ mod tests {
     }
 
     #[test]
+    fn a_full_disk_names_the_file() {
+        let full = Path::new("/dev/full");
+        if !full.exists() {
+            return;
+        }
+        let mut f = JsonlFile::append(full).unwrap();
+        let e = f
+            .write_entry(&entries()[0])
+            .and_then(|_| f.sync())
+            .unwrap_err();
+        let msg = format!("{e:#}");
+        assert!(msg.contains("/dev/full") && msg.contains("space"), "{msg}");
+    }
+
+    #[test]
     fn entries_round_trip_with_their_checksums() {
         let p = temp("rt");
         let bytes = write(&p, &entries());
