@@ -673,9 +673,8 @@ fn an_intact_but_unacceptable_capture_line_is_skipped_after_one_resend() {
     let out = connected(&mut e, &mut c);
     let mut all = hostile_replay(&mut e, &mut c, &out, 1, 0);
     // live traffic: capture 0, the bad capture 1, then captures 2..40
-    let mut next = 0;
     for i in 0..40u64 {
-        next = i + 1;
+        let next = i + 1;
         let out = if i == 1 {
             let p = format!(
                 "{} CAPTURE idx=1 entry=2 file=s/cap_%ZZ.hdr t=7 cmd=0,90,-90,15 enc=0,90,-90,15 exp=x",
