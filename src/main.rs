@@ -77,6 +77,10 @@ enum Command {
         /// capture set that moved).
         #[arg(long)]
         capture_root: Option<PathBuf>,
+        /// Take capture outcomes as journaled instead of measuring the files again (the
+        /// captures need not exist; checks only the journal's path through the engine).
+        #[arg(long)]
+        recorded_outcomes: bool,
         #[arg(long)]
         quiet: bool,
     },
@@ -266,17 +270,21 @@ fn run(cli: Cli) -> Result<ExitCode> {
             speed,
             workers,
             capture_root,
+            recorded_outcomes,
             quiet,
         } => {
-            use goniowatch::daemon::replay::replay;
+            use goniowatch::daemon::replay::{replay, ReplayOptions};
             use goniowatch::daemon::run::print_summary;
             let r = replay(
                 &session,
-                out_dir.as_deref(),
-                speed,
-                workers as usize,
-                !quiet,
-                capture_root.as_deref(),
+                &ReplayOptions {
+                    out: out_dir,
+                    speed,
+                    workers: workers as usize,
+                    progress: !quiet,
+                    capture_root,
+                    recorded_outcomes,
+                },
             )?;
             print_summary(&r.summary, &mut out)?;
             writeln!(

@@ -50,16 +50,45 @@ pub struct ReplayReport {
     pub summary: Summary,
 }
 
-pub fn replay(
-    session_dir: &Path,
-    out: Option<&Path>,
-    speed: Speed,
-    workers: usize,
-    progress: bool,
-    capture_root: Option<&Path>,
-) -> Result<ReplayReport> {
+/// How to replay.
+#[derive(Debug, Clone)]
+pub struct ReplayOptions {
+    /// Where the result files go (default: SESSION/replay).
+    pub out: Option<PathBuf>,
+    pub speed: Speed,
+    /// Decoding threads.
+    pub workers: usize,
+    /// Draw a progress bar (when stderr is a terminal).
+    pub progress: bool,
+    /// Read the captures from here instead of the session's capture root.
+    pub capture_root: Option<PathBuf>,
+    /// Take every capture outcome as journaled instead of measuring the file again (the
+    /// captures need not exist; the results are then a function of the journal alone).
+    pub recorded_outcomes: bool,
+}
+
+impl Default for ReplayOptions {
+    fn default() -> Self {
+        ReplayOptions {
+            out: None,
+            speed: Speed::Max,
+            workers: 2,
+            progress: false,
+            capture_root: None,
+            recorded_outcomes: false,
+        }
+    }
+}
+
+pub fn replay(session_dir: &Path, options: &ReplayOptions) -> Result<ReplayReport> {
+    let (out, speed, workers, progress) = (
+        options.out.as_deref(),
+        options.speed,
+        options.workers,
+        options.progress,
+    );
     let mut session = Session::open_read_only(session_dir)?;
-    if let Some(c) = capture_root {
+    if let Some(c) = &options.capture_root {
         session.info.capture_root = c.to_path_buf();
     } else if session.info.capture_root.is_relative() {
         tracing::warn!(
@@ -101,8 +130,10 @@ pub fn replay(
         );
     }
 
-    // the captures to measure again, in journal order
-    let jobs: Vec<(usize, String)> = {
+    // the captures to measure again, in journal order (none when outcomes are taken as recorded)
+    let jobs: Vec<(usize, String)> = if options.recorded_outcomes {
+        Vec::new()
+    } else {
         let mut files: HashMap<u64, String> = HashMap::new();
         for (_, i) in &all {
             if let Input::Rx { line } = i {
@@ -131,7 +162,7 @@ pub fn replay(
     let (job_tx, job_rx) = crossbeam_channel::bounded::<(usize, String)>(workers.max(1) * 4);
     let (res_tx, res_rx) = crossbeam_channel::unbounded::<(usize, Result<Outcome, String>)>();
     let root = session.info.capture_root.clone();
-    let opts = session.config.capture;
+    let average_opts = session.config.capture;
     let limits = DecodeLimits {
         threads: 1,
         ..session.config.ingest.decode_limits()
@@ -143,7 +174,7 @@ pub fn replay(
             while let Ok((n, file)) = rx.recv() {
                 let r = resolve(&root, &file)
                     .map_err(|e| e.to_string())
-                    .and_then(|p| measure_file(&root, &p, &opts, &limits).map_err(|e| e.reason));
+                    .and_then(|p| measure_file(&root, &p, &average_opts, &limits).map_err(|e| e.reason));
                 if tx.send((n, r)).is_err() {
                     return;
                 }
@@ -187,7 +218,7 @@ pub fn replay(
             Input::Outcome {
                 idx,
                 outcome: recorded @ Outcome::Ok { .. },
-            } => {
+            } if !options.recorded_outcomes => {
                 let got = loop {
                     if let Some(r) = ready.remove(&n) {
                         break Some(r);
