@@ -35,6 +35,7 @@
 //! approximation) so that a whole 3,240-pair run raises a false alarm in at most 1 of
 //! `false_alarm_runs` runs.
 
+use super::stats::{cusum_threshold, robust_scale_upper};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -86,25 +87,6 @@ impl Default for DriftSpec {
 /// A bucket's effect must rest on this many pairs before its new pairs feed the CUSUM.
 const MIN_BUCKET_PAIRS: usize = 8;
 
-/// Siegmund's approximation of the in-control average run length of a one-sided CUSUM with
-/// reference k and threshold h (both in standard deviations).
-pub fn cusum_arl0(k: f64, h: f64) -> f64 {
-    let a = 2.0 * k * (h + 1.166);
-    if k.abs() < 1e-12 {
-        return (h + 1.166).powi(2);
-    }
-    ((a).exp() - a - 1.0) / (2.0 * k * k)
-}
-
-/// The smallest threshold h (to 0.01) whose two-sided ARL₀ reaches `target` observations.
-pub fn cusum_threshold(k: f64, target: f64) -> f64 {
-    let mut h = 0.5;
-    while cusum_arl0(k, h) / 2.0 < target && h < 50.0 {
-        h += 0.01;
-    }
-    h
-}
-
 /// One observation: a pair's log luminance ratio between its two capture times.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PairObservation {
@@ -144,9 +126,7 @@ fn prior_weight(scale: f64, o: &PairObservation) -> f64 {
 /// One IRLS reweighting: the residuals' robust scale (MAD), then Huber weights (c = 1.345 of
 /// it) times each observation's prior weight. Returns the scale.
 fn huber_reweight(res: &[f64], obs: &[PairObservation], w: &mut [f64]) -> f64 {
-    let mut abs: Vec<f64> = res.iter().map(|x| x.abs()).collect();
-    abs.sort_by(f64::total_cmp);
-    let mut scale = 1.4826 * abs[abs.len() / 2];
+    let mut scale = robust_scale_upper(res);
     if !(scale > 0.0) {
         scale = 1e-9;
     }
@@ -164,10 +144,7 @@ fn bucket_scales(obs: &[PairObservation], res: &[f64]) -> BTreeMap<(i64, i64), f
         per.entry(o.bucket).or_default().push(e.abs());
     }
     per.into_iter()
-        .map(|(k, mut v)| {
-            v.sort_by(f64::total_cmp);
-            (k, 1.4826 * v[v.len() / 2])
-        })
+        .map(|(k, v)| (k, robust_scale_upper(&v)))
         .collect()
 }
 
@@ -700,6 +677,7 @@ mod tests {
     #[test]
     fn threshold_design_meets_the_false_alarm_budget() {
         let h = cusum_threshold(0.5, 20.0 * 3240.0);
+        use crate::measure::stats::cusum_arl0;
         assert!(cusum_arl0(0.5, h) / 2.0 >= 64_800.0);
         assert!(cusum_arl0(0.5, h - 0.02) / 2.0 < 64_800.0);
         assert!(h > 9.0 && h < 11.0, "{h}");

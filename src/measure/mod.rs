@@ -18,4 +18,5 @@ pub mod probes;
 pub mod reciprocity;
 pub mod resample;
 pub mod shepard;
+pub mod stats;
 pub mod sweeps;

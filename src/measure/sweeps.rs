@@ -27,7 +27,7 @@
 //! θi layer, kind and sign.
 
 use super::alarm::{Alarm, AlarmKind, Severity};
-use super::drift::cusum_threshold;
+use super::stats::{cusum_threshold, robust_scale_about_zero, Cusum};
 use super::geometry::Vec3;
 use super::kinematics::{Pose, Rig};
 use super::resample::{LayeredResampler, ResampleSpec, Sample};
@@ -135,45 +135,6 @@ pub struct SweepRecord {
     pub model_builds: usize,
 }
 
-#[derive(Debug, Clone, Default)]
-struct Cusum {
-    up: f64,
-    down: f64,
-    /// Sum of the estimates and count since each side last left zero.
-    up_run: (f64, f64, usize, u64),
-    down_run: (f64, f64, usize, u64),
-}
-
-impl Cusum {
-    /// Feed a standardised statistic with its raw estimate; `start` names the sweep.
-    fn add(&mut self, z: f64, k: f64, estimate: f64, se: f64, start: u64) {
-        let up = (self.up + z - k).max(0.0);
-        let down = (self.down - z - k).max(0.0);
-        let grow = |prev: f64, now: f64, run: &mut (f64, f64, usize, u64)| {
-            if now == 0.0 {
-                *run = (0.0, 0.0, 0, 0);
-            } else {
-                if prev == 0.0 {
-                    *run = (0.0, 0.0, 0, start);
-                }
-                run.0 += estimate;
-                run.1 += se * se;
-                run.2 += 1;
-            }
-        };
-        grow(self.up, up, &mut self.up_run);
-        grow(self.down, down, &mut self.down_run);
-        self.up = up;
-        self.down = down;
-    }
-    fn max(&self) -> f64 {
-        self.up.max(self.down)
-    }
-    fn reset(&mut self) {
-        *self = Cusum::default();
-    }
-}
-
 /// The sweep checks of one session.
 pub struct SweepMonitor {
     spec: SweepSpec,
@@ -222,22 +183,6 @@ pub struct SweepSummary {
     pub last: Option<SweepRecord>,
 }
 
-/// Robust scale about zero: 1.4826 · median |x|.
-fn robust_scale(v: &[f64]) -> f64 {
-    let mut a: Vec<f64> = v.iter().map(|x| x.abs()).collect();
-    a.sort_by(f64::total_cmp);
-    let n = a.len();
-    if n == 0 {
-        return f64::NAN;
-    }
-    let med = if n % 2 == 1 {
-        a[n / 2]
-    } else {
-        0.5 * (a[n / 2 - 1] + a[n / 2])
-    };
-    1.4826 * med
-}
-
 /// The in-control history a statistic is scaled by. A value seen while its CUSUM has a run
 /// under way is held back, so the sweeps of a developing fault do not inflate the scale they are
 /// judged by; the held values join the history when the run dies out, are dropped when it ends
@@ -256,7 +201,7 @@ impl ScaleHistory {
     }
 
     fn scale(&self) -> f64 {
-        robust_scale(&self.values)
+        robust_scale_about_zero(&self.values)
     }
 
     /// Records `v` after its CUSUM was updated: `active` when the CUSUM is above zero after it,
@@ -550,7 +495,7 @@ impl SweepMonitor {
         let caps: Vec<f64> = (0..2)
             .map(|j| {
                 let v: Vec<f64> = rows.iter().map(|r| r.1[j]).collect();
-                let cap = LEVERAGE_CAP * robust_scale(&v);
+                let cap = LEVERAGE_CAP * robust_scale_about_zero(&v);
                 // most sensitivities exactly 0 (or none): no cap rather than a cap at 0
                 if cap > 0.0 {
                     cap
@@ -592,7 +537,7 @@ impl SweepMonitor {
                 None
             };
             beta = b;
-            let cut = TRIM_SCALES * robust_scale(resid.as_slice());
+            let cut = TRIM_SCALES * robust_scale_about_zero(resid.as_slice());
             if !(cut > 0.0) || resid.iter().all(|r| r.abs() <= cut) {
                 break;
             }
@@ -641,7 +586,7 @@ impl SweepMonitor {
                 self.level_cusum.add(z, k, level, scale, last_idx);
                 let cs = &self.level_cusum;
                 for (sign, stat, run) in [(1i8, cs.up, cs.up_run), (-1i8, cs.down, cs.down_run)] {
-                    let mean = if run.2 > 0 { run.0 / run.2 as f64 } else { 0.0 };
+                    let mean = if run.n > 0 { run.sum / run.n as f64 } else { 0.0 };
                     if stat > self.h_level
                         && 100.0 * f64::from(sign) * mean >= self.spec.level_tolerance_pct
                         && self.latched.insert((0, sign, layer))
@@ -655,15 +600,15 @@ impl SweepMonitor {
                                     "the gain level stepped {} by about {:+.2} %: light sweep {light} (captures up to {last_idx}) and the {} before it sit off the earlier sweeps of θi = {}° (CUSUM {stat:.1} > {:.1}; from isotropy classes, no probes)",
                                     if sign > 0 { "up" } else { "down" },
                                     100.0 * mean,
-                                    run.2.saturating_sub(1),
+                                    run.n.saturating_sub(1),
                                     layer as f64 / 1000.0,
                                     self.h_level
                                 ),
                             )
                             .at(at.0, at.1)
-                            .with(json!({"source": "light sweeps", "level_pct": 100.0 * mean, "sweeps": run.2, "since_idx": run.3, "since_t": self.sweep_start(run.3), "statistic": stat, "threshold": self.h_level})),
+                            .with(json!({"source": "light sweeps", "level_pct": 100.0 * mean, "sweeps": run.n, "since_idx": run.start, "since_t": self.sweep_start(run.start), "statistic": stat, "threshold": self.h_level})),
                         );
-                        step_at_s = self.sweep_start(run.3);
+                        step_at_s = self.sweep_start(run.start);
                         self.level_cusum.reset();
                         alarmed = true;
                         level_alarm = true;
@@ -704,16 +649,16 @@ impl SweepMonitor {
                     let cs = &self.joint_cusum[j];
                     for (sign, stat, run) in [(1.0, cs.up, cs.up_run), (-1.0, cs.down, cs.down_run)]
                     {
-                        if run.2 == 0 {
+                        if run.n == 0 {
                             continue;
                         }
-                        let mean = run.0 / run.2 as f64;
-                        let mean_se = run.1.sqrt() / run.2 as f64;
+                        let mean = run.sum / run.n as f64;
+                        let mean_se = run.var.sqrt() / run.n as f64;
                         if stat > self.h_joint
                             && sign * mean >= self.spec.joint_tolerance_deg
                             && crossing.is_none_or(|c| stat > c.1)
                         {
-                            crossing = Some((j, stat, mean, mean_se, run.2, run.3));
+                            crossing = Some((j, stat, mean, mean_se, run.n, run.start));
                         }
                     }
                     fit.cusum = cs.max();
@@ -784,27 +729,6 @@ impl SweepMonitor {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn robust_scale_is_the_mad_about_zero() {
-        assert!((robust_scale(&[1.0, -2.0, 3.0]) - 1.4826 * 2.0).abs() < 1e-12);
-        assert!(robust_scale(&[]).is_nan());
-    }
-
-    #[test]
-    fn cusum_tracks_the_run_behind_each_side() {
-        let mut c = Cusum::default();
-        c.add(3.0, 1.0, 0.5, 0.1, 7);
-        c.add(3.0, 1.0, 0.7, 0.1, 8);
-        assert!((c.up - 4.0).abs() < 1e-12);
-        assert_eq!(c.up_run.2, 2);
-        assert_eq!(c.up_run.3, 7);
-        assert!((c.up_run.0 - 1.2).abs() < 1e-12);
-        c.add(-4.0, 1.0, -0.1, 0.1, 9);
-        assert_eq!(c.up, 0.0);
-        assert_eq!(c.up_run.2, 0);
-        assert!((c.down - 3.0).abs() < 1e-12);
-    }
 
     #[test]
     fn scale_history_holds_back_a_developing_run() {

@@ -1,0 +1,171 @@
+//! Shared robust statistics: medians, the MAD scale, and the two-sided CUSUM with its ARL
+//! design. Every detector uses these, so a statistic means the same thing everywhere.
+//! (Hand-written: a few lines each, and their exact arithmetic is part of byte-identical replay.)
+
+/// The factor that makes the median absolute deviation a consistent estimate of a normal σ.
+pub const MAD_TO_SIGMA: f64 = 1.4826;
+
+/// Median of a sorted slice (the mean of the middle two for an even length); 0 when empty.
+pub fn median_sorted(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// The upper median of a sorted, non-empty slice (`v[n / 2]`): cheaper, and what the drift
+/// fit's reweighting uses. NaN when empty.
+pub fn upper_median_sorted(v: &[f64]) -> f64 {
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// Robust scale about zero: `MAD_TO_SIGMA` · median |x| (the median as in `median_sorted`).
+/// NaN when empty.
+pub fn robust_scale_about_zero(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mut a: Vec<f64> = v.iter().map(|x| x.abs()).collect();
+    a.sort_by(f64::total_cmp);
+    MAD_TO_SIGMA * median_sorted(&a)
+}
+
+/// Robust scale about zero with the upper median: `MAD_TO_SIGMA` · |x|₍ₙ/₂₎. NaN when empty.
+pub fn robust_scale_upper(v: &[f64]) -> f64 {
+    let mut a: Vec<f64> = v.iter().map(|x| x.abs()).collect();
+    a.sort_by(f64::total_cmp);
+    MAD_TO_SIGMA * upper_median_sorted(&a)
+}
+
+/// Siegmund's approximation of the in-control average run length of a one-sided CUSUM with
+/// reference k and threshold h (both in standard deviations).
+pub fn cusum_arl0(k: f64, h: f64) -> f64 {
+    let a = 2.0 * k * (h + 1.166);
+    if k.abs() < 1e-12 {
+        return (h + 1.166).powi(2);
+    }
+    ((a).exp() - a - 1.0) / (2.0 * k * k)
+}
+
+/// The smallest threshold h (to 0.01) whose two-sided ARL₀ reaches `target` observations.
+pub fn cusum_threshold(k: f64, target: f64) -> f64 {
+    let mut h = 0.5;
+    while cusum_arl0(k, h) / 2.0 < target && h < 50.0 {
+        h += 0.01;
+    }
+    h
+}
+
+/// What a CUSUM side has accumulated since it last left zero: the raw estimates behind it, for
+/// the alarm's size and its standard error.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CusumRun {
+    /// Sum of the raw estimates.
+    pub sum: f64,
+    /// Sum of their squared standard errors.
+    pub var: f64,
+    /// How many observations.
+    pub n: usize,
+    /// The label of the observation that started the run (a capture index).
+    pub start: u64,
+}
+
+impl CusumRun {
+    /// The run's mean estimate and its standard error (NaN when empty).
+    pub fn mean_and_se(&self) -> (f64, f64) {
+        let n = self.n as f64;
+        (self.sum / n, self.var.sqrt() / n)
+    }
+}
+
+/// A two-sided CUSUM of standardised statistics with reference value k, which also keeps the
+/// run of raw estimates behind each side.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Cusum {
+    pub up: f64,
+    pub down: f64,
+    pub up_run: CusumRun,
+    pub down_run: CusumRun,
+}
+
+impl Cusum {
+    /// Feed a standardised statistic `z` with the raw estimate and its standard error behind
+    /// it; `start` labels the observation (kept as the run's start when a side leaves zero).
+    pub fn add(&mut self, z: f64, k: f64, estimate: f64, se: f64, start: u64) {
+        let up = (self.up + z - k).max(0.0);
+        let down = (self.down - z - k).max(0.0);
+        let grow = |prev: f64, now: f64, run: &mut CusumRun| {
+            if now == 0.0 {
+                *run = CusumRun::default();
+            } else {
+                if prev == 0.0 {
+                    *run = CusumRun {
+                        start,
+                        ..CusumRun::default()
+                    };
+                }
+                run.sum += estimate;
+                run.var += se * se;
+                run.n += 1;
+            }
+        };
+        grow(self.up, up, &mut self.up_run);
+        grow(self.down, down, &mut self.down_run);
+        self.up = up;
+        self.down = down;
+    }
+
+    /// The larger side.
+    pub fn max(&self) -> f64 {
+        self.up.max(self.down)
+    }
+
+    pub fn reset(&mut self) {
+        *self = Cusum::default();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn medians_and_scales() {
+        assert_eq!(median_sorted(&[]), 0.0);
+        assert_eq!(median_sorted(&[1.0, 2.0, 4.0]), 2.0);
+        assert_eq!(median_sorted(&[1.0, 2.0, 4.0, 8.0]), 3.0);
+        assert_eq!(upper_median_sorted(&[1.0, 2.0, 4.0, 8.0]), 4.0);
+        assert!(upper_median_sorted(&[]).is_nan());
+        assert!((robust_scale_about_zero(&[1.0, -2.0, 3.0]) - MAD_TO_SIGMA * 2.0).abs() < 1e-12);
+        assert!((robust_scale_about_zero(&[1.0, -2.0]) - MAD_TO_SIGMA * 1.5).abs() < 1e-12);
+        assert!((robust_scale_upper(&[1.0, -2.0]) - MAD_TO_SIGMA * 2.0).abs() < 1e-12);
+        assert!(robust_scale_about_zero(&[]).is_nan());
+    }
+
+    #[test]
+    fn cusum_tracks_the_run_behind_each_side() {
+        let mut c = Cusum::default();
+        c.add(3.0, 1.0, 0.5, 0.1, 7);
+        c.add(3.0, 1.0, 0.7, 0.1, 8);
+        assert!((c.up - 4.0).abs() < 1e-12);
+        assert_eq!(c.up_run.n, 2);
+        assert_eq!(c.up_run.start, 7);
+        assert!((c.up_run.sum - 1.2).abs() < 1e-12);
+        c.add(-4.0, 1.0, -0.1, 0.1, 9);
+        assert_eq!(c.up, 0.0);
+        assert_eq!(c.up_run.n, 0);
+        assert!((c.down - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_arl_threshold_grows_with_the_target() {
+        let h20 = cusum_threshold(1.0, 20.0 * 81.0);
+        assert!((h20 - 3.23).abs() < 0.011, "{h20}");
+        assert!(cusum_threshold(1.0, 20.0 * 81.0 * 2.0) > h20);
+    }
+}
