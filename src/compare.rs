@@ -2,9 +2,9 @@
 //! Reads the session's recorded captures and summary and the reference file, and writes the
 //! result to `SESSION/crossval.json` (for the report) besides returning it.
 
+use crate::checks::CaptureRecord;
 use crate::config::Config;
 use crate::engine::Summary;
-use crate::measure::checks::CaptureRecord;
 use crate::measure::colour::White;
 use crate::measure::crossval::{cross_validate, CrossValidation, GainCorrection, SessionValue};
 use crate::measure::geometry::Spherical;
@@ -57,7 +57,8 @@ pub fn session_values(dir: &Path, dark_y: f64) -> Result<Vec<SessionValue>> {
         }
         let rec: CaptureRecord = serde_json::from_str(&line)
             .with_context(|| format!("{} line {}: not a capture record", path.display(), n + 1))?;
-        if rec.probe || rec.status != "ok" || seen.contains(&rec.entry) {
+        if rec.probe || rec.status != crate::checks::CaptureStatus::Ok || seen.contains(&rec.entry)
+        {
             continue;
         }
         let (Some(a), Some(xyz)) = (rec.angles, rec.xyz) else {
@@ -97,7 +98,7 @@ pub fn probe_gain_curve(dir: &Path) -> Result<Vec<(f64, f64)>> {
             continue;
         };
         let Some(xyz) = rec.xyz else { continue };
-        if rec.status != "ok" || !(xyz[1] > 0.0) {
+        if rec.status != crate::checks::CaptureStatus::Ok || !(xyz[1] > 0.0) {
             continue;
         }
         if rec.probe {

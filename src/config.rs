@@ -3,11 +3,11 @@
 //! Parsing is pure ([`Config::from_toml_str`]); reading the file is the caller's job. Errors name
 //! the offending field (serde's message plus the TOML key path and line).
 
+use crate::checks::CheckSpec;
 use crate::daemon::ingest::IngestSpec;
 use crate::daemon::link::LinkSpec;
 use crate::engine::EngineSpec;
 use crate::measure::averaging::AverageOptions;
-use crate::measure::checks::CheckSpec;
 use crate::measure::colour::{ColourError, RgbPrimaries, RgbToXyz, White, Xyz};
 use crate::measure::kinematics::{KinematicsError, Rig, RigSpec};
 use crate::measure::plan::{PlanError, PlanSpec, SamplingPlan};
@@ -538,7 +538,7 @@ impl Config {
 
     /// The checker and engine for a session with this configuration.
     pub fn engine(&self) -> Result<crate::engine::Engine, ConfigError> {
-        use crate::measure::checks::{Checker, ColourSettings};
+        use crate::checks::{Checker, ColourSettings};
         let checker = Checker::new(
             self.plan()?,
             self.rig()?,

@@ -9,10 +9,10 @@
 //! RESYNC after a sequence gap, a capture-index gap or a reboot; CAPTURE lines are keyed by index
 //! (idempotent). Outcomes are handed to the checker in capture-index order.
 
-use crate::measure::alarm::{Alarm, AlarmKind, Severity};
-use crate::measure::checks::{
+use crate::checks::{
     CaptureInput, CaptureRecord, CheckCounts, Checker, IsotropyRecord, Outcome, PairRecord, Table2,
 };
+use crate::measure::alarm::{Alarm, AlarmKind, Severity};
 use crate::protocol::{self, Message, PROTO_VERSION};
 use serde::{Deserialize, Serialize};
 use serde_json::json;

@@ -14,6 +14,7 @@
 //! - [`reference`]: the reference-BRDF file format (pure parsing).
 //! - [`report`]: shell side, `goniowatch report`: the end-of-run HTML report and CSV tables.
 
+pub mod checks;
 pub mod commands;
 pub mod compare;
 pub mod config;

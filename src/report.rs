@@ -3,11 +3,11 @@
 //! CSV. It reads only the session's recorded files, so a replayed session's report is the live
 //! session's report, byte for byte (no dates, no paths).
 
+use crate::checks::{CaptureRecord, PairRecord, Table2};
 use crate::compare::CompareReport;
 use crate::config::Config;
 use crate::engine::Summary;
 use crate::measure::alarm::{Alarm, Severity};
-use crate::measure::checks::{CaptureRecord, PairRecord, Table2};
 use crate::measure::plan::SamplingPlan;
 use crate::measure::sweeps::SweepRecord;
 use anyhow::{Context, Result};

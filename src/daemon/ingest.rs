@@ -9,9 +9,9 @@
 //! - Decoding runs on a bounded pool of worker threads (crossbeam-channel); the caller keeps
 //!   jobs it could not queue, so a slow disk pushes back instead of piling up.
 
+use crate::checks::Outcome;
 use crate::decode::{decode, DecodeLimits};
 use crate::measure::averaging::{average, AverageOptions};
-use crate::measure::checks::Outcome;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Component, Path, PathBuf};

@@ -9,9 +9,9 @@
 use super::ingest::{measure_file, resolve};
 use super::journal::Results;
 use super::session::{inputs, verified_journal, Session};
+use crate::checks::Outcome;
 use crate::decode::DecodeLimits;
 use crate::engine::{Input, Summary};
-use crate::measure::checks::Outcome;
 use anyhow::{bail, Context, Result};
 use std::collections::HashMap;
 use std::io::IsTerminal;
@@ -174,7 +174,9 @@ pub fn replay(session_dir: &Path, options: &ReplayOptions) -> Result<ReplayRepor
             while let Ok((n, file)) = rx.recv() {
                 let r = resolve(&root, &file)
                     .map_err(|e| e.to_string())
-                    .and_then(|p| measure_file(&root, &p, &average_opts, &limits).map_err(|e| e.reason));
+                    .and_then(|p| {
+                        measure_file(&root, &p, &average_opts, &limits).map_err(|e| e.reason)
+                    });
                 if tx.send((n, r)).is_err() {
                     return;
                 }

@@ -5,9 +5,9 @@
 //! The run loop publishes a snapshot through a `tokio::sync::watch` channel: publishing never
 //! waits for a reader, and a slow reader only ever sees the latest snapshot.
 
+use crate::checks::{CaptureRecord, PairRecord};
 use crate::engine::{Output, Summary};
 use crate::measure::alarm::Alarm;
-use crate::measure::checks::{CaptureRecord, PairRecord};
 use crate::measure::plan::SamplingPlan;
 use serde::Serialize;
 use std::collections::{HashMap, VecDeque};
@@ -156,7 +156,7 @@ impl StatusModel {
         self.recent_pairs.push_back(RecentPair {
             idx: p.b,
             t_h: p.t / 3600.0,
-            status: p.status.clone(),
+            status: p.status.as_str().to_string(),
             de2000: d.de2000,
         });
         while self.recent_pairs.len() > RECENT_PAIRS {
@@ -406,7 +406,7 @@ mod tests {
             probe,
             t: idx as f64 * 7.0,
             file: format!("c{idx}.hdr"),
-            status: "ok".into(),
+            status: crate::checks::CaptureStatus::Ok,
             error: None,
             mean_rgb: None,
             xyz: Some([y, y, y]),

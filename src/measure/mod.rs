@@ -7,7 +7,6 @@
 
 pub mod alarm;
 pub mod averaging;
-pub mod checks;
 pub mod colour;
 pub mod crossval;
 pub mod drift;

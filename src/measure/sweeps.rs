@@ -27,10 +27,10 @@
 //! θi layer, kind and sign.
 
 use super::alarm::{Alarm, AlarmKind, Severity};
-use super::stats::{cusum_threshold, robust_scale_about_zero, Cusum};
 use super::geometry::Vec3;
 use super::kinematics::{Pose, Rig};
 use super::resample::{LayeredResampler, ResampleSpec, Sample};
+use super::stats::{cusum_threshold, robust_scale_about_zero, Cusum};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -586,7 +586,11 @@ impl SweepMonitor {
                 self.level_cusum.add(z, k, level, scale, last_idx);
                 let cs = &self.level_cusum;
                 for (sign, stat, run) in [(1i8, cs.up, cs.up_run), (-1i8, cs.down, cs.down_run)] {
-                    let mean = if run.n > 0 { run.sum / run.n as f64 } else { 0.0 };
+                    let mean = if run.n > 0 {
+                        run.sum / run.n as f64
+                    } else {
+                        0.0
+                    };
                     if stat > self.h_level
                         && 100.0 * f64::from(sign) * mean >= self.spec.level_tolerance_pct
                         && self.latched.insert((0, sign, layer))

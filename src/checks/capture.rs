@@ -1,0 +1,344 @@
+//! The capture stage: where a capture was taken (geometry from the encoder pose, against the
+//! plan and against the commanded pose) and whether it can be used at all (its outcome,
+//! non-finite, clipped and dark pixels, runs of failures). Every later stage works on what this
+//! one measured; it never pairs or compares captures.
+
+use super::records::{CaptureInput, CaptureRecord, CaptureStatus, Outcome};
+use super::{Checked, Ctx};
+use crate::measure::alarm::{Alarm, AlarmKind, Severity};
+use crate::measure::colour::xyz_to_lab;
+use crate::measure::geometry::{angle_between, Spherical};
+use crate::measure::kinematics::{Incidence, Pose};
+use serde_json::json;
+
+/// What the capture stage made of a capture.
+pub(super) enum Verdict {
+    /// The capture names an entry the plan does not have: nothing else can be checked.
+    NotInPlan,
+    /// Failed or missing: its record, and nothing for the later stages.
+    Unusable(Box<CaptureRecord>),
+    /// Usable: its record (the gain correction is the router's to fill in) and what was
+    /// measured.
+    Usable(Box<CaptureRecord>, Measured),
+}
+
+/// A usable capture as the later stages see it.
+pub(super) struct Measured {
+    pub(super) checked: Checked,
+    /// The plan's pose for the entry (the substitute θi where the rig used one).
+    pub(super) nominal: Incidence,
+    pub(super) light: usize,
+    pub(super) camera: usize,
+}
+
+/// Counts and the run of consecutive failures.
+#[derive(Debug, Clone, Default)]
+pub(super) struct CaptureStage {
+    pub(super) captures: u64,
+    pub(super) ok: u64,
+    pub(super) failed: u64,
+    pub(super) missing: u64,
+    pub(super) probes: u64,
+    consecutive_failures: u32,
+}
+
+impl CaptureStage {
+    pub(super) fn check(
+        &mut self,
+        ctx: &Ctx,
+        input: &CaptureInput,
+        alarms: &mut Vec<Alarm>,
+    ) -> Verdict {
+        self.captures += 1;
+        let at = (Some(input.idx), Some(input.t));
+        let Some((nominal, light, camera)) = nominal(ctx, input.entry, input.substitute) else {
+            alarms.push(
+                Alarm::new(
+                    AlarmKind::CaptureQuality,
+                    Severity::Warning,
+                    "bad-entry",
+                    format!(
+                        "capture {} names plan entry {}, which is not in the {}-capture plan",
+                        input.idx,
+                        input.entry,
+                        ctx.plan.capture_count()
+                    ),
+                )
+                .at(at.0, at.1),
+            );
+            return Verdict::NotInPlan;
+        };
+        let mut rec = CaptureRecord {
+            idx: input.idx,
+            entry: input.entry,
+            light,
+            camera,
+            probe: input.probe,
+            t: input.t,
+            file: input.file.clone(),
+            status: CaptureStatus::Ok,
+            error: None,
+            mean_rgb: None,
+            xyz: None,
+            lab: None,
+            pixels: None,
+            nonfinite: None,
+            clipped: None,
+            negative: None,
+            angles: None,
+            substitute: input.substitute,
+            pose_error_deg: None,
+            gain_corrected: None,
+        };
+        if input.probe {
+            self.probes += 1;
+        }
+        let (measured, pose_err) = pose(ctx, input, nominal, alarms);
+        rec.angles = Some(measured.angles());
+        rec.pose_error_deg = Some(pose_err);
+
+        let stats = match &input.outcome {
+            Outcome::Ok { stats, .. } => *stats,
+            Outcome::Failed { error } | Outcome::Missing { reason: error } => {
+                let missing = matches!(input.outcome, Outcome::Missing { .. });
+                rec.status = if missing {
+                    CaptureStatus::Missing
+                } else {
+                    CaptureStatus::Failed
+                };
+                rec.error = Some(error.clone());
+                alarms.push(self.failure(ctx, input, missing, error));
+                return Verdict::Unusable(Box::new(rec));
+            }
+        };
+        self.consecutive_failures = 0;
+        self.ok += 1;
+        let xyz = ctx.xyz_of(stats.mean_rgb);
+        rec.mean_rgb = Some(stats.mean_rgb);
+        rec.xyz = Some(xyz);
+        rec.lab = Some(xyz_to_lab(xyz, ctx.colour.white));
+        rec.pixels = Some(stats.pixels);
+        rec.nonfinite = Some(stats.nonfinite);
+        rec.clipped = Some(stats.clipped);
+        rec.negative = Some(stats.negative);
+        quality(ctx, input, &stats, xyz[1], alarms);
+        let checked = Checked {
+            idx: input.idx,
+            t: input.t,
+            xyz,
+            theta_i_deg: Spherical::from_vector(&measured.omega_i).theta_deg(),
+            omega_i: measured.omega_i,
+            omega_o: measured.omega_o,
+            exact_pose: pose_err <= ctx.spec.pair_tolerance_deg,
+            dark: xyz[1] <= ctx.spec.dark_y,
+            substitute: input.substitute.is_some(),
+        };
+        Verdict::Usable(
+            Box::new(rec),
+            Measured {
+                checked,
+                nominal,
+                light,
+                camera,
+            },
+        )
+    }
+
+    /// A failed or missing capture: counted, and critical once `failures_critical` come in a
+    /// row.
+    fn failure(&mut self, ctx: &Ctx, input: &CaptureInput, missing: bool, error: &str) -> Alarm {
+        if missing {
+            self.missing += 1;
+        } else {
+            self.failed += 1;
+        }
+        self.consecutive_failures += 1;
+        let critical = self.consecutive_failures >= ctx.spec.failures_critical;
+        Alarm::new(
+            AlarmKind::CaptureQuality,
+            if critical {
+                Severity::Critical
+            } else {
+                Severity::Warning
+            },
+            if missing {
+                "missing-capture"
+            } else {
+                "capture-failed"
+            },
+            format!(
+                "capture {} ({}) {}: {error}{}",
+                input.idx,
+                input.file,
+                if missing {
+                    "is missing"
+                } else {
+                    "could not be used"
+                },
+                if critical {
+                    format!(
+                        "; {} captures in a row have failed",
+                        self.consecutive_failures
+                    )
+                } else {
+                    String::new()
+                }
+            ),
+        )
+        .at(Some(input.idx), Some(input.t))
+        .with(json!({"file": input.file, "consecutive_failures": self.consecutive_failures}))
+    }
+}
+
+/// The plan's incidence for an entry (with the substitute θi where the rig used one), and its
+/// light and camera directions.
+fn nominal(ctx: &Ctx, entry: usize, substitute: Option<f64>) -> Option<(Incidence, usize, usize)> {
+    let e = ctx.plan.entry(entry).ok()?;
+    let dirs = ctx.plan.directions();
+    let (l, c) = (dirs[e.light], dirs[e.camera]);
+    let theta_i = substitute.unwrap_or(l.theta_deg);
+    Some((
+        Incidence {
+            omega_i: Spherical::from_deg(theta_i, l.phi_deg).to_vector(),
+            omega_o: c.spherical().to_vector(),
+        },
+        e.light,
+        e.camera,
+    ))
+}
+
+/// The incidence measured from the encoders (the plan's when they are unusable), its largest
+/// angle from the plan, and the pose alarms: off the plan, encoders against the commands.
+fn pose(
+    ctx: &Ctx,
+    input: &CaptureInput,
+    nominal: Incidence,
+    alarms: &mut Vec<Alarm>,
+) -> (Incidence, f64) {
+    let at = (Some(input.idx), Some(input.t));
+    let measured = match ctx.rig.forward(&Pose {
+        joints_deg: [input.enc[0], input.enc[1], input.enc[2]],
+        wagon_deg: input.enc[3],
+    }) {
+        Ok(m) => m,
+        Err(e) => {
+            alarms.push(
+                Alarm::new(
+                    AlarmKind::Positioning,
+                    Severity::Warning,
+                    "bad-pose",
+                    format!(
+                        "capture {}: encoder pose {:?} unusable ({e}); the plan's pose is assumed",
+                        input.idx, input.enc
+                    ),
+                )
+                .at(at.0, at.1),
+            );
+            nominal
+        }
+    };
+    let pose_err = angle_between(&measured.omega_i, &nominal.omega_i)
+        .max(angle_between(&measured.omega_o, &nominal.omega_o))
+        .to_degrees();
+    if pose_err > ctx.spec.pose_tolerance_deg {
+        alarms.push(
+            Alarm::new(
+                AlarmKind::Positioning,
+                Severity::Warning,
+                "pose-off-plan",
+                format!(
+                    "capture {}: the encoders put the lamp/camera {:.3}° from plan entry {} (tolerance {}°)",
+                    input.idx, pose_err, input.entry, ctx.spec.pose_tolerance_deg
+                ),
+            )
+            .at(at.0, at.1)
+            .with(json!({"pose_error_deg": pose_err, "enc": input.enc, "cmd": input.cmd})),
+        );
+    }
+    let enc_err = (0..4)
+        .map(|k| (input.enc[k] - input.cmd[k]).abs())
+        .fold(0.0, f64::max);
+    if enc_err > ctx.spec.encoder_tolerance_deg {
+        let axis = (0..4)
+            .max_by(|&a, &b| {
+                (input.enc[a] - input.cmd[a])
+                    .abs()
+                    .total_cmp(&(input.enc[b] - input.cmd[b]).abs())
+            })
+            .unwrap_or(0);
+        let name = ["joint 1", "joint 2", "joint 3", "wagon"][axis];
+        alarms.push(
+            Alarm::new(
+                AlarmKind::Positioning,
+                Severity::Warning,
+                "encoder-mismatch",
+                format!(
+                    "capture {}: {name} encoder reads {:.4}° but {:.4}° was commanded (|Δ| {:.4}° > {}°)",
+                    input.idx, input.enc[axis], input.cmd[axis], enc_err, ctx.spec.encoder_tolerance_deg
+                ),
+            )
+            .at(at.0, at.1)
+            .with(json!({"axis": name, "enc": input.enc, "cmd": input.cmd})),
+        );
+    }
+    (measured, pose_err)
+}
+
+/// The quality alarms of a usable capture: non-finite, clipped and dark pixels.
+fn quality(
+    ctx: &Ctx,
+    input: &CaptureInput,
+    stats: &crate::measure::averaging::CaptureStats,
+    y: f64,
+    alarms: &mut Vec<Alarm>,
+) {
+    let at = (Some(input.idx), Some(input.t));
+    if stats.nonfinite > ctx.spec.nonfinite_max {
+        alarms.push(
+            Alarm::new(
+                AlarmKind::CaptureQuality,
+                Severity::Warning,
+                "non-finite-pixels",
+                format!(
+                    "capture {}: {} of {} pixels are NaN or infinite (allowed {}); they are left out of the mean",
+                    input.idx, stats.nonfinite, stats.pixels, ctx.spec.nonfinite_max
+                ),
+            )
+            .at(at.0, at.1)
+            .with(json!({"nonfinite": stats.nonfinite, "pixels": stats.pixels})),
+        );
+    }
+    let clipped_fraction = stats.clipped as f64 / stats.pixels.max(1) as f64;
+    if clipped_fraction > ctx.spec.clipped_fraction_max {
+        alarms.push(
+            Alarm::new(
+                AlarmKind::CaptureQuality,
+                Severity::Warning,
+                "clipped-pixels",
+                format!(
+                    "capture {}: {:.2} % of the pixels are clipped (allowed {:.2} %)",
+                    input.idx,
+                    100.0 * clipped_fraction,
+                    100.0 * ctx.spec.clipped_fraction_max
+                ),
+            )
+            .at(at.0, at.1)
+            .with(json!({"clipped": stats.clipped, "pixels": stats.pixels, "max_value": stats.max_value})),
+        );
+    }
+    if y <= ctx.spec.dark_y {
+        alarms.push(
+            Alarm::new(
+                AlarmKind::CaptureQuality,
+                Severity::Warning,
+                "dark-capture",
+                format!(
+                    "capture {}: mean Y = {:.4} is at or below the dark level {} (lamp off or shutter closed?)",
+                    input.idx, y, ctx.spec.dark_y
+                ),
+            )
+            .at(at.0, at.1)
+            .with(json!({"y": y})),
+        );
+    }
+}

@@ -1,0 +1,547 @@
+//! The per-capture checks of a session, incremental and in capture order. A small router
+//! (`Checker`) hands each capture to one stage per concern and collects what they find:
+//!
+//! - `capture`: where it was taken (encoder pose against plan and commands) and whether it can
+//!   be used (outcome, non-finite, clipped and dark pixels, runs of failures);
+//! - `pairs`: Helmholtz reciprocity with the reciprocal partner, Table 2, outliers, and the
+//!   occlusion substitutes' interpolated partners;
+//! - `isotropy`: the capture against its isotropy class (isotropic samples);
+//! - `drift`: the lamp's gain from repeated geometry (isotropic samples);
+//! - the light sweeps (`measure::sweeps`, isotropic samples in a light-outer order) and the
+//!   drift probes (`measure::probes`), which are stages of their own in the core.
+//!
+//! The router owns the ledger (the first usable capture of each plan entry, and which light
+//! directions are complete), fills in the gain correction, relays a sweep's step to the drift
+//! stage, and counts alarms, once, for everything. Pure: a `Checker` is a deterministic
+//! function of the sequence of `CaptureInput`s it is given.
+
+mod capture;
+mod drift;
+mod isotropy;
+mod pairs;
+pub mod records;
+#[cfg(test)]
+mod tests;
+
+pub use records::{
+    CaptureInput, CaptureRecord, CaptureStatus, CheckCounts, GainCorrected, Interpolation,
+    IsotropyRecord, Outcome, PairRecord, PairStatus, Table2,
+};
+
+use crate::measure::alarm::Alarm;
+use crate::measure::colour::{RgbToXyz, White, Xyz};
+use crate::measure::drift::{DriftEstimate, StepEffect};
+use crate::measure::geometry::{azimuth_difference_deg, Vec3};
+use crate::measure::kinematics::Rig;
+use crate::measure::plan::{AcquisitionOrder, SamplingPlan};
+use crate::measure::probes::{ProbeDrift, ProbeSpec};
+use crate::measure::sweeps::{SweepCapture, SweepMonitor, SweepRecord, SweepSpec, SweepSummary};
+use capture::{CaptureStage, Measured, Verdict};
+use drift::{drift_alarm, DriftStage};
+use isotropy::IsotropyStage;
+use pairs::PairStage;
+use serde::{Deserialize, Serialize};
+
+/// Thresholds of the checks (`[checks]` in the config).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CheckSpec {
+    /// A pair is exact when each capture's ωi is within this of the partner's ωo (degrees).
+    pub pair_tolerance_deg: f64,
+    /// Measured (encoder) directions further than this from the plan raise a positioning alarm.
+    pub pose_tolerance_deg: f64,
+    /// |encoder − commanded| above this on any axis raises a positioning alarm (degrees).
+    pub encoder_tolerance_deg: f64,
+    /// A pair is an outlier when its ΔE00 exceeds median + k · 1.4826 · MAD of the pairs so far
+    /// with the same two nominal θ …
+    pub outlier_k: f64,
+    /// … and this floor …
+    pub outlier_floor_de2000: f64,
+    /// … once this many exact pairs are in.
+    pub outlier_min_pairs: usize,
+    /// More non-finite pixels than this in a capture raise a capture-quality alarm.
+    pub nonfinite_max: u64,
+    /// A larger fraction of clipped pixels raises a capture-quality alarm.
+    pub clipped_fraction_max: f64,
+    /// A capture whose mean Y (configured XYZ scale) is at or below this is dark.
+    pub dark_y: f64,
+    /// This many failed captures in a row is critical.
+    pub failures_critical: u32,
+    /// Light-sweep checks: gain level shifts and joint offsets (isotropic samples).
+    pub sweeps: SweepSpec,
+}
+
+impl Default for CheckSpec {
+    fn default() -> Self {
+        CheckSpec {
+            pair_tolerance_deg: 0.5,
+            pose_tolerance_deg: 0.25,
+            encoder_tolerance_deg: 0.1,
+            outlier_k: 6.0,
+            outlier_floor_de2000: 5.0,
+            outlier_min_pairs: 30,
+            nonfinite_max: 0,
+            clipped_fraction_max: 0.001,
+            dark_y: 0.5,
+            failures_critical: 5,
+            sweeps: SweepSpec::default(),
+        }
+    }
+}
+
+/// The colour settings the checker needs.
+#[derive(Debug, Clone)]
+pub struct ColourSettings {
+    pub to_xyz: RgbToXyz,
+    pub rgb_scale: f64,
+    pub white: White,
+    pub min_cos: f64,
+}
+
+/// Everything the checker produced for one capture.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CheckOutput {
+    pub capture: Option<CaptureRecord>,
+    pub pairs: Vec<PairRecord>,
+    pub isotropy: Vec<IsotropyRecord>,
+    pub sweeps: Vec<SweepRecord>,
+    pub alarms: Vec<Alarm>,
+}
+
+/// A usable capture as the stages keep it.
+#[derive(Debug, Clone)]
+struct Checked {
+    idx: u64,
+    t: f64,
+    xyz: Xyz,
+    theta_i_deg: f64,
+    omega_i: Vec3,
+    omega_o: Vec3,
+    exact_pose: bool,
+    dark: bool,
+    substitute: bool,
+}
+
+/// (θ light, θ camera, |Δφ|) in millidegrees: captures of one geometry see the same BRDF value.
+type GeometryKey = (i64, i64, i64);
+
+/// What every stage may read: the session's fixed settings.
+struct Ctx<'a> {
+    plan: &'a SamplingPlan,
+    rig: &'a Rig,
+    colour: &'a ColourSettings,
+    spec: &'a CheckSpec,
+}
+
+impl Ctx<'_> {
+    fn xyz_of(&self, rgb: [f64; 3]) -> Xyz {
+        let s = self.colour.rgb_scale;
+        self.colour
+            .to_xyz
+            .convert([rgb[0] * s, rgb[1] * s, rgb[2] * s])
+    }
+
+    fn geometry_key(&self, light: usize, camera: usize) -> GeometryKey {
+        let dirs = self.plan.directions();
+        let (l, c) = (dirs[light], dirs[camera]);
+        let dphi = if l.theta_deg == 0.0 || c.theta_deg == 0.0 {
+            0.0
+        } else {
+            azimuth_difference_deg(l.phi_deg, c.phi_deg)
+        };
+        (
+            (l.theta_deg * 1000.0).round() as i64,
+            (c.theta_deg * 1000.0).round() as i64,
+            (dphi * 1000.0).round() as i64,
+        )
+    }
+}
+
+/// The first usable capture of each plan entry, and which entries and light directions have
+/// been seen (any outcome): a light direction is complete when all its entries have.
+struct Ledger {
+    by_entry: Vec<Option<Checked>>,
+    entry_seen: Vec<bool>,
+    seen_per_light: Vec<usize>,
+    directions: usize,
+}
+
+impl Ledger {
+    fn new(plan: &SamplingPlan) -> Self {
+        let n = plan.capture_count();
+        Ledger {
+            by_entry: vec![None; n],
+            entry_seen: vec![false; n],
+            seen_per_light: vec![0; plan.direction_count()],
+            directions: plan.direction_count(),
+        }
+    }
+
+    fn get(&self, entry: usize) -> Option<&Checked> {
+        self.by_entry.get(entry).and_then(|c| c.as_ref())
+    }
+
+    /// Keep the first usable capture of an entry; false when the entry already had one.
+    fn keep(&mut self, entry: usize, capture: Checked) -> bool {
+        match self.by_entry.get_mut(entry) {
+            Some(slot @ None) => {
+                *slot = Some(capture);
+                true
+            }
+            Some(Some(_)) => false,
+            None => true,
+        }
+    }
+
+    /// Note that an entry of `light` was seen; true when that completes the light direction.
+    fn see(&mut self, entry: usize, light: usize) -> bool {
+        match self.entry_seen.get_mut(entry) {
+            Some(seen) if !*seen => {
+                *seen = true;
+                self.seen_per_light[light] += 1;
+                self.seen_per_light[light] == self.directions
+            }
+            _ => false,
+        }
+    }
+
+    fn light_complete(&self, light: usize) -> bool {
+        self.seen_per_light[light] == self.directions
+    }
+
+    /// The captures of one light direction that can be interpolation nodes: usable, at their
+    /// exact pose, not dark, not occlusion substitutes.
+    fn light_nodes<'a>(
+        &'a self,
+        plan: &'a SamplingPlan,
+        light: usize,
+    ) -> impl Iterator<Item = &'a Checked> + 'a {
+        (0..plan.directions().len())
+            .filter_map(move |c| plan.index_of(light, c))
+            .filter_map(|e| self.get(e))
+            .filter(|c| c.exact_pose && !c.dark && !c.substitute)
+    }
+
+    /// Mean controller time of a light direction's node captures.
+    fn light_mean_time(&self, plan: &SamplingPlan, light: usize) -> Option<f64> {
+        let (sum, n) = self
+            .light_nodes(plan, light)
+            .fold((0.0, 0usize), |(s, n), c| (s + c.t, n + 1));
+        (n > 0).then(|| sum / n as f64)
+    }
+}
+
+pub struct Checker {
+    plan: SamplingPlan,
+    rig: Rig,
+    colour: ColourSettings,
+    spec: CheckSpec,
+    ledger: Ledger,
+    capture: CaptureStage,
+    pairs: PairStage,
+    /// Isotropic samples only.
+    isotropy: Option<IsotropyStage>,
+    /// Isotropic samples only.
+    drift: Option<DriftStage>,
+    /// Isotropic samples in a light-outer order only.
+    sweeps: Option<SweepMonitor>,
+    probes: ProbeDrift,
+    /// With drift probes enabled the sweeps' level test is left out: the probes see steps.
+    probes_enabled: bool,
+    alarms: u64,
+}
+
+impl Checker {
+    pub fn new(
+        plan: SamplingPlan,
+        rig: Rig,
+        colour: ColourSettings,
+        spec: CheckSpec,
+        isotropic: bool,
+        probes: ProbeSpec,
+    ) -> Self {
+        let light_outer = !matches!(plan.order(), AcquisitionOrder::CameraOuter);
+        let sweeps = (isotropic && spec.sweeps.enabled && light_outer)
+            .then(|| SweepMonitor::new(spec.sweeps.clone(), rig.clone(), plan.direction_count()));
+        Checker {
+            ledger: Ledger::new(&plan),
+            capture: CaptureStage::default(),
+            pairs: PairStage::default(),
+            isotropy: isotropic.then(IsotropyStage::default),
+            drift: isotropic.then(DriftStage::new),
+            sweeps,
+            probes_enabled: probes.every > 0,
+            probes: ProbeDrift::new(probes),
+            plan,
+            rig,
+            colour,
+            spec,
+            alarms: 0,
+        }
+    }
+
+    /// Check one capture. Captures must come in index order.
+    pub fn check(&mut self, input: &CaptureInput) -> CheckOutput {
+        let mut out = CheckOutput::default();
+        let ctx = Ctx {
+            plan: &self.plan,
+            rig: &self.rig,
+            colour: &self.colour,
+            spec: &self.spec,
+        };
+        match self.capture.check(&ctx, input, &mut out.alarms) {
+            Verdict::NotInPlan => {}
+            Verdict::Unusable(rec) => out.capture = Some(*rec),
+            Verdict::Usable(mut rec, m) => {
+                rec.gain_corrected = gain_correction(
+                    &self.probes,
+                    self.capture.probes,
+                    self.drift.as_ref(),
+                    input.t / 3600.0,
+                    m.checked.xyz,
+                );
+                if input.probe {
+                    self.probe(input, &m, &mut out);
+                } else {
+                    self.regular(input, m, &mut out);
+                }
+                out.capture = Some(*rec);
+            }
+        }
+        self.light_seen(input, &mut out);
+        // a waiting substitute is scored once its partner's light direction is complete
+        if self.pairs.any_ready(&self.ledger) {
+            self.resolve(
+                |p, ledger| ledger.light_complete(p.light),
+                input.t,
+                &mut out,
+            );
+        }
+        self.alarms += out.alarms.len() as u64;
+        out
+    }
+
+    /// At the end of a session: the substitutes still waiting for their partner's light
+    /// direction are scored against what was captured.
+    pub fn finish(&mut self, t: f64) -> CheckOutput {
+        let mut out = CheckOutput::default();
+        self.resolve(|_, _| true, t, &mut out);
+        self.alarms += out.alarms.len() as u64;
+        out
+    }
+
+    /// A probe re-captures its entry's pose: its luminance against the entry's original is the
+    /// gain change.
+    fn probe(&mut self, input: &CaptureInput, m: &Measured, out: &mut CheckOutput) {
+        if m.checked.dark {
+            return;
+        }
+        if let Some(orig) = self.ledger.get(input.entry) {
+            let at = (Some(input.idx), Some(input.t));
+            let (t0, y0) = (orig.t, orig.xyz[1]);
+            for ev in self
+                .probes
+                .add(t0 / 3600.0, y0, input.t / 3600.0, m.checked.xyz[1])
+            {
+                out.alarms.push(drift_alarm(ev, "probes", at));
+            }
+        }
+    }
+
+    /// A regular capture through the comparison stages, then into the ledger. A retake of an
+    /// entry already checked is reported, not paired or compared again.
+    fn regular(&mut self, input: &CaptureInput, m: Measured, out: &mut CheckOutput) {
+        let ctx = Ctx {
+            plan: &self.plan,
+            rig: &self.rig,
+            colour: &self.colour,
+            spec: &self.spec,
+        };
+        let c = &m.checked;
+        let retake = self.ledger.get(input.entry).is_some();
+        if c.substitute && !c.dark && !retake {
+            // its partner's light direction is the substitute's camera direction
+            self.pairs
+                .wait_for_partner(c.clone(), input.entry, m.camera);
+        }
+        if !retake {
+            out.pairs.extend(
+                self.pairs
+                    .pair(&ctx, &self.ledger, input.entry, c, &mut out.alarms),
+            );
+        }
+        let comparable = c.exact_pose && !c.substitute && !c.dark && !retake;
+        if comparable {
+            if let Some(iso) = self.isotropy.as_mut() {
+                out.isotropy.extend(iso.add(&ctx, input.entry, c));
+            }
+        }
+        if comparable && c.xyz[1] > 0.0 {
+            if let Some(drift) = self.drift.as_mut() {
+                let key = ctx.geometry_key(m.light, m.camera);
+                let at = (Some(input.idx), Some(input.t));
+                drift.observe(key, input.t, c.xyz[1], at, &mut out.alarms);
+                if let Some(sweeps) = self.sweeps.as_mut() {
+                    sweeps.add(SweepCapture {
+                        idx: input.idx,
+                        t: input.t,
+                        light: m.light,
+                        camera: m.camera,
+                        class: key,
+                        layer: key.0,
+                        omega_i: m.nominal.omega_i,
+                        omega_o: m.nominal.omega_o,
+                        cmd: input.cmd,
+                        y: c.xyz[1],
+                    });
+                }
+            }
+        }
+        if !self.ledger.keep(input.entry, m.checked) {
+            out.alarms.push(
+                Alarm::new(
+                    crate::measure::alarm::AlarmKind::CaptureQuality,
+                    crate::measure::alarm::Severity::Info,
+                    "entry-repeated",
+                    format!(
+                        "capture {} repeats plan entry {}; the first capture of it is kept for the checks",
+                        input.idx, input.entry
+                    ),
+                )
+                .at(Some(input.idx), Some(input.t)),
+            );
+        }
+    }
+
+    /// Note the entry as seen (any outcome); when that completes its light direction, the
+    /// sweep is tested, and a gain step it finds becomes a step term of the drift model.
+    fn light_seen(&mut self, input: &CaptureInput, out: &mut CheckOutput) {
+        if input.probe {
+            return;
+        }
+        let Some(light) = self.plan.entry(input.entry).ok().map(|e| e.light) else {
+            return;
+        };
+        if !self.ledger.see(input.entry, light) {
+            return;
+        }
+        let level_test = !self.probes_enabled;
+        if let Some(sweeps) = self.sweeps.as_mut() {
+            let o = sweeps.light_complete(light, level_test);
+            if let (Some(drift), Some(t)) = (self.drift.as_mut(), o.step_at_s) {
+                drift.add_step(t);
+            }
+            out.sweeps.extend(o.record);
+            out.alarms.extend(o.alarms);
+        }
+    }
+
+    /// Score the waiting substitutes that `ready` selects; their interpolated pairs also go to
+    /// the drift stage.
+    fn resolve(
+        &mut self,
+        ready: impl Fn(&pairs::PendingPartner, &Ledger) -> bool,
+        t: f64,
+        out: &mut CheckOutput,
+    ) {
+        let ctx = Ctx {
+            plan: &self.plan,
+            rig: &self.rig,
+            colour: &self.colour,
+            spec: &self.spec,
+        };
+        for (p, pair) in self.pairs.resolve(&ctx, &self.ledger, ready, t) {
+            if let Some(drift) = self.drift.as_mut() {
+                drift.observe_interpolated(&ctx, &self.ledger, &p, &pair, &mut out.alarms);
+            }
+            out.pairs.push(pair);
+        }
+    }
+
+    /// The gain drift estimate from the probes, once there are enough.
+    pub fn probe_drift(&self) -> Option<DriftEstimate> {
+        self.probes.estimate()
+    }
+
+    /// Gain steps in the isotropy drift model (found by the light sweeps).
+    pub fn isotropy_steps(&self) -> Vec<StepEffect> {
+        self.drift
+            .as_ref()
+            .map(|d| d.steps().to_vec())
+            .unwrap_or_default()
+    }
+
+    /// The light-sweep checks' state (none when they do not run for this session).
+    pub fn sweeps(&self) -> Option<SweepSummary> {
+        self.sweeps.as_ref().map(|m| m.summary())
+    }
+
+    /// The gain drift estimate from isotropy classes (isotropic samples), once there are enough.
+    pub fn isotropy_drift(&self) -> Option<DriftEstimate> {
+        self.drift.as_ref().and_then(|d| d.estimate())
+    }
+
+    pub fn plan(&self) -> &SamplingPlan {
+        &self.plan
+    }
+    pub fn table2(&self) -> &Table2 {
+        &self.pairs.table2
+    }
+    pub fn isotropy_table(&self) -> Table2 {
+        self.isotropy
+            .as_ref()
+            .map(|i| i.table.clone())
+            .unwrap_or_default()
+    }
+    /// Table 2 over the substitutes' interpolated pairs.
+    pub fn interpolated_table(&self) -> &Table2 {
+        &self.pairs.interpolated_table
+    }
+
+    /// The counters of every stage, and the alarms.
+    pub fn counts(&self) -> CheckCounts {
+        let (c, p) = (&self.capture, &self.pairs);
+        CheckCounts {
+            captures: c.captures,
+            ok: c.ok,
+            failed: c.failed,
+            missing: c.missing,
+            probes: c.probes,
+            pairs_exact: p.exact,
+            pairs_needs_resampling: p.needs_resampling,
+            pairs_grazing: p.grazing,
+            pairs_interpolated: p.interpolated,
+            pairs_unresolved: p.unresolved,
+            isotropy_comparisons: self.isotropy.as_ref().map_or(0, |i| i.comparisons),
+            drift_interpolated: self.drift.as_ref().map_or(0, |d| d.interpolated),
+            alarms: self.alarms,
+        }
+    }
+}
+
+/// The gain known now at time `t_h`, divided out of `xyz`: from the probes' current segment
+/// when probes run, else from the isotropy drift model (rate and the sweeps' steps).
+fn gain_correction(
+    probes: &ProbeDrift,
+    probes_taken: u64,
+    drift: Option<&DriftStage>,
+    t_h: f64,
+    xyz: Xyz,
+) -> Option<GainCorrected> {
+    let (gain, sigma_rel, source) = if let Some((g, s)) = probes.gain_at(t_h) {
+        (g, s, "probes")
+    } else if probes_taken > 0 {
+        // probes are in use but their segment is too short to fit (just after a step): the
+        // isotropy rate would leave the step out, so nothing rather than a wrong correction
+        return None;
+    } else {
+        let (ln_g, sigma) = drift?.ln_gain_at(t_h)?;
+        (ln_g.exp(), sigma, "isotropy classes")
+    };
+    (gain > 0.0 && gain.is_finite()).then(|| GainCorrected {
+        xyz: [xyz[0] / gain, xyz[1] / gain, xyz[2] / gain],
+        gain,
+        sigma_rel,
+        source: source.into(),
+    })
+}

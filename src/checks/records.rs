@@ -1,0 +1,246 @@
+//! The checks' records: what goes into `captures.jsonl`, `pairs.jsonl`, `isotropy.jsonl` and the
+//! summary, with typed statuses serialised as the strings the files have always held.
+
+use crate::measure::averaging::CaptureStats;
+use crate::measure::colour::{ColourDifference, Lab, Xyz};
+use crate::measure::kinematics::Angles;
+use serde::{Deserialize, Serialize};
+
+/// What became of a capture.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CaptureStatus {
+    /// Decoded and averaged: its colour is in the record.
+    Ok,
+    /// The file was there but could not be used.
+    Failed,
+    /// The file never appeared.
+    Missing,
+}
+
+impl CaptureStatus {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            CaptureStatus::Ok => "ok",
+            CaptureStatus::Failed => "failed",
+            CaptureStatus::Missing => "missing",
+        }
+    }
+}
+
+impl std::fmt::Display for CaptureStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// How a pair was scored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PairStatus {
+    /// Both captures at the mirrored poses: counted in Table 2.
+    Exact,
+    /// A partner is not at the mirrored pose: compared, not counted.
+    NeedsResampling,
+    /// cos θi below the limit: not compared.
+    Grazing,
+    /// An occlusion substitute against a partner interpolated at the mirrored pose.
+    Interpolated,
+    /// An occlusion substitute whose partner could not be interpolated.
+    Unresolved,
+}
+
+impl PairStatus {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            PairStatus::Exact => "exact",
+            PairStatus::NeedsResampling => "needs-resampling",
+            PairStatus::Grazing => "grazing",
+            PairStatus::Interpolated => "interpolated",
+            PairStatus::Unresolved => "unresolved",
+        }
+    }
+}
+
+impl std::fmt::Display for PairStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// What the ingestion made of one announced capture.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "status", rename_all = "kebab-case")]
+pub enum Outcome {
+    Ok {
+        stats: CaptureStats,
+        width: usize,
+        height: usize,
+        size: u64,
+        sha256: String,
+    },
+    Failed {
+        error: String,
+    },
+    Missing {
+        reason: String,
+    },
+}
+
+/// One announced capture with its outcome, as the checker sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CaptureInput {
+    pub idx: u64,
+    pub entry: usize,
+    pub file: String,
+    pub t: f64,
+    pub cmd: [f64; 4],
+    pub enc: [f64; 4],
+    pub substitute: Option<f64>,
+    pub probe: bool,
+    pub outcome: Outcome,
+}
+
+/// One line of `captures.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CaptureRecord {
+    pub idx: u64,
+    pub entry: usize,
+    pub light: usize,
+    pub camera: usize,
+    pub probe: bool,
+    pub t: f64,
+    pub file: String,
+    pub status: CaptureStatus,
+    pub error: Option<String>,
+    pub mean_rgb: Option<[f64; 3]>,
+    pub xyz: Option<Xyz>,
+    pub lab: Option<Lab>,
+    pub pixels: Option<u64>,
+    pub nonfinite: Option<u64>,
+    pub clipped: Option<u64>,
+    pub negative: Option<u64>,
+    /// Angles measured from the encoder pose.
+    pub angles: Option<Angles>,
+    /// θi the rig used instead of the plan's (occlusion substitute).
+    pub substitute: Option<f64>,
+    /// Largest angle between a measured and a planned direction (degrees).
+    pub pose_error_deg: Option<f64>,
+    /// The XYZ with the gain drift known at check time divided out, when there is an estimate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gain_corrected: Option<GainCorrected>,
+}
+
+/// A capture's drift-corrected colour: xyz / g(t), with g from the drift probes when enabled
+/// (the current segment's line: its level includes steps) or else from isotropy classes (a rate
+/// from the start of the run: steps are not in it).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GainCorrected {
+    pub xyz: Xyz,
+    /// The gain divided out, g(t) relative to the start (probes: to the probe pose's original).
+    pub gain: f64,
+    /// Relative standard uncertainty of the correction.
+    pub sigma_rel: f64,
+    /// `probes` or `isotropy classes`.
+    pub source: String,
+}
+
+/// One line of `pairs.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PairRecord {
+    /// Capture indices, earlier first.
+    pub a: u64,
+    pub b: u64,
+    pub entries: [usize; 2],
+    pub status: PairStatus,
+    /// Largest angle between one capture's ωi and the other's ωo (degrees).
+    pub mismatch_deg: f64,
+    pub t: f64,
+    pub xyz_a: Option<Xyz>,
+    pub xyz_b: Option<Xyz>,
+    pub diff: Option<ColourDifference>,
+    /// For an `interpolated` (or `unresolved`) pair: how the partner was made.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interpolated: Option<Interpolation>,
+}
+
+/// The partner of an occlusion substitute, interpolated from the session's own captures of the
+/// partner's light direction at the exact mirrored pose (`measure::resample`, slice layout).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Interpolation {
+    /// The plan light direction whose captures were interpolated.
+    pub light: usize,
+    /// `cshep2d` or `qshep2d`; empty when unresolved.
+    pub method: String,
+    /// Captures used as nodes.
+    pub nodes: usize,
+    /// The interpolated partner's uncertainty: the nodal functions' spread per XYZ channel, in
+    /// the units of the re-corrected partner `xyz_b`.
+    pub spread_xyz: Option<Xyz>,
+    /// ΔE00 between the partner and the partner moved by one spread: the pair's ΔE00 is only
+    /// meaningful beyond this.
+    pub sigma_de2000: Option<f64>,
+    /// Why no partner could be interpolated.
+    pub error: Option<String>,
+}
+
+/// One line of `isotropy.jsonl`: a capture against the mean of its class's earlier members.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct IsotropyRecord {
+    pub idx: u64,
+    pub entry: usize,
+    pub class: [f64; 3],
+    pub earlier_members: usize,
+    pub diff: ColourDifference,
+}
+
+/// Running means in the form of the paper's Table 2.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Table2 {
+    pub pairs: u64,
+    pub abs_dx: f64,
+    pub abs_dy: f64,
+    pub abs_dz: f64,
+    pub de76: f64,
+    pub dc: f64,
+    pub dh: f64,
+    pub de2000: f64,
+}
+
+impl Table2 {
+    pub(crate) fn add(&mut self, d: &ColourDifference) {
+        let n = self.pairs as f64;
+        let upd = |m: &mut f64, v: f64| *m = (*m * n + v) / (n + 1.0);
+        upd(&mut self.abs_dx, d.abs_dxyz[0]);
+        upd(&mut self.abs_dy, d.abs_dxyz[1]);
+        upd(&mut self.abs_dz, d.abs_dxyz[2]);
+        upd(&mut self.de76, d.de76);
+        upd(&mut self.dc, d.dc);
+        upd(&mut self.dh, d.dh);
+        upd(&mut self.de2000, d.de2000);
+        self.pairs += 1;
+    }
+}
+
+/// Counters for the summary.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CheckCounts {
+    pub captures: u64,
+    pub ok: u64,
+    pub failed: u64,
+    pub missing: u64,
+    pub probes: u64,
+    pub pairs_exact: u64,
+    pub pairs_needs_resampling: u64,
+    pub pairs_grazing: u64,
+    /// Occlusion substitutes scored against an interpolated partner, and those that could not be.
+    #[serde(default)]
+    pub pairs_interpolated: u64,
+    #[serde(default)]
+    pub pairs_unresolved: u64,
+    pub isotropy_comparisons: u64,
+    /// Interpolated pairs fed to the isotropy drift fit (weighted by their spread).
+    #[serde(default)]
+    pub drift_interpolated: u64,
+    pub alarms: u64,
+}
