@@ -7,8 +7,8 @@
 //!
 //! Run: `cargo bench --bench checks`
 
+use goniowatch::checks::{CaptureInput, CheckSpec, Checker, ColourSettings, Outcome};
 use goniowatch::measure::averaging::CaptureStats;
-use goniowatch::measure::checks::{CaptureInput, CheckSpec, Checker, ColourSettings, Outcome};
 use goniowatch::measure::colour::{RgbPrimaries, RgbToXyz, White};
 use goniowatch::measure::geometry::Vec3;
 use goniowatch::measure::kinematics::{Rig, RigSpec};

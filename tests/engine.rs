@@ -1,10 +1,10 @@
 //! The session engine on scripted traffic: negotiation, gaps, reboots, garbled and malformed
 //! lines, lost replies, duplicates, and the ordering of outcomes.
 
+use goniowatch::checks::Outcome;
 use goniowatch::config::Config;
 use goniowatch::engine::{Engine, Input, Output};
 use goniowatch::measure::averaging::CaptureStats;
-use goniowatch::measure::checks::Outcome;
 use goniowatch::protocol::{format, parse};
 
 fn engine() -> Engine {

@@ -80,8 +80,8 @@ fn every_recorded_session_replays_to_its_expected_output() {
                 std::fs::write(&expected, &got).unwrap();
                 continue;
             }
-            let want = std::fs::read(&expected)
-                .unwrap_or_else(|e| panic!("{}: {e}", expected.display()));
+            let want =
+                std::fs::read(&expected).unwrap_or_else(|e| panic!("{}: {e}", expected.display()));
             if want != got {
                 failures.push(format!("{name}/{f}: {}", first_difference(&want, &got)));
             }
