@@ -13,7 +13,9 @@ use crate::checks::{
     CaptureInput, CaptureRecord, CheckCounts, Checker, IsotropyRecord, Outcome, PairRecord, Table2,
 };
 use crate::measure::alarm::{Alarm, AlarmKind, Severity};
-use crate::protocol::{self, Message, PROTO_VERSION};
+use crate::protocol::{
+    self, Ack, Announcement, FromController, Ident, LineError, Nak, Status, PROTO_VERSION,
+};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
@@ -138,17 +140,6 @@ impl Default for EngineSpec {
     }
 }
 
-#[derive(Debug, Clone)]
-struct Announcement {
-    entry: usize,
-    file: String,
-    t: f64,
-    cmd: [f64; 4],
-    enc: [f64; 4],
-    substitute: Option<f64>,
-    probe: bool,
-}
-
 pub struct Engine {
     checker: Checker,
     spec: EngineSpec,
@@ -213,9 +204,6 @@ const ALARM_WINDOW: u64 = 2000;
 /// Capture indices an aggregated alarm lists at most.
 const ALARM_LIST_MAX: usize = 200;
 
-/// Controller times outside this range (seconds) are refused as garbage.
-const MAX_CONTROLLER_T: f64 = 1e7;
-
 /// The alarms of one code held back in the current window.
 #[derive(Debug, Clone, Default)]
 struct Storm {
@@ -229,56 +217,6 @@ struct Storm {
 /// Capture indices beyond the plan's count by more than this are refused as garbage (probes
 /// add captures beyond the plan, but not millions).
 const INDEX_ALLOWANCE: u64 = 100_000;
-
-fn announcement(m: &Message, limit: u64) -> Result<(u64, Announcement), String> {
-    let idx = m.get_u64("idx").ok_or("missing or bad idx")?;
-    if idx >= limit {
-        return Err(format!(
-            "idx {idx} is beyond any plausible capture index (limit {limit})"
-        ));
-    }
-    let entry = m.get_u64("entry").ok_or("missing or bad entry")? as usize;
-    let file = m
-        .get("file")
-        .filter(|f| !f.is_empty())
-        .ok_or("missing file")?
-        .to_string();
-    let t = m.get_f64("t").ok_or("missing or bad t")?;
-    if !(0.0..=MAX_CONTROLLER_T).contains(&t) {
-        return Err(format!(
-            "t = {t} s is outside any plausible controller time [0, {MAX_CONTROLLER_T:e}]"
-        ));
-    }
-    let cmd = m
-        .get("cmd")
-        .and_then(protocol::parse_pose)
-        .ok_or("missing or bad cmd")?;
-    let enc = m
-        .get("enc")
-        .and_then(protocol::parse_pose)
-        .ok_or("missing or bad enc")?;
-    let substitute = match m.get("sub") {
-        None => None,
-        Some(s) => Some(
-            s.parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or("bad sub")?,
-        ),
-    };
-    Ok((
-        idx,
-        Announcement {
-            entry,
-            file,
-            t,
-            cmd,
-            enc,
-            substitute,
-            probe: m.get("probe") == Some("1"),
-        },
-    ))
-}
 
 impl Engine {
     pub fn new(checker: Checker, spec: EngineSpec) -> Self {
@@ -766,8 +704,14 @@ impl Engine {
         self.stats.lines += 1;
         self.stats.bytes += line.len() as u64 + 1;
         self.lines_since_resync = self.lines_since_resync.saturating_add(1);
+        let parsed = protocol::parse_message(line);
         // replayed CAPTURE lines are the answer arriving, not silence
-        if self.outstanding_resync.is_some() && !line.contains(" replay=1") {
+        let replayed = match &parsed {
+            Ok(l) => matches!(&l.message, FromController::Capture(a) if a.replay),
+            Err(LineError::Content { replay, .. }) => *replay,
+            Err(LineError::Frame(_)) => false,
+        };
+        if self.outstanding_resync.is_some() && !replayed {
             self.resync_age += 1;
             if self.resync_age > RESYNC_LINES {
                 // the reply was lost on the wire: ask again
@@ -775,9 +719,13 @@ impl Engine {
                 self.resync_needed = true;
             }
         }
-        let (seq, verb, parsed) = match protocol::parse_line(line) {
-            Ok(m) => (m.seq, m.verb.clone(), Ok(m)),
-            Err(protocol::LineError::Frame(e)) => {
+        let (seq, ident, content) = match parsed {
+            Ok(l) => (
+                l.seq,
+                matches!(l.message, FromController::Ident(_)),
+                Ok(l.message),
+            ),
+            Err(LineError::Frame(e)) => {
                 if matches!(e, protocol::FrameError::BadCrc { .. }) {
                     self.stats.crc_errors += 1;
                 } else {
@@ -787,16 +735,17 @@ impl Engine {
                 return;
             }
             // intact on the wire: its sequence number counts, its content is refused below
-            Err(protocol::LineError::Content {
+            Err(LineError::Content {
                 seq,
                 verb,
                 idx,
                 error,
-            }) => (seq, verb.clone(), Err((verb, idx, error))),
+                ..
+            }) => (seq, verb == "IDENT", Err((verb, idx, error))),
         };
         self.note_crc(out, false, "");
         // sequence check (an IDENT with seq 0 starts a new count: reboot or first contact)
-        let restart = verb == "IDENT" && seq == 0;
+        let restart = ident && seq == 0;
         let gap = self.expect_seq.is_some_and(|e| seq != e && !restart);
         if gap {
             self.stats.sequence_gaps += 1;
@@ -805,8 +754,8 @@ impl Engine {
             }
         }
         self.expect_seq = Some((seq + 1) % protocol::SEQ_MOD);
-        match parsed {
-            Ok(m) => self.handle_message(out, &m),
+        match content {
+            Ok(message) => self.handle_message(out, message),
             Err((verb, idx, error)) if verb == "CAPTURE" => {
                 self.refuse_announcement(out, idx, error.to_string())
             }
@@ -828,151 +777,154 @@ impl Engine {
         }
     }
 
-    fn handle_message(&mut self, out: &mut Vec<Output>, m: &Message) {
-        match m.verb.as_str() {
-            "IDENT" => self.ident(out, m),
-            "ACK" => {
-                let r = m.get("ref").and_then(|r| r.parse::<u32>().ok());
-                if r.is_some() && r == self.outstanding_resync {
-                    self.outstanding_resync = None;
-                    if m.get("state") == Some("done") {
-                        self.done = true;
-                    }
-                    if let Some(next) = m.get_u64("next").filter(|n| *n <= self.index_limit()) {
-                        self.controller_next = self.controller_next.max(next);
-                        if !self.gap_during_resync {
-                            // the controller's log has nothing else below `next`
-                            let lost: Vec<u64> = (self.next_check..next)
-                                .filter(|i| {
-                                    !self.announced.contains_key(i)
-                                        && !self.missing_announcements.contains(i)
-                                })
-                                .collect();
-                            self.missing_announcements.extend(lost.iter().copied());
-                            if lost.len() <= 20 {
-                                for i in lost {
-                                    self.alarm(
-                                        out,
-                                        Alarm::new(
-                                            AlarmKind::CaptureQuality,
-                                            Severity::Warning,
-                                            "capture-never-announced",
-                                            format!("capture {i} is not in the controller's capture log (resync reports next = {next})"),
-                                        )
-                                        .at(Some(i), None),
-                                    );
-                                }
-                            } else {
-                                let (first, last) = (lost[0], lost[lost.len() - 1]);
-                                self.alarm(
-                                    out,
-                                    Alarm::new(
-                                        AlarmKind::CaptureQuality,
-                                        Severity::Critical,
-                                        "capture-never-announced",
-                                        format!("{} captures between {first} and {last} are not in the controller's capture log (resync reports next = {next})", lost.len()),
-                                    )
-                                    .with(json!({"count": lost.len(), "first": first, "last": last})),
-                                );
-                            }
-                        } else {
-                            self.resync_needed = true;
-                        }
-                    }
-                    self.drain(out);
-                    if self.resync_needed {
-                        self.request_resync(out);
-                    }
+    fn handle_message(&mut self, out: &mut Vec<Output>, message: FromController) {
+        match message {
+            FromController::Ident(i) => self.ident(out, &i),
+            FromController::Ack(a) => self.ack(out, &a),
+            FromController::Nak(n) => self.nak(out, &n),
+            FromController::Status(s) => self.status(out, &s),
+            FromController::Capture(a) => {
+                let limit = self.index_limit();
+                if a.idx >= limit {
+                    let why = format!(
+                        "idx {} is beyond any plausible capture index (limit {limit})",
+                        a.idx
+                    );
+                    self.refuse_announcement(out, Some(a.idx), why);
+                } else {
+                    self.announce(out, a.idx, a);
                 }
             }
-            "NAK" => {
-                self.stats.naks += 1;
-                match m.get("reason") {
-                    Some("unsupported-version") => {
-                        let supported = m.get("supported").unwrap_or("?").to_string();
-                        self.version_refused(out, &supported);
-                    }
-                    // one of our lines was corrupted: resend what is pending
-                    Some("bad-crc") if self.outstanding_resync.take().is_some() => {
-                        self.request_resync(out)
-                    }
-                    Some("bad-crc") if !self.subscribed && !self.version_refused => self.hello(out),
-                    Some("not-subscribed") => {
-                        self.subscribed = false;
-                        self.send(out, "SUBSCRIBE", &[]);
-                        self.subscribed = true;
-                        self.request_resync(out);
-                    }
-                    _ => {}
-                }
-            }
-            "STATUS" => {
-                if let Some(next) = m.get_u64("next").filter(|n| *n <= self.index_limit()) {
-                    self.controller_next = self.controller_next.max(next);
-                }
-                match m.get("state") {
-                    Some("done") => {
-                        self.done = true;
-                        // make sure nothing before `next` is unseen
-                        if self.lowest_unseen() < self.controller_next {
-                            self.request_resync(out);
-                        }
-                        self.drain(out);
-                    }
-                    Some("fault") => {
-                        let reason = m.get("reason").unwrap_or("no reason given").to_string();
-                        let t = m
-                            .get_f64("t")
-                            .filter(|t| (0.0..=MAX_CONTROLLER_T).contains(t));
-                        self.alarm(
-                            out,
-                            Alarm::new(
-                                AlarmKind::Link,
-                                Severity::Critical,
-                                "controller-fault",
-                                format!("the controller reports a fault: {reason}"),
-                            )
-                            .at(None, t),
-                        );
-                    }
-                    _ => {}
-                }
-            }
-            "CAPTURE" => match announcement(m, self.index_limit()) {
-                Ok((idx, a)) => self.announce(out, idx, a),
-                Err(e) => {
-                    let fields = m
-                        .fields
-                        .iter()
-                        .map(|(k, v)| format!("{k}={v}"))
-                        .collect::<Vec<_>>()
-                        .join(" ");
-                    self.refuse_announcement(out, m.get_u64("idx"), format!("{e}: {fields}"));
-                }
-            },
-            "POSE" | "ERR" => {}
-            _ => self.stats.unknown_verbs += 1,
+            FromController::Info => {}
+            FromController::Unknown(_) => self.stats.unknown_verbs += 1,
         }
     }
 
-    fn ident(&mut self, out: &mut Vec<Output>, m: &Message) {
+    fn ack(&mut self, out: &mut Vec<Output>, a: &Ack) {
+        if a.reference.is_none() || a.reference != self.outstanding_resync {
+            return;
+        }
+        self.outstanding_resync = None;
+        if a.state.as_deref() == Some("done") {
+            self.done = true;
+        }
+        if let Some(next) = a.next.filter(|n| *n <= self.index_limit()) {
+            self.controller_next = self.controller_next.max(next);
+            if !self.gap_during_resync {
+                self.note_never_announced(out, next);
+            } else {
+                self.resync_needed = true;
+            }
+        }
+        self.drain(out);
+        if self.resync_needed {
+            self.request_resync(out);
+        }
+    }
+
+    /// After a clean resync: the controller's log has nothing below `next` that is not yet
+    /// announced, so those captures are missing for good.
+    fn note_never_announced(&mut self, out: &mut Vec<Output>, next: u64) {
+        let lost: Vec<u64> = (self.next_check..next)
+            .filter(|i| !self.announced.contains_key(i) && !self.missing_announcements.contains(i))
+            .collect();
+        self.missing_announcements.extend(lost.iter().copied());
+        if lost.len() <= 20 {
+            for i in lost {
+                self.alarm(
+                    out,
+                    Alarm::new(
+                        AlarmKind::CaptureQuality,
+                        Severity::Warning,
+                        "capture-never-announced",
+                        format!("capture {i} is not in the controller's capture log (resync reports next = {next})"),
+                    )
+                    .at(Some(i), None),
+                );
+            }
+        } else {
+            let (first, last) = (lost[0], lost[lost.len() - 1]);
+            self.alarm(
+                out,
+                Alarm::new(
+                    AlarmKind::CaptureQuality,
+                    Severity::Critical,
+                    "capture-never-announced",
+                    format!("{} captures between {first} and {last} are not in the controller's capture log (resync reports next = {next})", lost.len()),
+                )
+                .with(json!({"count": lost.len(), "first": first, "last": last})),
+            );
+        }
+    }
+
+    fn nak(&mut self, out: &mut Vec<Output>, n: &Nak) {
+        self.stats.naks += 1;
+        match n.reason.as_deref() {
+            Some("unsupported-version") => {
+                let supported = n.supported.as_deref().unwrap_or("?").to_string();
+                self.version_refused(out, &supported);
+            }
+            // one of our lines was corrupted: resend what is pending
+            Some("bad-crc") if self.outstanding_resync.take().is_some() => self.request_resync(out),
+            Some("bad-crc") if !self.subscribed && !self.version_refused => self.hello(out),
+            Some("not-subscribed") => {
+                self.subscribed = false;
+                self.send(out, "SUBSCRIBE", &[]);
+                self.subscribed = true;
+                self.request_resync(out);
+            }
+            _ => {}
+        }
+    }
+
+    fn status(&mut self, out: &mut Vec<Output>, s: &Status) {
+        if let Some(next) = s.next.filter(|n| *n <= self.index_limit()) {
+            self.controller_next = self.controller_next.max(next);
+        }
+        match s.state.as_deref() {
+            Some("done") => {
+                self.done = true;
+                // make sure nothing before `next` is unseen
+                if self.lowest_unseen() < self.controller_next {
+                    self.request_resync(out);
+                }
+                self.drain(out);
+            }
+            Some("fault") => {
+                let reason = s.reason.as_deref().unwrap_or("no reason given");
+                self.alarm(
+                    out,
+                    Alarm::new(
+                        AlarmKind::Link,
+                        Severity::Critical,
+                        "controller-fault",
+                        format!("the controller reports a fault: {reason}"),
+                    )
+                    .at(None, s.t),
+                );
+            }
+            _ => {}
+        }
+    }
+
+    fn ident(&mut self, out: &mut Vec<Output>, m: &Ident) {
         // the unsolicited IDENT after boot and the reply to HELLO say the same: subscribe once
-        if self.subscribed && m.get_u64("boot") == self.boot && self.boot.is_some() {
+        if self.subscribed && m.boot == self.boot && self.boot.is_some() {
             return;
         }
         let proto_ok = m
-            .get("proto")
-            .map(|p| p == PROTO_VERSION.to_string())
-            .unwrap_or(false);
+            .proto
+            .as_deref()
+            .is_some_and(|p| p == PROTO_VERSION.to_string());
         if !proto_ok {
-            let theirs = m.get("proto").unwrap_or("?").to_string();
+            let theirs = m.proto.as_deref().unwrap_or("?").to_string();
             self.version_refused(out, &theirs);
             return;
         }
-        if let Some(n) = m.get_u64("captures") {
+        if let Some(n) = m.captures {
             self.captures_planned = n;
         }
-        let boot = m.get_u64("boot");
+        let boot = m.boot;
         if let (Some(old), Some(new)) = (self.boot, boot) {
             if new != old {
                 self.stats.reboots += 1;
@@ -988,7 +940,7 @@ impl Engine {
             }
         }
         self.boot = boot.or(self.boot);
-        let session = m.get("session").map(str::to_string);
+        let session = m.session.clone();
         match (&self.session, &session) {
             (Some(a), Some(b)) if a != b => {
                 self.alarm(
@@ -1004,7 +956,7 @@ impl Engine {
             (None, Some(_)) => self.session = session,
             _ => {}
         }
-        self.rig_id = m.get("rig").map(str::to_string).or(self.rig_id.take());
+        self.rig_id = m.rig.clone().or(self.rig_id.take());
         self.subscribed = true;
         self.outstanding_resync = None;
         self.send(out, "SUBSCRIBE", &[]);

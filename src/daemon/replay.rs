@@ -137,12 +137,12 @@ pub fn replay(session_dir: &Path, options: &ReplayOptions) -> Result<ReplayRepor
         let mut files: HashMap<u64, String> = HashMap::new();
         for (_, i) in &all {
             if let Input::Rx { line } = i {
-                if let Ok(m) = crate::protocol::parse(line) {
-                    if m.verb == "CAPTURE" {
-                        if let (Some(idx), Some(f)) = (m.get_u64("idx"), m.get("file")) {
-                            files.entry(idx).or_insert_with(|| f.to_string());
-                        }
-                    }
+                if let Ok(crate::protocol::Line {
+                    message: crate::protocol::FromController::Capture(a),
+                    ..
+                }) = crate::protocol::parse_message(line)
+                {
+                    files.entry(a.idx).or_insert(a.file);
                 }
             }
         }
