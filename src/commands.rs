@@ -58,7 +58,7 @@ fn average_file_inner(
     opts: &AverageOptions,
 ) -> anyhow::Result<AverageOk> {
     use anyhow::Context;
-    let limits = cfg.ingest.decode_limits();
+    let limits = crate::daemon::ingest::decode_limits(&cfg.ingest);
     // the same safe read as the daemon's: a FIFO or device is refused at once, never waited on
     let (bytes, _) = crate::daemon::ingest::read_capture(None, path, &limits)
         .map_err(|e| anyhow::anyhow!("{}", e.reason))

@@ -4,15 +4,13 @@
 //! the offending field (serde's message plus the TOML key path and line).
 
 use crate::checks::CheckSpec;
-use crate::daemon::ingest::IngestSpec;
-use crate::daemon::link::LinkSpec;
-use crate::engine::EngineSpec;
 use crate::measure::averaging::AverageOptions;
 use crate::measure::colour::{ColourError, RgbPrimaries, RgbToXyz, White, Xyz};
 use crate::measure::kinematics::{KinematicsError, Rig, RigSpec};
 use crate::measure::plan::{PlanError, PlanSpec, SamplingPlan};
 use crate::measure::reciprocity::DEFAULT_MIN_COS;
 use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
 use thiserror::Error;
 
 #[derive(Debug, Error)]
@@ -167,22 +165,11 @@ pub struct AlarmSpec {
 
 impl Default for AlarmSpec {
     fn default() -> Self {
-        let e = EngineSpec::default();
         AlarmSpec {
             hook: Vec::new(),
-            pause_on_critical: e.pause_on_critical,
-            crc_errors_alarm: e.crc_errors_alarm,
-            crc_window: e.crc_window,
-        }
-    }
-}
-
-impl AlarmSpec {
-    pub fn engine(&self) -> EngineSpec {
-        EngineSpec {
-            pause_on_critical: self.pause_on_critical,
-            crc_errors_alarm: self.crc_errors_alarm,
-            crc_window: self.crc_window,
+            pause_on_critical: false,
+            crc_errors_alarm: 5,
+            crc_window: 200,
         }
     }
 }
@@ -215,6 +202,77 @@ pub struct Config {
     #[serde(default)]
     pub http: HttpSpec,
 }
+
+/// `[link]` in the config.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LinkSpec {
+    /// The controller's serial port (a stable path; the simulator makes it a symlink).
+    pub port: PathBuf,
+    pub baud: u32,
+    pub reconnect_min_ms: u64,
+    pub reconnect_max_ms: u64,
+}
+
+impl Default for LinkSpec {
+    fn default() -> Self {
+        LinkSpec {
+            port: PathBuf::from("/tmp/goniowatch-rig"),
+            baud: 115_200,
+            reconnect_min_ms: 100,
+            reconnect_max_ms: 2000,
+        }
+    }
+}
+
+/// Retry policy (`[ingest]` in the config).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct IngestSpec {
+    /// Where the camera PC writes; announced names are relative to it. Relative to the config
+    /// file's folder.
+    pub capture_root: PathBuf,
+    /// Worker threads decoding captures.
+    pub workers: usize,
+    /// Jobs queued for the workers before the daemon holds further ones back.
+    pub queue: usize,
+    /// First retry delay; it doubles up to `retry_max_ms`.
+    pub retry_first_ms: u64,
+    pub retry_max_ms: u64,
+    /// Give up on a file that is absent, growing or undecodable after this long.
+    pub give_up_s: f64,
+    /// A file that fails to decode this many times at an unchanged size is failed at once.
+    pub stable_failures: u32,
+    /// Threads per EXR decode (1 inside the pool).
+    pub decode_threads: usize,
+    /// A capture is accepted once it decodes and has not changed for this long (last modified
+    /// this long ago, or seen unchanged this long apart). 0: accept as soon as it decodes at a
+    /// stable size, for writers that rename finished files into place.
+    pub settle_ms: u64,
+    /// Memory one decode may use, from the file's header (channels × pixels × bytes), checked
+    /// before any pixel buffer is allocated.
+    pub max_decode_mib: u64,
+}
+
+impl Default for IngestSpec {
+    fn default() -> Self {
+        IngestSpec {
+            capture_root: PathBuf::from("captures"),
+            workers: 2,
+            queue: 8,
+            retry_first_ms: 50,
+            retry_max_ms: 1000,
+            give_up_s: 30.0,
+            stable_failures: 3,
+            decode_threads: 1,
+            settle_ms: 500,
+            max_decode_mib: 1024,
+        }
+    }
+}
+
+/// The largest accepted `ingest.give_up_s` (a day).
+pub const MAX_GIVE_UP_S: f64 = 86_400.0;
 
 /// `[http]`: the status page of `run --http ADDR`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
@@ -346,11 +404,7 @@ pub const KEY_RANGES: &[KeyRange] = &[
     closed("ingest.queue", 1.0, 10_000.0),
     closed("ingest.retry_first_ms", 1.0, 60_000.0),
     closed("ingest.retry_max_ms", 1.0, 600_000.0),
-    closed(
-        "ingest.give_up_s",
-        0.0,
-        crate::daemon::ingest::MAX_GIVE_UP_S,
-    ),
+    closed("ingest.give_up_s", 0.0, MAX_GIVE_UP_S),
     closed("ingest.stable_failures", 1.0, 1000.0),
     closed("ingest.decode_threads", 1.0, 16.0),
     closed("ingest.settle_ms", 0.0, 600_000.0),
@@ -536,27 +590,14 @@ impl Config {
         }
     }
 
-    /// The checker and engine for a session with this configuration.
-    pub fn engine(&self) -> Result<crate::engine::Engine, ConfigError> {
-        use crate::checks::{Checker, ColourSettings};
-        let checker = Checker::new(
-            self.plan()?,
-            self.rig()?,
-            ColourSettings {
-                to_xyz: self.rgb_to_xyz(),
-                rgb_scale: self.colour.rgb_scale,
-                white: self.live_white()?,
-                min_cos: self.reciprocity.min_cos,
-            },
-            self.checks.clone(),
-            self.sample.isotropic,
-            self.probes.clone(),
-        );
-        let mut engine = crate::engine::Engine::new(checker, self.alarms.engine());
-        if self.probes.every > 0 {
-            engine.set_probes(self.probes.every, self.probe_entry()?);
-        }
-        Ok(engine)
+    /// The colour settings of the live checks.
+    pub fn colour_settings(&self) -> Result<crate::checks::ColourSettings, ConfigError> {
+        Ok(crate::checks::ColourSettings {
+            to_xyz: self.rgb_to_xyz(),
+            rgb_scale: self.colour.rgb_scale,
+            white: self.live_white()?,
+            min_cos: self.reciprocity.min_cos,
+        })
     }
 
     /// The plan entry re-captured by probes: the configured one, or lamp at the pole and camera

@@ -12,6 +12,7 @@
 use crate::checks::{
     CaptureInput, CaptureRecord, CheckCounts, Checker, IsotropyRecord, Outcome, PairRecord, Table2,
 };
+use crate::config::{AlarmSpec, Config, ConfigError};
 use crate::measure::alarm::{Alarm, AlarmKind, Severity};
 use crate::protocol::{
     self, Ack, Announcement, FromController, Ident, LineError, Nak, Status, PROTO_VERSION,
@@ -119,30 +120,9 @@ pub struct Summary {
     pub finished: bool,
 }
 
-/// Engine settings beyond the checker's.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct EngineSpec {
-    /// Send PAUSE to the controller on a critical alarm (the rig may refuse).
-    pub pause_on_critical: bool,
-    /// Alarm when this many of the last `crc_window` lines failed their CRC.
-    pub crc_errors_alarm: usize,
-    pub crc_window: usize,
-}
-
-impl Default for EngineSpec {
-    fn default() -> Self {
-        EngineSpec {
-            pause_on_critical: false,
-            crc_errors_alarm: 5,
-            crc_window: 200,
-        }
-    }
-}
-
 pub struct Engine {
     checker: Checker,
-    spec: EngineSpec,
+    spec: AlarmSpec,
     tx_seq: u32,
     connected: bool,
     expect_seq: Option<u32>,
@@ -219,7 +199,25 @@ struct Storm {
 const INDEX_ALLOWANCE: u64 = 100_000;
 
 impl Engine {
-    pub fn new(checker: Checker, spec: EngineSpec) -> Self {
+    /// The engine of a session with this configuration: its checker, alarm settings and
+    /// probe cadence.
+    pub fn from_config(cfg: &Config) -> Result<Engine, ConfigError> {
+        let checker = Checker::new(
+            cfg.plan()?,
+            cfg.rig()?,
+            cfg.colour_settings()?,
+            cfg.checks.clone(),
+            cfg.sample.isotropic,
+            cfg.probes.clone(),
+        );
+        let mut engine = Engine::new(checker, cfg.alarms.clone());
+        if cfg.probes.every > 0 {
+            engine.set_probes(cfg.probes.every, cfg.probe_entry()?);
+        }
+        Ok(engine)
+    }
+
+    pub fn new(checker: Checker, spec: AlarmSpec) -> Self {
         let captures_planned = checker.plan().capture_count() as u64;
         Engine {
             checker,

@@ -10,7 +10,7 @@ use goniowatch::protocol::{format, parse};
 fn engine() -> Engine {
     let text =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
-    Config::from_toml_str(&text).unwrap().engine().unwrap()
+    Engine::from_config(&Config::from_toml_str(&text).unwrap()).unwrap()
 }
 
 struct Ctl {
@@ -351,7 +351,7 @@ fn pause_on_critical_only_when_enabled() {
     let text =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
     let text = text.replace("pause_on_critical = false", "pause_on_critical = true");
-    let mut e = Config::from_toml_str(&text).unwrap().engine().unwrap();
+    let mut e = Engine::from_config(&Config::from_toml_str(&text).unwrap()).unwrap();
     let mut c = Ctl { seq: 0 };
     connected(&mut e, &mut c);
     let fault = c.line(
@@ -582,7 +582,7 @@ fn probes_are_requested_only_when_enabled() {
     assert_eq!(plan.directions()[e0.camera].theta_deg, 45.0);
     for (every, want) in [(2u64, 1usize), (0, 0)] {
         let mut e = if every > 0 {
-            cfg.engine().unwrap()
+            Engine::from_config(&cfg).unwrap()
         } else {
             engine()
         };

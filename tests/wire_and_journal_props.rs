@@ -117,7 +117,7 @@ proptest! {
     #[test]
     fn the_engine_takes_any_line_without_panicking(lines in proptest::collection::vec(".{0,120}", 1..40)) {
         let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
-        let mut e = goniowatch::config::Config::from_toml_str(&text).unwrap().engine().unwrap();
+        let mut e = goniowatch::engine::Engine::from_config(&goniowatch::config::Config::from_toml_str(&text).unwrap()).unwrap();
         e.handle(&Input::Connected);
         for line in lines {
             e.handle(&Input::Rx { line });

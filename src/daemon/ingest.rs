@@ -10,9 +10,9 @@
 //!   jobs it could not queue, so a slow disk pushes back instead of piling up.
 
 use crate::checks::Outcome;
+use crate::config::{IngestSpec, MAX_GIVE_UP_S};
 use crate::decode::{decode, DecodeLimits};
 use crate::measure::averaging::{average, AverageOptions};
-use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Component, Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -55,62 +55,11 @@ pub fn resolve(root: &Path, name: &str) -> Result<PathBuf, PathError> {
     Ok(path)
 }
 
-/// Retry policy (`[ingest]` in the config).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct IngestSpec {
-    /// Where the camera PC writes; announced names are relative to it. Relative to the config
-    /// file's folder.
-    pub capture_root: PathBuf,
-    /// Worker threads decoding captures.
-    pub workers: usize,
-    /// Jobs queued for the workers before the daemon holds further ones back.
-    pub queue: usize,
-    /// First retry delay; it doubles up to `retry_max_ms`.
-    pub retry_first_ms: u64,
-    pub retry_max_ms: u64,
-    /// Give up on a file that is absent, growing or undecodable after this long.
-    pub give_up_s: f64,
-    /// A file that fails to decode this many times at an unchanged size is failed at once.
-    pub stable_failures: u32,
-    /// Threads per EXR decode (1 inside the pool).
-    pub decode_threads: usize,
-    /// A capture is accepted once it decodes and has not changed for this long (last modified
-    /// this long ago, or seen unchanged this long apart). 0: accept as soon as it decodes at a
-    /// stable size, for writers that rename finished files into place.
-    pub settle_ms: u64,
-    /// Memory one decode may use, from the file's header (channels × pixels × bytes), checked
-    /// before any pixel buffer is allocated.
-    pub max_decode_mib: u64,
-}
-
-/// The largest accepted `give_up_s` (a day).
-pub const MAX_GIVE_UP_S: f64 = 86_400.0;
-
-impl IngestSpec {
-    /// The decoder's limits for this spec.
-    pub fn decode_limits(&self) -> DecodeLimits {
-        DecodeLimits {
-            threads: self.decode_threads.max(1),
-            ..DecodeLimits::default()
-        }
-    }
-}
-
-impl Default for IngestSpec {
-    fn default() -> Self {
-        IngestSpec {
-            capture_root: PathBuf::from("captures"),
-            workers: 2,
-            queue: 8,
-            retry_first_ms: 50,
-            retry_max_ms: 1000,
-            give_up_s: 30.0,
-            stable_failures: 3,
-            decode_threads: 1,
-            settle_ms: 500,
-            max_decode_mib: 1024,
-        }
+/// The decoder's limits for an `[ingest]` spec.
+pub fn decode_limits(spec: &IngestSpec) -> DecodeLimits {
+    DecodeLimits {
+        threads: spec.decode_threads.max(1),
+        ..DecodeLimits::default()
     }
 }
 
@@ -320,7 +269,7 @@ pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions)
             }
         }
     };
-    let limits = spec.decode_limits();
+    let limits = decode_limits(spec);
     let start = Instant::now();
     // the config bounds give_up_s; the clamp keeps a hand-built spec from panicking here
     let give_up = Duration::from_secs_f64(spec.give_up_s.clamp(0.0, MAX_GIVE_UP_S));

@@ -3,38 +3,15 @@
 //! an `RxBad` input instead of ending the stream. On EOF, EIO or an unplugged device the port is
 //! reopened at the same path with exponential backoff.
 
+use crate::config::LinkSpec;
 use crate::engine::Input;
 use crate::protocol::MAX_LINE;
 use futures::{SinkExt, StreamExt};
-use serde::{Deserialize, Serialize};
-use std::path::PathBuf;
 use std::time::Duration;
 use tokio::sync::{mpsc, watch};
 use tokio_serial::SerialPortBuilderExt;
 use tokio_util::bytes::BytesMut;
 use tokio_util::codec::{Decoder, Encoder, Framed, LinesCodec, LinesCodecError};
-
-/// `[link]` in the config.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct LinkSpec {
-    /// The controller's serial port (a stable path; the simulator makes it a symlink).
-    pub port: PathBuf,
-    pub baud: u32,
-    pub reconnect_min_ms: u64,
-    pub reconnect_max_ms: u64,
-}
-
-impl Default for LinkSpec {
-    fn default() -> Self {
-        LinkSpec {
-            port: PathBuf::from("/tmp/goniowatch-rig"),
-            baud: 115_200,
-            reconnect_min_ms: 100,
-            reconnect_max_ms: 2000,
-        }
-    }
-}
 
 /// `LinesCodec` with a length limit, whose framing errors are items rather than stream errors.
 pub struct RigCodec {

@@ -165,7 +165,7 @@ pub fn replay(session_dir: &Path, options: &ReplayOptions) -> Result<ReplayRepor
     let average_opts = session.config.capture;
     let limits = DecodeLimits {
         threads: 1,
-        ..session.config.ingest.decode_limits()
+        ..super::ingest::decode_limits(&session.config.ingest)
     };
     let mut handles = Vec::new();
     for _ in 0..workers.max(1) {
@@ -203,7 +203,7 @@ pub fn replay(session_dir: &Path, options: &ReplayOptions) -> Result<ReplayRepor
         None
     };
 
-    let mut engine = session.config.engine()?;
+    let mut engine = crate::engine::Engine::from_config(&session.config)?;
     let mut results = Results::open(&out_dir, true)?;
     let mut report = ReplayReport::default();
     let mut ready: HashMap<usize, Result<Outcome, String>> = HashMap::new();

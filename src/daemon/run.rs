@@ -263,7 +263,7 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         let (e, n) = recover(&session).context("cannot recover the session from its journal")?;
         (e, n)
     } else {
-        (cfg.engine()?, 0)
+        (crate::engine::Engine::from_config(&cfg)?, 0)
     };
     if session.resumed {
         eprintln!(

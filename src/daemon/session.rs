@@ -211,7 +211,7 @@ pub fn recover(session: &Session) -> Result<(Engine, usize)> {
             journal_path.display()
         );
     }
-    let mut engine = session.config.engine()?;
+    let mut engine = crate::engine::Engine::from_config(&session.config)?;
     let mut results = Results::open(&session.dir, true)?;
     let mut n = 0;
     for e in &read.entries {
