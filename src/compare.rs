@@ -3,7 +3,6 @@
 //! result to `SESSION/crossval.json` (for the report) besides returning it.
 
 use crate::checks::CaptureRecord;
-use crate::config::Config;
 use crate::engine::Summary;
 use crate::measure::colour::White;
 use crate::measure::crossval::{cross_validate, CrossValidation, GainCorrection, SessionValue};
@@ -13,7 +12,6 @@ use crate::reference;
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::HashSet;
-use std::io::BufRead;
 use std::path::Path;
 
 /// What `compare` reports: the inputs' names and the cross-validation.
@@ -42,21 +40,15 @@ pub enum GainChoice {
 /// nothing at or below the dark level (`[checks] dark_y`: a lamp off is not a colour).
 pub fn session_values(dir: &Path, dark_y: f64) -> Result<Vec<SessionValue>> {
     let path = dir.join("captures.jsonl");
-    let file = std::fs::File::open(&path).with_context(|| {
-        format!(
-            "cannot open {} (is this a goniowatch session folder?)",
-            path.display()
-        )
-    })?;
+    if !path.exists() {
+        bail!(
+            "{} has no captures.jsonl (is this a goniowatch session folder?)",
+            dir.display()
+        );
+    }
     let mut seen = HashSet::new();
     let mut out = Vec::new();
-    for (n, line) in std::io::BufReader::new(file).lines().enumerate() {
-        let line = line.with_context(|| format!("cannot read {}", path.display()))?;
-        if line.trim().is_empty() {
-            continue;
-        }
-        let rec: CaptureRecord = serde_json::from_str(&line)
-            .with_context(|| format!("{} line {}: not a capture record", path.display(), n + 1))?;
+    for rec in crate::session::folder::read_records::<CaptureRecord>(&path)? {
         if rec.probe || rec.status != crate::checks::CaptureStatus::Ok || seen.contains(&rec.entry)
         {
             continue;
@@ -86,30 +78,20 @@ pub const DEFAULT_MAX_REFERENCE_SPREAD: f64 = 0.05;
 
 /// The probes' gain curve: (t in hours, Y of the probe / Y of the first capture of its entry),
 /// starting at (t of that first capture, 1).
-pub fn probe_gain_curve(dir: &Path) -> Result<Vec<(f64, f64)>> {
-    let path = dir.join("captures.jsonl");
-    let file =
-        std::fs::File::open(&path).with_context(|| format!("cannot open {}", path.display()))?;
-    let mut first: std::collections::HashMap<usize, (f64, f64)> = std::collections::HashMap::new();
+pub fn probe_gain_curve(dir: &Path, dark_y: f64) -> Result<Vec<(f64, f64)>> {
+    let records: Vec<CaptureRecord> =
+        crate::session::folder::read_records(&dir.join("captures.jsonl"))?;
+    let mut curve = crate::checks::ProbeGainCurve::new(dark_y);
     let mut points = Vec::new();
-    for line in std::io::BufReader::new(file).lines() {
-        let line = line.with_context(|| format!("cannot read {}", path.display()))?;
-        let Ok(rec) = serde_json::from_str::<CaptureRecord>(&line) else {
-            continue;
-        };
-        let Some(xyz) = rec.xyz else { continue };
-        if rec.status != crate::checks::CaptureStatus::Ok || !(xyz[1] > 0.0) {
-            continue;
-        }
-        if rec.probe {
-            if let Some(&(t0, y0)) = first.get(&rec.entry) {
-                if points.is_empty() {
+    for rec in &records {
+        if let Some(p) = curve.add(rec) {
+            // the curve starts at 1 at the probed pose's original capture
+            if points.is_empty() {
+                if let Some(t0) = curve.origin_s(rec.entry) {
                     points.push((t0 / 3600.0, 1.0));
                 }
-                points.push((rec.t / 3600.0, xyz[1] / y0));
             }
-        } else {
-            first.entry(rec.entry).or_insert((rec.t, xyz[1]));
+            points.push(p);
         }
     }
     Ok(points)
@@ -122,14 +104,7 @@ pub fn compare(
     worst: usize,
     max_reference_spread: f64,
 ) -> Result<CompareReport> {
-    let cfg_path = session.join("config.toml");
-    let cfg = Config::from_toml_str(&std::fs::read_to_string(&cfg_path).with_context(|| {
-        format!(
-            "cannot read {} (is this a goniowatch session folder?)",
-            cfg_path.display()
-        )
-    })?)
-    .with_context(|| format!("invalid session config {}", cfg_path.display()))?;
+    let (cfg, _) = crate::session::folder::load_config(session)?;
     let values = session_values(session, cfg.checks.dark_y)?;
     if values.is_empty() {
         bail!("{} has no usable captures", session.display());
@@ -160,10 +135,8 @@ pub fn compare(
             points: Vec::new(),
         }),
         GainChoice::Session => {
-            let summary: Option<Summary> = std::fs::read(session.join("summary.json"))
-                .ok()
-                .and_then(|b| serde_json::from_slice(&b).ok());
-            let points = probe_gain_curve(session)?;
+            let summary: Option<Summary> = crate::session::folder::load_summary(session).ok();
+            let points = probe_gain_curve(session, cfg.checks.dark_y)?;
             match (summary, points.len()) {
                 (Some(s), n) if n >= 2 => Some(GainCorrection {
                     rate_pct_per_h: s.probe_drift.map(|d| d.rate_pct_per_h).unwrap_or(0.0),
@@ -203,7 +176,7 @@ pub fn compare(
         result,
     };
     let json = serde_json::to_vec_pretty(&report)?;
-    crate::daemon::journal::write_atomic(&session.join("crossval.json"), &json)
+    crate::session::folder::write_atomic(&session.join("crossval.json"), &json)
         .with_context(|| format!("cannot write {}", session.join("crossval.json").display()))?;
     Ok(report)
 }

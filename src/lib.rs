@@ -25,3 +25,4 @@ pub mod measure;
 pub mod protocol;
 pub mod reference;
 pub mod report;
+pub mod session;

@@ -28,43 +28,10 @@ pub struct ReportInputs {
     pub crossval: Option<CompareReport>,
 }
 
-fn read_jsonl<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Vec<T>> {
-    let text = match std::fs::read_to_string(path) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
-    };
-    let mut out = Vec::new();
-    let last = text.lines().count();
-    for (n, line) in text.lines().enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        match serde_json::from_str(line) {
-            Ok(v) => out.push(v),
-            // a torn last line (a crash mid-write) is left out, as recovery would cut it
-            Err(_) if n + 1 == last => {}
-            Err(e) => return Err(e).with_context(|| format!("{} line {}", path.display(), n + 1)),
-        }
-    }
-    Ok(out)
-}
-
 pub fn load(dir: &Path) -> Result<ReportInputs> {
-    let config_path = dir.join("config.toml");
-    let config_text = std::fs::read_to_string(&config_path).with_context(|| {
-        format!(
-            "cannot read {} (is this a goniowatch session folder?)",
-            config_path.display()
-        )
-    })?;
-    let config = Config::from_toml_str(&config_text)
-        .with_context(|| format!("invalid config {}", config_path.display()))?;
-    let summary: Summary = serde_json::from_slice(
-        &std::fs::read(dir.join("summary.json"))
-            .with_context(|| format!("cannot read {}", dir.join("summary.json").display()))?,
-    )
-    .context("summary.json")?;
+    use crate::session::folder::{load_config, load_summary, read_records};
+    let (config, config_text) = load_config(dir)?;
+    let summary = load_summary(dir)?;
     let crossval = match std::fs::read(dir.join("crossval.json")) {
         Ok(b) => Some(serde_json::from_slice(&b).context("crossval.json")?),
         Err(_) => None,
@@ -73,15 +40,11 @@ pub fn load(dir: &Path) -> Result<ReportInputs> {
         summary,
         config_text,
         config,
-        captures: read_jsonl(&dir.join("captures.jsonl"))?,
-        pairs: read_jsonl(&dir.join("pairs.jsonl"))?,
-        alarms: read_jsonl(&dir.join("alarms.jsonl"))?,
-        // sessions recorded before the sweep checks existed have no sweeps.jsonl
-        sweeps: if dir.join("sweeps.jsonl").exists() {
-            read_jsonl(&dir.join("sweeps.jsonl"))?
-        } else {
-            Vec::new()
-        },
+        captures: read_records(&dir.join("captures.jsonl"))?,
+        pairs: read_records(&dir.join("pairs.jsonl"))?,
+        alarms: read_records(&dir.join("alarms.jsonl"))?,
+        // sessions recorded before the sweep checks existed have no sweeps.jsonl (read as empty)
+        sweeps: read_records(&dir.join("sweeps.jsonl"))?,
         crossval,
     })
 }
@@ -342,23 +305,8 @@ fn alarm_colour(a: &Alarm) -> &'static str {
 }
 
 fn drift_plot(inp: &ReportInputs) -> String {
-    // probe gain points: probe Y over the first capture of the same entry
-    let mut first_y: BTreeMap<usize, f64> = BTreeMap::new();
-    let mut gain = Vec::new();
-    for c in &inp.captures {
-        let Some(xyz) = c.xyz else { continue };
-        if c.probe {
-            // a dark probe (lamp off) is no gain measurement, as in the checks
-            if !(xyz[1] > inp.config.checks.dark_y) {
-                continue;
-            }
-            if let Some(y0) = first_y.get(&c.entry).filter(|y| **y > 0.0) {
-                gain.push((c.t / 3600.0, xyz[1] / y0));
-            }
-        } else {
-            first_y.entry(c.entry).or_insert(xyz[1]);
-        }
-    }
+    let mut curve = crate::checks::ProbeGainCurve::new(inp.config.checks.dark_y);
+    let gain: Vec<(f64, f64)> = inp.captures.iter().filter_map(|c| curve.add(c)).collect();
     let t_end = end_hours(inp);
     let est = inp.summary.probe_drift;
     // the estimate covers the probes since its last reset (a step restarts it): draw its line
@@ -1021,11 +969,11 @@ pub fn report(session: &Path, out: Option<&Path>) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     let html = render_html(&inp)?;
     let path = out_dir.join("report.html");
-    crate::daemon::journal::write_atomic(&path, html.as_bytes())?;
+    crate::session::folder::write_atomic(&path, html.as_bytes())?;
     written.push(path);
     for (name, text) in render_csvs(&inp)? {
         let path = out_dir.join(name);
-        crate::daemon::journal::write_atomic(&path, text.as_bytes())?;
+        crate::session::folder::write_atomic(&path, text.as_bytes())?;
         written.push(path);
     }
     Ok(written)

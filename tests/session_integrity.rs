@@ -6,11 +6,11 @@
 mod common;
 use common::reference;
 use goniowatch::daemon::ingest::measure_file;
-use goniowatch::daemon::journal::{JournalEntry, JournalItem, JsonlFile};
-use goniowatch::daemon::session::{recover, Session};
 use goniowatch::decode::DecodeLimits;
 use goniowatch::engine::Input;
 use goniowatch::protocol::format;
+use goniowatch::session::journal::{JournalEntry, JournalItem, JsonlFile};
+use goniowatch::session::recovery::{recover, Session};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

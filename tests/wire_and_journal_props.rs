@@ -4,11 +4,11 @@
 //! tell an intact line from a corrupt one; the journal must round-trip what it writes and
 //! refuse any changed byte, naming its line.
 
-use goniowatch::daemon::journal::{
-    read_journal, JournalEntry, JournalError, JournalItem, JsonlFile,
-};
 use goniowatch::engine::Input;
 use goniowatch::protocol::{format, parse, parse_line, LineError};
+use goniowatch::session::journal::{
+    read_journal, JournalEntry, JournalError, JournalItem, JsonlFile,
+};
 use proptest::prelude::*;
 use std::path::PathBuf;
 

@@ -25,7 +25,7 @@ mod tests;
 
 pub use records::{
     CaptureInput, CaptureRecord, CaptureStatus, CheckCounts, GainCorrected, Interpolation,
-    IsotropyRecord, Outcome, PairRecord, PairStatus, Table2,
+    IsotropyRecord, Outcome, PairRecord, PairStatus, ProbeGainCurve, Table2,
 };
 
 use crate::measure::alarm::Alarm;

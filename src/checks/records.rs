@@ -244,3 +244,38 @@ pub struct CheckCounts {
     pub drift_interpolated: u64,
     pub alarms: u64,
 }
+
+/// The drift probes' gain curve as the result files give it: each usable probe brighter than the
+/// dark level, its Y over the Y of the first usable capture of the same plan entry. The one
+/// definition the report, the status page and `compare` share.
+#[derive(Debug, Clone, Default)]
+pub struct ProbeGainCurve {
+    dark_y: f64,
+    /// Per plan entry: the time (s) and Y of its first usable capture.
+    first: std::collections::BTreeMap<usize, (f64, f64)>,
+}
+
+impl ProbeGainCurve {
+    pub fn new(dark_y: f64) -> Self {
+        ProbeGainCurve {
+            dark_y,
+            first: Default::default(),
+        }
+    }
+
+    /// Take the next capture record; a probe gives its point (hours, gain).
+    pub fn add(&mut self, c: &CaptureRecord) -> Option<(f64, f64)> {
+        let xyz = c.xyz.filter(|_| c.status == CaptureStatus::Ok)?;
+        if !c.probe {
+            self.first.entry(c.entry).or_insert((c.t, xyz[1]));
+            return None;
+        }
+        let &(_, y0) = self.first.get(&c.entry)?;
+        (xyz[1] > self.dark_y && y0 > 0.0).then(|| (c.t / 3600.0, xyz[1] / y0))
+    }
+
+    /// The time (s) of the first usable capture of an entry, the curve's origin for its probes.
+    pub fn origin_s(&self, entry: usize) -> Option<f64> {
+        self.first.get(&entry).map(|(t, _)| *t)
+    }
+}

@@ -3,10 +3,8 @@
 
 pub mod http;
 pub mod ingest;
-pub mod journal;
 pub mod link;
 pub mod replay;
 pub mod run;
-pub mod session;
 pub mod sinks;
 pub mod status;

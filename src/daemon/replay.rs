@@ -7,11 +7,11 @@
 //! that moment of the live run cannot be recovered. The session folder is only read.
 
 use super::ingest::{measure_file, resolve};
-use super::journal::Results;
-use super::session::{inputs, verified_journal, Session};
 use crate::checks::Outcome;
 use crate::decode::DecodeLimits;
 use crate::engine::{Input, Summary};
+use crate::session::folder::{write_atomic, Results};
+use crate::session::recovery::{inputs, verified_journal, Session};
 use anyhow::{bail, Context, Result};
 use std::collections::HashMap;
 use std::io::IsTerminal;
@@ -107,7 +107,7 @@ pub fn replay(session_dir: &Path, options: &ReplayOptions) -> Result<ReplayRepor
     // the config beside the results, so that the replayed folder stands on its own (`report`)
     let config_text = std::fs::read(session_dir.join("config.toml"))
         .with_context(|| format!("cannot read {}", session_dir.join("config.toml").display()))?;
-    super::journal::write_atomic(&out_dir.join("config.toml"), &config_text)?;
+    write_atomic(&out_dir.join("config.toml"), &config_text)?;
     let journal_path = session_dir.join("journal.jsonl");
     let read = verified_journal(&journal_path, session.info.journal_checksums)?;
     if read.torn_tail {

@@ -6,12 +6,13 @@
 //! link, captures to the pool, records to the result files, alarms to the sinks.
 
 use super::ingest::{Job, Pool};
-use super::journal::{now_ms, JournalEntry, JournalItem, JsonlFile, Results, SessionLock};
-use super::session::{recover, Session};
 use super::sinks::{log_alarm, run_hook};
 use super::status::{Published, StatusModel};
 use crate::engine::{Engine, Input, Output, Summary};
 use crate::measure::alarm::Severity;
+use crate::session::folder::{Results, SessionLock};
+use crate::session::journal::{now_ms, JournalEntry, JournalItem, JsonlFile};
+use crate::session::recovery::{recover, Session};
 use anyhow::{Context, Result};
 use std::collections::{BTreeSet, VecDeque};
 use std::io::IsTerminal;
@@ -307,7 +308,7 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
     };
 
     if let Some(listener) = listener {
-        let mut model = StatusModel::new(&cfg.plan()?);
+        let mut model = StatusModel::new(&cfg.plan()?, cfg.checks.dark_y);
         if session.resumed {
             model.load(&session.dir);
         }

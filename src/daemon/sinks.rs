@@ -45,7 +45,7 @@ pub fn run_hook(
     let (prog, args) = hook.split_first()?;
     let mut value = serde_json::to_value(a).unwrap_or_default();
     if let Some(obj) = value.as_object_mut() {
-        obj.insert("wall_ms".into(), super::journal::now_ms().into());
+        obj.insert("wall_ms".into(), crate::session::journal::now_ms().into());
         obj.insert("still_active".into(), still_active.into());
     }
     let payload = serde_json::to_vec(&value).unwrap_or_default();

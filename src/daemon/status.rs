@@ -10,7 +10,7 @@ use crate::engine::{Output, Summary};
 use crate::measure::alarm::Alarm;
 use crate::measure::plan::SamplingPlan;
 use serde::Serialize;
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
 use std::path::Path;
 
 /// How many recent pairs and alarms the page shows.
@@ -74,7 +74,7 @@ pub struct StatusModel {
     directions: Vec<Direction>,
     done_per_light: Vec<u32>,
     current_light: Option<usize>,
-    first_y: HashMap<usize, f64>,
+    probe_gain: crate::checks::ProbeGainCurve,
     recent_pairs: VecDeque<RecentPair>,
     alarms: VecDeque<Alarm>,
     drift: Vec<DriftPoint>,
@@ -86,7 +86,8 @@ pub struct StatusModel {
 }
 
 impl StatusModel {
-    pub fn new(plan: &SamplingPlan) -> Self {
+    /// The model of a session with this plan; probes at or below `dark_y` are no gain points.
+    pub fn new(plan: &SamplingPlan, dark_y: f64) -> Self {
         let n = plan.direction_count();
         StatusModel {
             directions: plan
@@ -99,7 +100,7 @@ impl StatusModel {
                 .collect(),
             done_per_light: vec![0; n],
             current_light: None,
-            first_y: HashMap::new(),
+            probe_gain: crate::checks::ProbeGainCurve::new(dark_y),
             recent_pairs: VecDeque::new(),
             alarms: VecDeque::new(),
             drift: Vec::new(),
@@ -112,14 +113,12 @@ impl StatusModel {
 
     /// Rebuild from a session folder's result files (on resume).
     pub fn load(&mut self, dir: &Path) {
-        fn each<T: serde::de::DeserializeOwned>(path: &Path, mut f: impl FnMut(T)) {
-            let Ok(text) = std::fs::read_to_string(path) else {
-                return;
-            };
-            for line in text.lines().filter(|l| !l.trim().is_empty()) {
-                if let Ok(v) = serde_json::from_str::<T>(line) {
-                    f(v);
-                }
+        // the files were just rebuilt from the journal; one that cannot be read leaves its
+        // part of the page empty, with a warning, rather than the run without a page
+        fn each<T: serde::de::DeserializeOwned>(path: &Path, f: impl FnMut(T)) {
+            match crate::session::folder::read_records::<T>(path) {
+                Ok(v) => v.into_iter().for_each(f),
+                Err(e) => tracing::warn!("status page: {e:#}"),
             }
         }
         each(&dir.join("captures.jsonl"), |c: CaptureRecord| {
@@ -131,24 +130,16 @@ impl StatusModel {
 
     fn capture(&mut self, c: &CaptureRecord) {
         self.last_t = c.t;
+        if let Some((t_h, gain)) = self.probe_gain.add(c) {
+            self.gain.push(GainPoint { t_h, gain });
+        }
         if c.probe {
-            if let (Some(y0), Some(xyz)) = (self.first_y.get(&c.entry), c.xyz) {
-                if *y0 > 0.0 {
-                    self.gain.push(GainPoint {
-                        t_h: c.t / 3600.0,
-                        gain: xyz[1] / y0,
-                    });
-                }
-            }
             return;
         }
         if let Some(slot) = self.done_per_light.get_mut(c.light) {
             *slot += 1;
         }
         self.current_light = Some(c.light);
-        if let Some(xyz) = c.xyz {
-            self.first_y.entry(c.entry).or_insert(xyz[1]);
-        }
     }
 
     fn pair(&mut self, p: &PairRecord) {
@@ -425,7 +416,7 @@ mod tests {
     #[test]
     fn snapshot_counts_coverage_probes_and_alarms_and_reloads_from_files() {
         let plan = SamplingPlan::ubo();
-        let mut m = StatusModel::new(&plan);
+        let mut m = StatusModel::new(&plan, 0.5);
         let mut outputs = Vec::new();
         for idx in 0..100u64 {
             let e = plan.entry(idx as usize).unwrap();
@@ -481,8 +472,8 @@ mod tests {
             }
         }
         std::fs::write(dir.join("captures.jsonl"), caps).unwrap();
-        std::fs::write(dir.join("alarms.jsonl"), alarms + "{torn line\n").unwrap();
-        let mut r = StatusModel::new(&plan);
+        std::fs::write(dir.join("alarms.jsonl"), alarms + "{torn line").unwrap();
+        let mut r = StatusModel::new(&plan, 0.5);
         r.load(&dir);
         let s3 = r.snapshot(&summary, 0.0);
         assert_eq!(s3.done_per_light, s.done_per_light);

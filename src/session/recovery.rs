@@ -1,10 +1,9 @@
-//! Shell: creating and reopening a session directory, and feeding a recorded journal through a
-//! fresh engine (shared by crash recovery and replay).
+//! Opening a session folder (creating it, reopening it, or refusing one whose results have lost
+//! their journal) and rebuilding its results from a verified journal through a fresh engine
+//! (crash recovery; replay feeds the same inputs).
 
-use super::journal::{
-    read_journal, repair_jsonl, write_atomic, JournalEntry, JournalItem, JournalRead, Results,
-    RESULT_FILES,
-};
+use super::folder::{write_atomic, Results, RESULT_FILES};
+use super::journal::{read_journal, repair_jsonl, JournalEntry, JournalItem, JournalRead};
 use crate::config::Config;
 use crate::engine::{Engine, Input, Output};
 use anyhow::{bail, Context, Result};
@@ -174,15 +173,7 @@ impl Session {
 
     /// Read a session directory without changing it (for replay).
     pub fn open_read_only(dir: &Path) -> Result<Session> {
-        let stored = dir.join("config.toml");
-        let text = std::fs::read_to_string(&stored).with_context(|| {
-            format!(
-                "{} is not a goniowatch session (no config.toml)",
-                dir.display()
-            )
-        })?;
-        let config = Config::from_toml_str(&text)
-            .with_context(|| format!("invalid stored config {}", stored.display()))?;
+        let (config, _) = super::folder::load_config(dir)?;
         let info_path = dir.join("session.json");
         let info: SessionInfo = serde_json::from_slice(
             &std::fs::read(&info_path)

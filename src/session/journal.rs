@@ -1,24 +1,12 @@
-//! Shell: the session directory.
-//!
-//! ```text
-//! SESSION/
-//!   config.toml      the configuration the session runs with (copied at creation)
-//!   session.json     where the captures are, when and how the session was created (wall clock)
-//!   journal.jsonl    every engine input in the order consumed, and every line sent, with wall
-//!                    times: the raw serial traffic both ways, link events, capture outcomes
-//!   manifest.jsonl   per capture: file, size, SHA-256, status          ┐
-//!   captures.jsonl   per-capture results                               │ results: a pure
-//!   pairs.jsonl      per-pair reciprocity results                      │ function of the
-//!   isotropy.jsonl   per-capture isotropy-class results                │ journal's inputs,
-//!   alarms.jsonl     alarms (controller time and capture index only)   │ no wall-clock field
-//!   summary.json     the running summary (Table 2, counts, link)       ┘
-//!   lock             held while a daemon works on the session
-//! ```
+//! The session journal: every engine input in the order consumed, and every line sent, with
+//! wall times, one JSON object a line, each ending in a checksum. Resume and replay read it
+//! through `read_journal`, which verifies every line before anything is rebuilt from it.
 //!
 //! Appends are written line by line with `write(2)` (a `kill -9` loses nothing written) and
-//! `fsync`ed once per capture outcome. A torn last line (a crash mid-write) is cut on open.
+//! `fsync`ed once per capture outcome. Only an unterminated last line (a write cut short by a
+//! crash) is ever cut.
 
-use crate::engine::{Input, Output};
+use crate::engine::Input;
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::fs::{File, OpenOptions};
@@ -263,128 +251,6 @@ impl JsonlFile {
             self.dirty = false;
         }
         Ok(())
-    }
-}
-
-/// The result files, written from engine outputs.
-pub struct Results {
-    dir: PathBuf,
-    captures: JsonlFile,
-    pairs: JsonlFile,
-    isotropy: JsonlFile,
-    sweeps: JsonlFile,
-    alarms: JsonlFile,
-    manifest: JsonlFile,
-}
-
-pub const RESULT_FILES: [&str; 6] = [
-    "captures.jsonl",
-    "pairs.jsonl",
-    "isotropy.jsonl",
-    "alarms.jsonl",
-    "manifest.jsonl",
-    "sweeps.jsonl",
-];
-
-impl Results {
-    /// Open for appending (`fresh = false`) or create empty (`fresh = true`).
-    pub fn open(dir: &Path, fresh: bool) -> Result<Self> {
-        let open = |name: &str| {
-            let p = dir.join(name);
-            if fresh {
-                JsonlFile::create(&p)
-            } else {
-                JsonlFile::append(&p)
-            }
-        };
-        Ok(Results {
-            dir: dir.to_path_buf(),
-            captures: open(RESULT_FILES[0])?,
-            pairs: open(RESULT_FILES[1])?,
-            isotropy: open(RESULT_FILES[2])?,
-            alarms: open(RESULT_FILES[3])?,
-            manifest: open(RESULT_FILES[4])?,
-            sweeps: open(RESULT_FILES[5])?,
-        })
-    }
-
-    /// Record one engine output (those that are results).
-    pub fn record(&mut self, o: &Output) -> Result<()> {
-        match o {
-            Output::Capture(c) => self.captures.write(c),
-            Output::Pair(p) => self.pairs.write(p),
-            Output::Isotropy(r) => self.isotropy.write(r),
-            Output::Sweep(r) => self.sweeps.write(r),
-            Output::Alarm(a) => self.alarms.write(a),
-            Output::Manifest(m) => self.manifest.write(m),
-            Output::Send(_) | Output::Ingest { .. } | Output::Finished => Ok(()),
-        }
-    }
-
-    pub fn sync(&mut self) -> Result<()> {
-        for f in [
-            &mut self.captures,
-            &mut self.pairs,
-            &mut self.isotropy,
-            &mut self.sweeps,
-            &mut self.alarms,
-            &mut self.manifest,
-        ] {
-            f.sync()?;
-        }
-        Ok(())
-    }
-
-    pub fn write_summary<T: Serialize>(&self, summary: &T) -> Result<()> {
-        write_atomic(
-            &self.dir.join("summary.json"),
-            &serde_json::to_vec_pretty(summary)?,
-        )
-    }
-}
-
-/// Write a file under a temporary name, fsync, rename into place.
-pub fn write_atomic(path: &Path, data: &[u8]) -> Result<()> {
-    let tmp = path.with_extension("tmp");
-    {
-        let mut f =
-            File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
-        f.write_all(data)
-            .with_context(|| format!("cannot write {}", tmp.display()))?;
-        f.sync_all()
-            .with_context(|| format!("cannot flush {} to disk", tmp.display()))?;
-    }
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot rename {}", tmp.display()))?;
-    Ok(())
-}
-
-/// An exclusive lock on the session directory.
-pub struct SessionLock {
-    _file: File,
-}
-
-impl SessionLock {
-    pub fn acquire(dir: &Path) -> Result<Self> {
-        let path = dir.join("lock");
-        let file = OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&path)
-            .with_context(|| format!("cannot open {}", path.display()))?;
-        match file.try_lock() {
-            Ok(()) => {}
-            Err(std::fs::TryLockError::WouldBlock) => {
-                anyhow::bail!(
-                    "session {} is in use by another goniowatch process",
-                    dir.display()
-                )
-            }
-            Err(std::fs::TryLockError::Error(e)) => {
-                return Err(e).context("cannot lock the session")
-            }
-        }
-        Ok(SessionLock { _file: file })
     }
 }
 
