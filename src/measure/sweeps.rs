@@ -135,6 +135,80 @@ pub struct SweepRecord {
     pub model_builds: usize,
 }
 
+/// A completed sweep: its captures (indices into the monitor's list) and those of the earlier
+/// completed sweeps.
+struct Sweep {
+    light: usize,
+    last_idx: u64,
+    last_t: f64,
+    layer: i64,
+    first_t: f64,
+    current: Vec<usize>,
+    past: Vec<usize>,
+}
+
+/// The F + L + C reference: class and camera effects (ln units), and which classes have members.
+struct Reference {
+    class: Vec<f64>,
+    camera: Vec<f64>,
+    seen: Vec<bool>,
+}
+
+impl Reference {
+    /// The class effects, NaN for classes without an earlier member.
+    fn class_effects(&self) -> Vec<f64> {
+        self.class
+            .iter()
+            .zip(&self.seen)
+            .map(|(v, s)| if *s { *v } else { f64::NAN })
+            .collect()
+    }
+}
+
+/// The sweep's pattern fit: coefficients [λ, b₁, b₂], residual variance, (XᵀX)⁻¹ when the fit
+/// is well conditioned.
+struct PatternFit {
+    beta: DVector<f64>,
+    sigma2: f64,
+    inv: Option<DMatrix<f64>>,
+}
+
+impl PatternFit {
+    /// The standard error of coefficient `j`.
+    fn se(&self, j: usize) -> Option<f64> {
+        self.inv
+            .as_ref()
+            .map(|m| (self.sigma2 * m[(j, j)]).max(0.0).sqrt())
+    }
+}
+
+/// What the level test found: whether it alarmed, and where the step starts (controller s).
+#[derive(Debug, Clone, Copy, Default)]
+struct LevelStep {
+    alarmed: bool,
+    at_s: Option<f64>,
+}
+
+/// A joint CUSUM that crossed its threshold.
+#[derive(Debug, Clone, Copy)]
+struct JointCrossing {
+    /// 0 or 1 (arm joint 1 or 2).
+    joint: usize,
+    statistic: f64,
+    mean: f64,
+    mean_se: f64,
+    sweeps: usize,
+    since: u64,
+}
+
+/// An alarm already raised, which is not raised again: a gain step per sign and θi layer, a
+/// positioning alarm per θi layer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum Latch {
+    Level { sign: i8, layer: i64 },
+    Joint { layer: i64 },
+}
+
 /// The sweep checks of one session.
 pub struct SweepMonitor {
     spec: SweepSpec,
@@ -154,7 +228,7 @@ pub struct SweepMonitor {
     joint_history: [ScaleHistory; 2],
     level_cusum: Cusum,
     joint_cusum: [Cusum; 2],
-    latched: HashSet<(u8, i8, i64)>,
+    latched: HashSet<Latch>,
     h_level: f64,
     h_joint: f64,
     last: Option<SweepRecord>,
@@ -397,16 +471,71 @@ impl SweepMonitor {
 
     /// The light direction `light` is complete: test its sweep against the earlier ones.
     pub fn light_complete(&mut self, light: usize, level_test: bool) -> SweepOutcome {
-        let mut alarms = Vec::new();
-        let nothing = |alarms| SweepOutcome {
-            record: None,
-            alarms,
-            step_at_s: None,
-        };
+        let nothing = SweepOutcome::default();
         let Some(done) = self.completed.get_mut(light) else {
-            return nothing(alarms);
+            return nothing;
         };
         *done = true;
+        let Some(sweep) = self.sweep_of(light) else {
+            return nothing;
+        };
+        self.sweep_starts.push((sweep.last_idx, sweep.first_t));
+        let reference = self.backfit(&sweep.past);
+        self.ensure_model(sweep.layer, &reference.class_effects());
+        let (all, rows) = self.residuals(&sweep.current, &reference);
+        if all.len() < self.spec.min_captures {
+            return nothing;
+        }
+        // the level: the mean residual of every capture with an earlier class member
+        let na = all.len() as f64;
+        let level = all.iter().sum::<f64>() / na;
+        let level_se =
+            (all.iter().map(|e| (e - level).powi(2)).sum::<f64>() / (na - 1.0).max(1.0) / na)
+                .sqrt();
+        let pattern = self.pattern_fit(rows);
+        let mut rec = SweepRecord {
+            light,
+            idx: sweep.last_idx,
+            t: sweep.last_t,
+            captures: all.len(),
+            level_pct: 100.0 * level,
+            level_se_pct: 100.0 * level_se,
+            level_z: None,
+            level_cusum: 0.0,
+            joints: Vec::new(),
+            residual_sd: if pattern.sigma2.is_finite() {
+                pattern.sigma2.sqrt()
+            } else {
+                0.0
+            },
+            thresholds: [self.h_level, self.h_joint],
+            model_layers: 0,
+            model_builds: self.model_builds,
+        };
+        let mut alarms = Vec::new();
+        let level_step = if level_test {
+            self.test_level(&sweep, level, level_se, &mut rec, &mut alarms)
+        } else {
+            LevelStep::default()
+        };
+        self.test_joints(&sweep, &pattern, level_step.alarmed, &mut rec, &mut alarms);
+        rec.model_layers = self
+            .model
+            .as_ref()
+            .map(|m| m.layer_thetas().len())
+            .unwrap_or(0);
+        rec.model_builds = self.model_builds;
+        self.last = Some(rec.clone());
+        self.tested += 1;
+        SweepOutcome {
+            record: Some(rec),
+            alarms,
+            step_at_s: level_step.at_s,
+        }
+    }
+
+    /// The captures of a just completed sweep and of the earlier completed ones.
+    fn sweep_of(&self, light: usize) -> Option<Sweep> {
         let current: Vec<usize> = (0..self.captures.len())
             .filter(|&k| self.captures[k].light == light)
             .collect();
@@ -416,18 +545,24 @@ impl SweepMonitor {
                 l != light && self.completed.get(l).copied().unwrap_or(false)
             })
             .collect();
-        let Some(&last) = current.iter().max_by_key(|&&k| self.captures[k].idx) else {
-            return nothing(alarms);
-        };
-        let (last_idx, last_t) = (self.captures[last].idx, self.captures[last].t);
-        let layer = self.captures[last].layer;
+        let &last = current.iter().max_by_key(|&&k| self.captures[k].idx)?;
         let first_t = current
             .iter()
             .map(|&k| self.captures[k].t)
             .fold(f64::INFINITY, f64::min);
-        self.sweep_starts.push((last_idx, first_t));
+        Some(Sweep {
+            light,
+            last_idx: self.captures[last].idx,
+            last_t: self.captures[last].t,
+            layer: self.captures[last].layer,
+            first_t,
+            current,
+            past,
+        })
+    }
 
-        // the F + L + C reference over the earlier sweeps (back-fitting)
+    /// The F + L + C reference over the earlier sweeps, by back-fitting group means.
+    fn backfit(&self, past: &[usize]) -> Reference {
         let n_class = self.class_ids.len();
         let n_dir = self.completed.len();
         let y: Vec<f64> = past.iter().map(|&k| self.captures[k].y.ln()).collect();
@@ -459,39 +594,40 @@ impl SweepMonitor {
         for &k in &cls {
             seen[k] = true;
         }
+        Reference {
+            class: f,
+            camera: c,
+            seen,
+        }
+    }
 
-        let effect: Vec<f64> = f
-            .iter()
-            .zip(&seen)
-            .map(|(v, s)| if *s { *v } else { f64::NAN })
-            .collect();
-        self.ensure_model(layer, &effect);
+    /// The current sweep's residuals against the reference (captures whose class has an
+    /// earlier member), and the rows (residual, sensitivities) of those with sensitivities.
+    fn residuals(&self, current: &[usize], r: &Reference) -> (Vec<f64>, Vec<(f64, [f64; 2])>) {
+        let n_dir = self.completed.len();
         let mut rows: Vec<(f64, [f64; 2])> = Vec::new();
         let mut all: Vec<f64> = Vec::new();
-        for &k in &current {
+        for &k in current {
             let cap = &self.captures[k];
-            if !seen[self.class_of[k]] {
+            if !r.seen[self.class_of[k]] {
                 continue;
             }
-            let e = cap.y.ln() - f[self.class_of[k]] - c[cap.camera.min(n_dir - 1)];
+            let e = cap.y.ln() - r.class[self.class_of[k]] - r.camera[cap.camera.min(n_dir - 1)];
             all.push(e);
             if let Some(s) = self.sensitivities(&cap.cmd) {
                 rows.push((e, s));
             }
         }
-        if all.len() < self.spec.min_captures {
-            return nothing(alarms);
-        }
-        // the level: the mean residual of every capture with an earlier class member
-        let na = all.len() as f64;
-        let level = all.iter().sum::<f64>() / na;
-        let level_se =
-            (all.iter().map(|e| (e - level).powi(2)).sum::<f64>() / (na - 1.0).max(1.0) / na)
-                .sqrt();
-        // the pattern: e = λ + b₁ s₁ + b₂ s₂ by SVD least squares over the captures with
-        // sensitivities. Rows whose sensitivity is far out of line with the sweep's others are
-        // left out: they sit where the interpolant is least sure (the lobe's peak, a layer's
-        // edge) and, as high-leverage points, would pull the slope towards their own error.
+        (all, rows)
+    }
+
+    /// The pattern: e = λ + b₁ s₁ + b₂ s₂ by SVD least squares over the rows. Rows whose
+    /// sensitivity is far out of line with the sweep's others are left out first: they sit
+    /// where the interpolant is least sure (a lobe's peak, a layer's edge) and, as
+    /// high-leverage points, would pull the slope towards their own error. Then the fit is
+    /// trimmed twice of rows beyond 3 robust residual scales (a capture the interpolant gets
+    /// wrong, a bad frame) and refitted.
+    fn pattern_fit(&self, mut rows: Vec<(f64, [f64; 2])>) -> PatternFit {
         let caps: Vec<f64> = (0..2)
             .map(|j| {
                 let v: Vec<f64> = rows.iter().map(|r| r.1[j]).collect();
@@ -505,17 +641,17 @@ impl SweepMonitor {
             })
             .collect();
         rows.retain(|r| r.1[0].abs() <= caps[0] && r.1[1].abs() <= caps[1]);
-        let mut beta = DVector::zeros(3);
-        let mut sigma2 = f64::NAN;
-        let mut inv = None;
-        // then least squares, twice trimmed of rows beyond 3 robust residual scales (a
-        // capture the interpolant gets wrong, a bad frame) and refitted
+        let mut fit = PatternFit {
+            beta: DVector::zeros(3),
+            sigma2: f64::NAN,
+            inv: None,
+        };
         for pass in 0..=TRIM_PASSES {
             let n = rows.len();
             if n < self.spec.min_captures {
                 // too few rows left after a trim: the previous pass's fit stands
                 if pass == 0 {
-                    inv = None;
+                    fit.inv = None;
                 }
                 break;
             }
@@ -524,19 +660,19 @@ impl SweepMonitor {
             let svd = x.clone().svd(true, true);
             let Ok(b) = svd.solve(&yv, 1e-12) else {
                 if pass == 0 {
-                    inv = None;
+                    fit.inv = None;
                 }
                 break;
             };
             let resid = &yv - &x * &b;
-            sigma2 = resid.norm_squared() / (n - 3).max(1) as f64;
+            fit.sigma2 = resid.norm_squared() / (n - 3).max(1) as f64;
             let cond = svd.singular_values.max() / svd.singular_values.min().max(1e-300);
-            inv = if cond < 1e8 {
+            fit.inv = if cond < 1e8 {
                 (x.transpose() * &x).try_inverse()
             } else {
                 None
             };
-            beta = b;
+            fit.beta = b;
             let cut = TRIM_SCALES * robust_scale_about_zero(resid.as_slice());
             if !(cut > 0.0) || resid.iter().all(|r| r.abs() <= cut) {
                 break;
@@ -544,95 +680,92 @@ impl SweepMonitor {
             let mut keep = resid.iter().map(|r| r.abs() <= cut);
             rows.retain(|_| keep.next().unwrap_or(false));
         }
-        let se = |j: usize| {
-            inv.as_ref()
-                .map(|m: &DMatrix<f64>| (sigma2 * m[(j, j)]).max(0.0).sqrt())
-        };
-        let mut rec = SweepRecord {
-            light,
-            idx: last_idx,
-            t: last_t,
-            captures: all.len(),
-            level_pct: 100.0 * level,
-            level_se_pct: 100.0 * level_se,
-            level_z: None,
-            level_cusum: 0.0,
-            joints: Vec::new(),
-            residual_sd: if sigma2.is_finite() {
-                sigma2.sqrt()
-            } else {
-                0.0
-            },
-            thresholds: [self.h_level, self.h_joint],
-            model_layers: 0,
-            model_builds: self.model_builds,
-        };
-        let k = self.spec.cusum_k;
-        let clip = self.spec.clip;
-        let at = (Some(last_idx), Some(last_t));
+        fit
+    }
 
-        // the level, against the earlier sweeps of the same θi layer
-        let mut level_alarm = false;
-        let mut step_at_s = None;
-        if level_test {
-            let hist = self.level_history.entry(layer).or_default();
-            let mut tested = false;
-            let mut alarmed = false;
-            if hist.len() >= self.spec.min_layer_sweeps && level_se.is_finite() {
-                tested = true;
-                let scale = hist.scale().max(2.0 * level_se).max(1e-3);
-                let z = (level / scale).clamp(-clip, clip);
-                rec.level_z = Some(z);
-                self.level_cusum.add(z, k, level, scale, last_idx);
-                let cs = &self.level_cusum;
-                for (sign, stat, run) in [(1i8, cs.up, cs.up_run), (-1i8, cs.down, cs.down_run)] {
-                    let mean = if run.n > 0 {
-                        run.sum / run.n as f64
-                    } else {
-                        0.0
-                    };
-                    if stat > self.h_level
-                        && 100.0 * f64::from(sign) * mean >= self.spec.level_tolerance_pct
-                        && self.latched.insert((0, sign, layer))
-                    {
-                        alarms.push(
-                            Alarm::new(
-                                AlarmKind::Drift,
-                                Severity::Warning,
-                                "gain-step",
-                                format!(
-                                    "the gain level stepped {} by about {:+.2} %: light sweep {light} (captures up to {last_idx}) and the {} before it sit off the earlier sweeps of θi = {}° (CUSUM {stat:.1} > {:.1}; from isotropy classes, no probes)",
-                                    if sign > 0 { "up" } else { "down" },
-                                    100.0 * mean,
-                                    run.n.saturating_sub(1),
-                                    layer as f64 / 1000.0,
-                                    self.h_level
-                                ),
-                            )
-                            .at(at.0, at.1)
-                            .with(json!({"source": "light sweeps", "level_pct": 100.0 * mean, "sweeps": run.n, "since_idx": run.start, "since_t": self.sweep_start(run.start), "statistic": stat, "threshold": self.h_level})),
-                        );
-                        step_at_s = self.sweep_start(run.start);
-                        self.level_cusum.reset();
-                        alarmed = true;
-                        level_alarm = true;
-                        break;
-                    }
+    /// The level against the earlier sweeps of the same θi layer: its CUSUM, and a `gain-step`
+    /// alarm (once per sign and layer) when it crosses with a large enough mean.
+    fn test_level(
+        &mut self,
+        sweep: &Sweep,
+        level: f64,
+        level_se: f64,
+        rec: &mut SweepRecord,
+        alarms: &mut Vec<Alarm>,
+    ) -> LevelStep {
+        let (k, clip, layer) = (self.spec.cusum_k, self.spec.clip, sweep.layer);
+        let mut step = LevelStep::default();
+        let hist = self.level_history.entry(layer).or_default();
+        let mut tested = false;
+        if hist.len() >= self.spec.min_layer_sweeps && level_se.is_finite() {
+            tested = true;
+            let scale = hist.scale().max(2.0 * level_se).max(1e-3);
+            let z = (level / scale).clamp(-clip, clip);
+            rec.level_z = Some(z);
+            self.level_cusum.add(z, k, level, scale, sweep.last_idx);
+            let cs = &self.level_cusum;
+            for (sign, stat, run) in [(1i8, cs.up, cs.up_run), (-1i8, cs.down, cs.down_run)] {
+                let mean = if run.n > 0 {
+                    run.sum / run.n as f64
+                } else {
+                    0.0
+                };
+                if stat > self.h_level
+                    && 100.0 * f64::from(sign) * mean >= self.spec.level_tolerance_pct
+                    && self.latched.insert(Latch::Level { sign, layer })
+                {
+                    alarms.push(
+                        Alarm::new(
+                            AlarmKind::Drift,
+                            Severity::Warning,
+                            "gain-step",
+                            format!(
+                                "the gain level stepped {} by about {:+.2} %: light sweep {} (captures up to {}) and the {} before it sit off the earlier sweeps of θi = {}° (CUSUM {stat:.1} > {:.1}; from isotropy classes, no probes)",
+                                if sign > 0 { "up" } else { "down" },
+                                100.0 * mean,
+                                sweep.light,
+                                sweep.last_idx,
+                                run.n.saturating_sub(1),
+                                layer as f64 / 1000.0,
+                                self.h_level
+                            ),
+                        )
+                        .at(Some(sweep.last_idx), Some(sweep.last_t))
+                        .with(json!({"source": "light sweeps", "level_pct": 100.0 * mean, "sweeps": run.n, "since_idx": run.start, "since_t": self.sweep_start(run.start), "statistic": stat, "threshold": self.h_level})),
+                    );
+                    step.at_s = self.sweep_start(run.start);
+                    self.level_cusum.reset();
+                    step.alarmed = true;
+                    break;
                 }
-                rec.level_cusum = self.level_cusum.max();
             }
-            let active = tested && self.level_cusum.max() > 0.0;
-            if let Some(hist) = self.level_history.get_mut(&layer) {
-                hist.record(level, active, alarmed);
-            }
+            rec.level_cusum = self.level_cusum.max();
         }
+        let active = tested && self.level_cusum.max() > 0.0;
+        if let Some(hist) = self.level_history.get_mut(&layer) {
+            hist.record(level, active, step.alarmed);
+        }
+        step
+    }
 
-        // the joints: both CUSUMs are updated first; when one or both cross, the alarm names
-        // the joint with the larger statistic (one positioning alarm per θi layer)
-        let mut crossing: Option<(usize, f64, f64, f64, usize, u64)> = None;
+    /// The joints: both CUSUMs are updated first; when one or both cross, the alarm names the
+    /// joint with the larger statistic (one positioning alarm per θi layer). A sweep whose level
+    /// stepped (`level_alarmed`: a lamp step part-way through it looks like a pattern across its
+    /// cameras) raises no positioning alarm; the CUSUMs carry on, so a real offset is named at
+    /// the next sweep.
+    fn test_joints(
+        &mut self,
+        sweep: &Sweep,
+        pattern: &PatternFit,
+        level_alarmed: bool,
+        rec: &mut SweepRecord,
+        alarms: &mut Vec<Alarm>,
+    ) {
+        let (k, clip) = (self.spec.cusum_k, self.spec.clip);
+        let mut crossing: Option<JointCrossing> = None;
         for j in 0..2 {
-            let b = beta[j + 1];
-            let Some(bse) = se(j + 1).filter(|v| v.is_finite() && *v > 0.0) else {
+            let b = pattern.beta[j + 1];
+            let Some(bse) = pattern.se(j + 1).filter(|v| v.is_finite() && *v > 0.0) else {
                 continue;
             };
             let mut fit = JointFit {
@@ -649,20 +782,26 @@ impl SweepMonitor {
                 if scale > 0.0 {
                     let z = (b / scale).clamp(-clip, clip);
                     fit.z = Some(z);
-                    self.joint_cusum[j].add(z, k, b, scale, last_idx);
+                    self.joint_cusum[j].add(z, k, b, scale, sweep.last_idx);
                     let cs = &self.joint_cusum[j];
                     for (sign, stat, run) in [(1.0, cs.up, cs.up_run), (-1.0, cs.down, cs.down_run)]
                     {
                         if run.n == 0 {
                             continue;
                         }
-                        let mean = run.sum / run.n as f64;
-                        let mean_se = run.var.sqrt() / run.n as f64;
+                        let (mean, mean_se) = run.mean_and_se();
                         if stat > self.h_joint
                             && sign * mean >= self.spec.joint_tolerance_deg
-                            && crossing.is_none_or(|c| stat > c.1)
+                            && crossing.is_none_or(|c| stat > c.statistic)
                         {
-                            crossing = Some((j, stat, mean, mean_se, run.n, run.start));
+                            crossing = Some(JointCrossing {
+                                joint: j,
+                                statistic: stat,
+                                mean,
+                                mean_se,
+                                sweeps: run.n,
+                                since: run.start,
+                            });
                         }
                     }
                     fit.cusum = cs.max();
@@ -670,37 +809,12 @@ impl SweepMonitor {
             }
             rec.joints.push(fit);
         }
-        // a sweep whose level stepped (a lamp step part-way through it looks like a pattern
-        // across its cameras) raises no positioning alarm; the joint CUSUMs carry on, so a real
-        // offset is named at the next sweep
-        let crossing = if level_alarm { None } else { crossing };
+        let crossing = if level_alarmed { None } else { crossing };
         // a crossing in a layer that already has its positioning alarm restarts the CUSUMs
         // without a second alarm (the operator has it; the next layer may raise one again)
-        if let Some((j, stat, mean, mean_se, sweeps, since)) = crossing {
-            if self.latched.insert((1, 0, layer)) {
-                let other: Vec<serde_json::Value> = rec
-                    .joints
-                    .iter()
-                    .filter(|f| f.joint != j + 1)
-                    .map(|f| json!({"joint": f.joint, "offset_deg": f.offset_deg, "se_deg": f.se_deg, "cusum": f.cusum}))
-                    .collect();
-                alarms.push(
-                    Alarm::new(
-                        AlarmKind::Positioning,
-                        Severity::Warning,
-                        "joint-offset-suspected",
-                        format!(
-                            "joint {} looks offset by about {:+.2}° (± {:.2}°, an underestimate): the pattern across the cameras of light sweep {light} and the {} before it follows that joint's sensitivity while the encoders agree with the commands; a slipped joint or a moved sample is likely (CUSUM {stat:.1} > {:.1})",
-                            j + 1,
-                            mean,
-                            mean_se,
-                            sweeps.saturating_sub(1),
-                            self.h_joint
-                        ),
-                    )
-                    .at(at.0, at.1)
-                    .with(json!({"joint": j + 1, "offset_deg": mean, "se_deg": mean_se, "sweeps": sweeps, "since_idx": since, "statistic": stat, "threshold": self.h_joint, "other_joints": other})),
-                );
+        if let Some(x) = &crossing {
+            if self.latched.insert(Latch::Joint { layer: sweep.layer }) {
+                alarms.push(self.joint_alarm(sweep, x, rec));
             }
             for c in self.joint_cusum.iter_mut() {
                 c.reset();
@@ -714,19 +828,32 @@ impl SweepMonitor {
             let active = f.z.is_some() && self.joint_cusum[j].max() > 0.0;
             self.joint_history[j].record(f.offset_deg, active, crossing.is_some());
         }
-        rec.model_layers = self
-            .model
-            .as_ref()
-            .map(|m| m.layer_thetas().len())
-            .unwrap_or(0);
-        rec.model_builds = self.model_builds;
-        self.last = Some(rec.clone());
-        self.tested += 1;
-        SweepOutcome {
-            record: Some(rec),
-            alarms,
-            step_at_s,
-        }
+    }
+
+    fn joint_alarm(&self, sweep: &Sweep, x: &JointCrossing, rec: &SweepRecord) -> Alarm {
+        let other: Vec<serde_json::Value> = rec
+            .joints
+            .iter()
+            .filter(|f| f.joint != x.joint + 1)
+            .map(|f| json!({"joint": f.joint, "offset_deg": f.offset_deg, "se_deg": f.se_deg, "cusum": f.cusum}))
+            .collect();
+        Alarm::new(
+            AlarmKind::Positioning,
+            Severity::Warning,
+            "joint-offset-suspected",
+            format!(
+                "joint {} looks offset by about {:+.2}° (± {:.2}°, an underestimate): the pattern across the cameras of light sweep {} and the {} before it follows that joint's sensitivity while the encoders agree with the commands; a slipped joint or a moved sample is likely (CUSUM {:.1} > {:.1})",
+                x.joint + 1,
+                x.mean,
+                x.mean_se,
+                sweep.light,
+                x.sweeps.saturating_sub(1),
+                x.statistic,
+                self.h_joint
+            ),
+        )
+        .at(Some(sweep.last_idx), Some(sweep.last_t))
+        .with(json!({"joint": x.joint + 1, "offset_deg": x.mean, "se_deg": x.mean_se, "sweeps": x.sweeps, "since_idx": x.since, "statistic": x.statistic, "threshold": self.h_joint, "other_joints": other}))
     }
 }
 
