@@ -12,6 +12,8 @@
 use crate::checks::{
     CaptureInput, CaptureRecord, CheckCounts, Checker, IsotropyRecord, Outcome, PairRecord, Table2,
 };
+mod alarms;
+
 use crate::config::{AlarmSpec, Config, ConfigError};
 use crate::measure::alarm::{Alarm, AlarmKind, Severity};
 use crate::protocol::{
@@ -148,7 +150,7 @@ pub struct Engine {
     last_t: f64,
     crc_recent: VecDeque<bool>,
     crc_alarm_active: bool,
-    alarm_counts: BTreeMap<String, u64>,
+    alarm_book: alarms::AlarmBook,
     paused_for: BTreeSet<String>,
     captures_planned: u64,
     /// Ask for a probe of `probe_entry` every this many regular captures checked (0: never).
@@ -163,8 +165,6 @@ pub struct Engine {
     refused: BTreeMap<u64, u32>,
     /// Inputs handled so far (the alarm aggregation's clock).
     inputs: u64,
-    /// Per alarm code: the aggregation window and what it held back.
-    storms: BTreeMap<String, Storm>,
 }
 
 /// An outstanding RESYNC whose ACK has not come after this many received lines is sent again.
@@ -175,24 +175,6 @@ const RESYNC_LINES: u32 = 64;
 /// answers every RESYNC with the same unacceptable line is thus asked at a falling rate, not in
 /// a loop.
 const RESYNC_BACKOFF_MAX_LINES: u64 = 1024;
-
-/// Alarm aggregation: per code, at most `ALARM_BURST` alarms in full per window of
-/// `ALARM_WINDOW` inputs; the rest are counted and reported as one alarm when the window ends.
-/// Counted in inputs, not wall time, so a replay aggregates exactly as the live run did.
-const ALARM_BURST: u32 = 5;
-const ALARM_WINDOW: u64 = 2000;
-/// Capture indices an aggregated alarm lists at most.
-const ALARM_LIST_MAX: usize = 200;
-
-/// The alarms of one code held back in the current window.
-#[derive(Debug, Clone, Default)]
-struct Storm {
-    window_start: u64,
-    emitted: u32,
-    held: u64,
-    captures: Vec<u64>,
-    latest: Option<Alarm>,
-}
 
 /// Capture indices beyond the plan's count by more than this are refused as garbage (probes
 /// add captures beyond the plan, but not millions).
@@ -245,7 +227,7 @@ impl Engine {
             last_t: 0.0,
             crc_recent: VecDeque::new(),
             crc_alarm_active: false,
-            alarm_counts: BTreeMap::new(),
+            alarm_book: alarms::AlarmBook::default(),
             paused_for: BTreeSet::new(),
             captures_planned,
             probe_every: 0,
@@ -255,7 +237,6 @@ impl Engine {
             last_resync: None,
             refused: BTreeMap::new(),
             inputs: 0,
-            storms: BTreeMap::new(),
         }
     }
 
@@ -277,7 +258,7 @@ impl Engine {
         self.finished
     }
     pub fn alarm_count(&self) -> u64 {
-        self.alarm_counts.values().sum()
+        self.alarm_book.total()
     }
     pub fn link_stats(&self) -> &LinkStats {
         &self.stats
@@ -353,7 +334,7 @@ impl Engine {
             isotropy_drift: self.checker.isotropy_drift(),
             isotropy_steps: self.checker.isotropy_steps(),
             sweeps: self.checker.sweeps(),
-            alarms: self.alarm_counts.clone(),
+            alarms: self.alarm_book.counts().clone(),
             link: self.stats.clone(),
             finished: self.finished,
         }
@@ -375,93 +356,31 @@ impl Engine {
         );
     }
 
-    /// Raise an alarm: counted always (the summary counts every occurrence), emitted in full
-    /// unless its code is storming, in which case it is held for the window's aggregate.
+    /// Raise an alarm: counted always (the summary counts every occurrence), sent to the
+    /// controller as a PAUSE when critical and configured so, and emitted in full unless its
+    /// code is storming (then the window's aggregate reports it).
     fn alarm(&mut self, out: &mut Vec<Output>, a: Alarm) {
-        let key = serde_json::to_value(a.kind)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_string))
-            .unwrap_or_default();
-        *self.alarm_counts.entry(key).or_default() += 1;
+        self.alarm_book.count(&a);
         if a.severity == Severity::Critical
             && self.spec.pause_on_critical
             && self.connected
-            && !self.paused_for.contains(&a.code)
+            && self.paused_for.insert(a.code.clone())
         {
-            self.paused_for.insert(a.code.clone());
             self.send(out, "PAUSE", &[]);
         }
-        let inputs = self.inputs;
-        let storm = self.storms.entry(a.code.clone()).or_insert_with(|| Storm {
-            window_start: inputs,
-            ..Storm::default()
-        });
-        if storm.emitted < ALARM_BURST {
-            storm.emitted += 1;
+        if let Some(a) = self.alarm_book.admit(a, self.inputs) {
             out.push(Output::Alarm(a));
-        } else {
-            storm.held += 1;
-            if let Some(i) = a.idx {
-                if storm.captures.len() < ALARM_LIST_MAX {
-                    storm.captures.push(i);
-                }
-            }
-            storm.latest = Some(a);
         }
     }
 
-    /// End the aggregation windows that are over (all of them when `all`): each code that held
-    /// alarms back gets one alarm with their count, their captures and the latest of them.
+    /// End the aggregation windows that are over (all of them when `all`).
     fn flush_storms(&mut self, out: &mut Vec<Output>, all: bool) {
-        let now = self.inputs;
-        for (code, storm) in self.storms.iter_mut() {
-            if !all && now < storm.window_start.saturating_add(ALARM_WINDOW) {
-                continue;
-            }
-            if let Some(latest) = storm.latest.take() {
-                let first = storm.window_start;
-                let mut a = Alarm::new(
-                    latest.kind,
-                    latest.severity,
-                    code,
-                    format!(
-                        "{} more '{code}' alarm(s) were held back (more than {ALARM_BURST} in {ALARM_WINDOW} inputs){}; the latest: {}",
-                        storm.held,
-                        if storm.captures.is_empty() {
-                            String::new()
-                        } else {
-                            format!(
-                                " for captures {}",
-                                storm
-                                    .captures
-                                    .iter()
-                                    .take(20)
-                                    .map(u64::to_string)
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
-                            ) + if storm.captures.len() > 20 { ", …" } else { "" }
-                        },
-                        latest.message
-                    ),
-                )
-                .at(None, latest.t)
-                .with(json!({
-                    "aggregated": storm.held,
-                    "window_inputs": [first, now],
-                    "captures": storm.captures,
-                    "latest": latest,
-                }));
-                a.idx = None;
-                out.push(Output::Alarm(a));
-            }
-            *storm = Storm {
-                window_start: now,
-                ..Storm::default()
-            };
-        }
-        if all {
-            self.storms.clear();
-        }
+        out.extend(
+            self.alarm_book
+                .flush(self.inputs, all)
+                .into_iter()
+                .map(Output::Alarm),
+        );
     }
 
     /// Capture indices at or above this are garbage.

@@ -1,0 +1,133 @@
+//! The engine's alarm book: every alarm is counted (the summary's counts), and alarm storms are
+//! aggregated: per code, at most `ALARM_BURST` alarms in full per window of `ALARM_WINDOW`
+//! engine inputs; the rest are counted and reported as one alarm when the window ends. Windows
+//! are counted in inputs, not wall time, so a replay aggregates exactly as the live run did.
+
+use crate::measure::alarm::Alarm;
+use serde_json::json;
+use std::collections::BTreeMap;
+
+const ALARM_BURST: u32 = 5;
+const ALARM_WINDOW: u64 = 2000;
+/// Capture indices an aggregated alarm lists at most.
+const ALARM_LIST_MAX: usize = 200;
+
+/// The alarms of one code held back in the current window.
+#[derive(Debug, Clone, Default)]
+struct Storm {
+    window_start: u64,
+    emitted: u32,
+    held: u64,
+    captures: Vec<u64>,
+    latest: Option<Alarm>,
+}
+
+/// Counts per alarm kind, and the storms of the current windows.
+#[derive(Debug, Clone, Default)]
+pub(super) struct AlarmBook {
+    counts: BTreeMap<String, u64>,
+    storms: BTreeMap<String, Storm>,
+}
+
+impl AlarmBook {
+    /// Count an occurrence under its kind.
+    pub(super) fn count(&mut self, a: &Alarm) {
+        let key = serde_json::to_value(a.kind)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default();
+        *self.counts.entry(key).or_default() += 1;
+    }
+
+    /// The alarm to emit now (its code is within its burst), or None (held for the aggregate).
+    /// `inputs` is the engine's input count.
+    pub(super) fn admit(&mut self, a: Alarm, inputs: u64) -> Option<Alarm> {
+        let storm = self.storms.entry(a.code.clone()).or_insert_with(|| Storm {
+            window_start: inputs,
+            ..Storm::default()
+        });
+        if storm.emitted < ALARM_BURST {
+            storm.emitted += 1;
+            return Some(a);
+        }
+        storm.held += 1;
+        if let Some(i) = a.idx {
+            if storm.captures.len() < ALARM_LIST_MAX {
+                storm.captures.push(i);
+            }
+        }
+        storm.latest = Some(a);
+        None
+    }
+
+    /// End the windows that are over at input `now` (all of them when `all`): each code that
+    /// held alarms back gets one alarm with their count, their captures and the latest of them.
+    pub(super) fn flush(&mut self, now: u64, all: bool) -> Vec<Alarm> {
+        let mut out = Vec::new();
+        for (code, storm) in self.storms.iter_mut() {
+            if !all && now < storm.window_start.saturating_add(ALARM_WINDOW) {
+                continue;
+            }
+            if let Some(latest) = storm.latest.take() {
+                out.push(aggregate(code, storm, latest, now));
+            }
+            *storm = Storm {
+                window_start: now,
+                ..Storm::default()
+            };
+        }
+        if all {
+            self.storms.clear();
+        }
+        out
+    }
+
+    pub(super) fn counts(&self) -> &BTreeMap<String, u64> {
+        &self.counts
+    }
+
+    pub(super) fn total(&self) -> u64 {
+        self.counts.values().sum()
+    }
+}
+
+/// The one alarm that reports a window's held-back alarms of `code`.
+fn aggregate(code: &str, storm: &Storm, latest: Alarm, now: u64) -> Alarm {
+    let first = storm.window_start;
+    let captures = if storm.captures.is_empty() {
+        String::new()
+    } else {
+        format!(
+            " for captures {}",
+            storm
+                .captures
+                .iter()
+                .take(20)
+                .map(u64::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ) + if storm.captures.len() > 20 {
+            ", …"
+        } else {
+            ""
+        }
+    };
+    let mut a = Alarm::new(
+        latest.kind,
+        latest.severity,
+        code,
+        format!(
+            "{} more '{code}' alarm(s) were held back (more than {ALARM_BURST} in {ALARM_WINDOW} inputs){captures}; the latest: {}",
+            storm.held, latest.message
+        ),
+    )
+    .at(None, latest.t)
+    .with(json!({
+        "aggregated": storm.held,
+        "window_inputs": [first, now],
+        "captures": storm.captures,
+        "latest": latest,
+    }));
+    a.idx = None;
+    a
+}
