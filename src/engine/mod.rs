@@ -13,6 +13,7 @@ use crate::checks::{
     CaptureInput, CaptureRecord, CheckCounts, Checker, IsotropyRecord, Outcome, PairRecord, Table2,
 };
 mod alarms;
+mod link;
 
 use crate::config::{AlarmSpec, Config, ConfigError};
 use crate::measure::alarm::{Alarm, AlarmKind, Severity};
@@ -21,7 +22,7 @@ use crate::protocol::{
 };
 use serde::{Deserialize, Serialize};
 use serde_json::json;
-use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::collections::{BTreeMap, BTreeSet};
 
 /// An input of the engine; also the unit of the session journal.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -75,24 +76,7 @@ pub enum Output {
     Finished,
 }
 
-/// Link counters (part of the summary; they depend on the traffic, so a resumed session's
-/// differ from an uninterrupted one's).
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct LinkStats {
-    pub lines: u64,
-    pub bytes: u64,
-    pub crc_errors: u64,
-    pub framing_errors: u64,
-    pub sequence_gaps: u64,
-    pub connects: u64,
-    pub disconnects: u64,
-    pub reboots: u64,
-    pub resyncs: u64,
-    pub unknown_verbs: u64,
-    pub naks: u64,
-    pub duplicate_announcements: u64,
-    pub restarts: u64,
-}
+pub use link::LinkStats;
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
@@ -125,20 +109,7 @@ pub struct Summary {
 pub struct Engine {
     checker: Checker,
     spec: AlarmSpec,
-    tx_seq: u32,
-    connected: bool,
-    expect_seq: Option<u32>,
-    boot: Option<u64>,
-    session: Option<String>,
-    rig_id: Option<String>,
-    subscribed: bool,
-    version_refused: bool,
-    outstanding_resync: Option<u32>,
-    /// Lines received since the outstanding RESYNC was sent (its ACK may have been lost).
-    resync_age: u32,
-    resync_needed: bool,
-    gap_during_resync: bool,
-    stats: LinkStats,
+    link: link::Link,
     announced: BTreeMap<u64, Announcement>,
     outcomes: BTreeMap<u64, Outcome>,
     missing_announcements: BTreeSet<u64>,
@@ -148,8 +119,6 @@ pub struct Engine {
     finished: bool,
     /// Controller time of the last checked capture (the time of end-of-session results).
     last_t: f64,
-    crc_recent: VecDeque<bool>,
-    crc_alarm_active: bool,
     alarm_book: alarms::AlarmBook,
     paused_for: BTreeSet<String>,
     captures_planned: u64,
@@ -157,10 +126,6 @@ pub struct Engine {
     probe_every: u64,
     probe_entry: usize,
     regular_checked: u64,
-    /// Lines received since the last RESYNC was sent (the backoff's clock).
-    lines_since_resync: u64,
-    /// The `from` of the last RESYNC sent, and how many times in a row it was sent.
-    last_resync: Option<(u64, u32)>,
     /// Capture indices whose CAPTURE line could not be accepted, and how many times.
     refused: BTreeMap<u64, u32>,
     /// Inputs handled so far (the alarm aggregation's clock).
@@ -204,19 +169,7 @@ impl Engine {
         Engine {
             checker,
             spec,
-            tx_seq: 0,
-            connected: false,
-            expect_seq: None,
-            boot: None,
-            session: None,
-            rig_id: None,
-            subscribed: false,
-            version_refused: false,
-            outstanding_resync: None,
-            resync_age: 0,
-            resync_needed: false,
-            gap_during_resync: false,
-            stats: LinkStats::default(),
+            link: link::Link::default(),
             announced: BTreeMap::new(),
             outcomes: BTreeMap::new(),
             missing_announcements: BTreeSet::new(),
@@ -225,16 +178,12 @@ impl Engine {
             done: false,
             finished: false,
             last_t: 0.0,
-            crc_recent: VecDeque::new(),
-            crc_alarm_active: false,
             alarm_book: alarms::AlarmBook::default(),
             paused_for: BTreeSet::new(),
             captures_planned,
             probe_every: 0,
             probe_entry: 0,
             regular_checked: 0,
-            lines_since_resync: 0,
-            last_resync: None,
             refused: BTreeMap::new(),
             inputs: 0,
         }
@@ -261,7 +210,7 @@ impl Engine {
         self.alarm_book.total()
     }
     pub fn link_stats(&self) -> &LinkStats {
-        &self.stats
+        &self.link.stats
     }
     pub fn table2(&self) -> &Table2 {
         self.checker.table2()
@@ -284,7 +233,7 @@ impl Engine {
     /// Alarm conditions that hold right now (evaluated on start and resume).
     pub fn active_conditions(&self) -> Vec<Alarm> {
         let mut v = Vec::new();
-        if !self.connected && self.stats.connects > 0 {
+        if !self.link.is_connected() && self.link.stats.connects > 0 {
             v.push(Alarm::new(
                 AlarmKind::Link,
                 Severity::Warning,
@@ -292,7 +241,7 @@ impl Engine {
                 "the serial link is down; reconnecting".into(),
             ));
         }
-        if self.version_refused {
+        if self.link.version_refused {
             v.push(Alarm::new(
                 AlarmKind::Link,
                 Severity::Critical,
@@ -300,7 +249,7 @@ impl Engine {
                 format!("the controller does not speak protocol version {PROTO_VERSION}"),
             ));
         }
-        if self.crc_alarm_active {
+        if self.link.crc.active {
             v.push(Alarm::new(
                 AlarmKind::Link,
                 Severity::Warning,
@@ -322,8 +271,8 @@ impl Engine {
 
     pub fn summary(&self) -> Summary {
         Summary {
-            session: self.session.clone(),
-            rig: self.rig_id.clone(),
+            session: self.link.session.clone(),
+            rig: self.link.rig_id.clone(),
             captures_planned: self.captures_planned,
             captures_announced: self.announced.len() as u64,
             checked: self.checker.counts().clone(),
@@ -335,15 +284,15 @@ impl Engine {
             isotropy_steps: self.checker.isotropy_steps(),
             sweeps: self.checker.sweeps(),
             alarms: self.alarm_book.counts().clone(),
-            link: self.stats.clone(),
+            link: self.link.stats.clone(),
             finished: self.finished,
         }
     }
 
     fn send(&mut self, out: &mut Vec<Output>, verb: &str, fields: &[(&str, String)]) -> u32 {
-        let seq = self.tx_seq;
+        let seq = self.link.tx_seq;
         out.push(Output::Send(protocol::format(seq, verb, fields)));
-        self.tx_seq = (self.tx_seq + 1) % protocol::SEQ_MOD;
+        self.link.tx_seq = (self.link.tx_seq + 1) % protocol::SEQ_MOD;
         seq
     }
 
@@ -363,7 +312,7 @@ impl Engine {
         self.alarm_book.count(&a);
         if a.severity == Severity::Critical
             && self.spec.pause_on_critical
-            && self.connected
+            && self.link.is_connected()
             && self.paused_for.insert(a.code.clone())
         {
             self.send(out, "PAUSE", &[]);
@@ -404,12 +353,15 @@ impl Engine {
     /// Send `RESYNC from=lowest unseen`, unless one is outstanding, the link is not ready, or
     /// (without `now`) the same `from` was asked too recently: then it stays needed.
     fn resync(&mut self, out: &mut Vec<Output>, now: bool) {
-        if !self.connected || !self.subscribed || self.outstanding_resync.is_some() {
-            self.resync_needed = true;
+        if !self.link.is_connected()
+            || !self.link.is_subscribed()
+            || self.link.resync.outstanding.is_some()
+        {
+            self.link.resync.needed = true;
             return;
         }
         let from = self.lowest_unseen();
-        let repeats = match self.last_resync {
+        let repeats = match self.link.resync.last {
             Some((f, n)) if f == from => n,
             _ => 0,
         };
@@ -417,25 +369,25 @@ impl Engine {
             .checked_shl(repeats)
             .unwrap_or(u64::MAX)
             .min(RESYNC_BACKOFF_MAX_LINES);
-        if !now && repeats > 0 && self.lines_since_resync < spacing {
-            self.resync_needed = true;
+        if !now && repeats > 0 && self.link.resync.lines_since < spacing {
+            self.link.resync.needed = true;
             return;
         }
-        self.resync_needed = false;
-        self.gap_during_resync = false;
+        self.link.resync.needed = false;
+        self.link.resync.gap_during = false;
         let seq = self.send(out, "RESYNC", &[("from", from.to_string())]);
-        self.outstanding_resync = Some(seq);
-        self.resync_age = 0;
-        self.lines_since_resync = 0;
-        self.last_resync = Some((from, repeats.saturating_add(1).min(32)));
-        self.stats.resyncs += 1;
+        self.link.resync.outstanding = Some(seq);
+        self.link.resync.age = 0;
+        self.link.resync.lines_since = 0;
+        self.link.resync.last = Some((from, repeats.saturating_add(1).min(32)));
+        self.link.stats.resyncs += 1;
     }
 
     /// A CAPTURE line for `idx` that cannot be accepted. The first time, the controller is asked
     /// to send it again (it may have been garbled at the source); when it comes again just as
     /// unacceptable, the capture is skipped with an alarm and checking goes on past it.
     fn refuse_announcement(&mut self, out: &mut Vec<Output>, idx: Option<u64>, why: String) {
-        self.stats.framing_errors += 1;
+        self.link.stats.framing_errors += 1;
         let Some(i) = idx.filter(|i| *i < self.index_limit()) else {
             self.alarm(
                 out,
@@ -490,14 +442,9 @@ impl Engine {
         self.flush_storms(&mut out, false);
         match input {
             Input::Connected => {
-                self.connected = true;
-                self.stats.connects += 1;
-                self.expect_seq = None;
-                self.subscribed = false;
-                self.outstanding_resync = None;
-                self.tx_seq = 0;
-                if self.stats.connects > 1 {
-                    let n = self.stats.connects;
+                self.link.opened();
+                if self.link.stats.connects > 1 {
+                    let n = self.link.stats.connects;
                     self.alarm(
                         &mut out,
                         Alarm::new(
@@ -511,8 +458,8 @@ impl Engine {
                 self.hello(&mut out);
             }
             Input::Disconnected { reason } => {
-                if self.connected {
-                    self.stats.disconnects += 1;
+                if self.link.is_connected() {
+                    self.link.stats.disconnects += 1;
                     self.alarm(
                         &mut out,
                         Alarm::new(
@@ -523,16 +470,10 @@ impl Engine {
                         ),
                     );
                 }
-                self.connected = false;
-                self.subscribed = false;
-                self.outstanding_resync = None;
+                self.link.lost();
             }
             Input::Restart => {
-                self.stats.restarts += 1;
-                self.connected = false;
-                self.subscribed = false;
-                self.outstanding_resync = None;
-                self.expect_seq = None;
+                self.link.restarted();
                 self.alarm(
                     &mut out,
                     Alarm::new(
@@ -547,7 +488,7 @@ impl Engine {
                 );
             }
             Input::RxBad { reason } => {
-                self.stats.framing_errors += 1;
+                self.link.stats.framing_errors += 1;
                 self.note_crc(&mut out, true, reason);
             }
             Input::Rx { line } => self.rx(&mut out, line),
@@ -558,9 +499,9 @@ impl Engine {
                 }
             }
             Input::Idle => {
-                if self.connected && !self.finished && !self.version_refused {
-                    if self.subscribed {
-                        self.outstanding_resync = None;
+                if self.link.is_connected() && !self.finished && !self.link.version_refused {
+                    if self.link.is_subscribed() {
+                        self.link.resync.outstanding = None;
                         self.resync(&mut out, true);
                     } else {
                         // the HELLO or its IDENT was lost: ask again
@@ -591,14 +532,8 @@ impl Engine {
     }
 
     fn note_crc(&mut self, out: &mut Vec<Output>, bad: bool, what: &str) {
-        self.crc_recent.push_back(bad);
-        while self.crc_recent.len() > self.spec.crc_window {
-            self.crc_recent.pop_front();
-        }
-        let n_bad = self.crc_recent.iter().filter(|b| **b).count();
-        if !self.crc_alarm_active && n_bad >= self.spec.crc_errors_alarm {
-            self.crc_alarm_active = true;
-            let window = self.crc_recent.len();
+        let (window, threshold) = (self.spec.crc_window, self.spec.crc_errors_alarm);
+        if let Some((n_bad, seen)) = self.link.crc.note(bad, window, threshold) {
             self.alarm(
                 out,
                 Alarm::new(
@@ -606,21 +541,18 @@ impl Engine {
                     Severity::Warning,
                     "crc-errors",
                     format!(
-                        "{n_bad} of the last {window} lines from the controller were corrupt (threshold {}); latest: {what}",
-                        self.spec.crc_errors_alarm
+                        "{n_bad} of the last {seen} lines from the controller were corrupt (threshold {threshold}); latest: {what}"
                     ),
                 )
-                .with(json!({"bad_lines": n_bad, "window": window})),
+                .with(json!({"bad_lines": n_bad, "window": seen})),
             );
-        } else if self.crc_alarm_active && n_bad == 0 {
-            self.crc_alarm_active = false;
         }
     }
 
     fn rx(&mut self, out: &mut Vec<Output>, line: &str) {
-        self.stats.lines += 1;
-        self.stats.bytes += line.len() as u64 + 1;
-        self.lines_since_resync = self.lines_since_resync.saturating_add(1);
+        self.link.stats.lines += 1;
+        self.link.stats.bytes += line.len() as u64 + 1;
+        self.link.resync.lines_since = self.link.resync.lines_since.saturating_add(1);
         let parsed = protocol::parse_message(line);
         // replayed CAPTURE lines are the answer arriving, not silence
         let replayed = match &parsed {
@@ -628,12 +560,12 @@ impl Engine {
             Err(LineError::Content { replay, .. }) => *replay,
             Err(LineError::Frame(_)) => false,
         };
-        if self.outstanding_resync.is_some() && !replayed {
-            self.resync_age += 1;
-            if self.resync_age > RESYNC_LINES {
+        if self.link.resync.outstanding.is_some() && !replayed {
+            self.link.resync.age += 1;
+            if self.link.resync.age > RESYNC_LINES {
                 // the reply was lost on the wire: ask again
-                self.outstanding_resync = None;
-                self.resync_needed = true;
+                self.link.resync.outstanding = None;
+                self.link.resync.needed = true;
             }
         }
         let (seq, ident, content) = match parsed {
@@ -644,9 +576,9 @@ impl Engine {
             ),
             Err(LineError::Frame(e)) => {
                 if matches!(e, protocol::FrameError::BadCrc { .. }) {
-                    self.stats.crc_errors += 1;
+                    self.link.stats.crc_errors += 1;
                 } else {
-                    self.stats.framing_errors += 1;
+                    self.link.stats.framing_errors += 1;
                 }
                 self.note_crc(out, true, &e.to_string());
                 return;
@@ -663,21 +595,21 @@ impl Engine {
         self.note_crc(out, false, "");
         // sequence check (an IDENT with seq 0 starts a new count: reboot or first contact)
         let restart = ident && seq == 0;
-        let gap = self.expect_seq.is_some_and(|e| seq != e && !restart);
+        let gap = self.link.expect_seq.is_some_and(|e| seq != e && !restart);
         if gap {
-            self.stats.sequence_gaps += 1;
-            if self.outstanding_resync.is_some() {
-                self.gap_during_resync = true;
+            self.link.stats.sequence_gaps += 1;
+            if self.link.resync.outstanding.is_some() {
+                self.link.resync.gap_during = true;
             }
         }
-        self.expect_seq = Some((seq + 1) % protocol::SEQ_MOD);
+        self.link.expect_seq = Some((seq + 1) % protocol::SEQ_MOD);
         match content {
             Ok(message) => self.handle_message(out, message),
             Err((verb, idx, error)) if verb == "CAPTURE" => {
                 self.refuse_announcement(out, idx, error.to_string())
             }
             Err((verb, _, error)) => {
-                self.stats.framing_errors += 1;
+                self.link.stats.framing_errors += 1;
                 self.alarm(
                     out,
                     Alarm::new(
@@ -689,7 +621,7 @@ impl Engine {
                 );
             }
         }
-        if gap || (self.resync_needed && self.outstanding_resync.is_none()) {
+        if gap || (self.link.resync.needed && self.link.resync.outstanding.is_none()) {
             self.request_resync(out);
         }
     }
@@ -713,28 +645,28 @@ impl Engine {
                 }
             }
             FromController::Info => {}
-            FromController::Unknown(_) => self.stats.unknown_verbs += 1,
+            FromController::Unknown(_) => self.link.stats.unknown_verbs += 1,
         }
     }
 
     fn ack(&mut self, out: &mut Vec<Output>, a: &Ack) {
-        if a.reference.is_none() || a.reference != self.outstanding_resync {
+        if a.reference.is_none() || a.reference != self.link.resync.outstanding {
             return;
         }
-        self.outstanding_resync = None;
+        self.link.resync.outstanding = None;
         if a.state.as_deref() == Some("done") {
             self.done = true;
         }
         if let Some(next) = a.next.filter(|n| *n <= self.index_limit()) {
             self.controller_next = self.controller_next.max(next);
-            if !self.gap_during_resync {
+            if !self.link.resync.gap_during {
                 self.note_never_announced(out, next);
             } else {
-                self.resync_needed = true;
+                self.link.resync.needed = true;
             }
         }
         self.drain(out);
-        if self.resync_needed {
+        if self.link.resync.needed {
             self.request_resync(out);
         }
     }
@@ -775,19 +707,22 @@ impl Engine {
     }
 
     fn nak(&mut self, out: &mut Vec<Output>, n: &Nak) {
-        self.stats.naks += 1;
+        self.link.stats.naks += 1;
         match n.reason.as_deref() {
             Some("unsupported-version") => {
                 let supported = n.supported.as_deref().unwrap_or("?").to_string();
                 self.version_refused(out, &supported);
             }
             // one of our lines was corrupted: resend what is pending
-            Some("bad-crc") if self.outstanding_resync.take().is_some() => self.request_resync(out),
-            Some("bad-crc") if !self.subscribed && !self.version_refused => self.hello(out),
+            Some("bad-crc") if self.link.resync.outstanding.take().is_some() => {
+                self.request_resync(out)
+            }
+            Some("bad-crc") if !self.link.is_subscribed() && !self.link.version_refused => {
+                self.hello(out)
+            }
             Some("not-subscribed") => {
-                self.subscribed = false;
                 self.send(out, "SUBSCRIBE", &[]);
-                self.subscribed = true;
+                self.link.subscribed();
                 self.request_resync(out);
             }
             _ => {}
@@ -826,7 +761,7 @@ impl Engine {
 
     fn ident(&mut self, out: &mut Vec<Output>, m: &Ident) {
         // the unsolicited IDENT after boot and the reply to HELLO say the same: subscribe once
-        if self.subscribed && m.boot == self.boot && self.boot.is_some() {
+        if self.link.is_subscribed() && m.boot == self.link.boot && self.link.boot.is_some() {
             return;
         }
         let proto_ok = m
@@ -842,9 +777,9 @@ impl Engine {
             self.captures_planned = n;
         }
         let boot = m.boot;
-        if let (Some(old), Some(new)) = (self.boot, boot) {
+        if let (Some(old), Some(new)) = (self.link.boot, boot) {
             if new != old {
-                self.stats.reboots += 1;
+                self.link.stats.reboots += 1;
                 self.alarm(
                     out,
                     Alarm::new(
@@ -856,9 +791,9 @@ impl Engine {
                 );
             }
         }
-        self.boot = boot.or(self.boot);
+        self.link.boot = boot.or(self.link.boot);
         let session = m.session.clone();
-        match (&self.session, &session) {
+        match (&self.link.session, &session) {
             (Some(a), Some(b)) if a != b => {
                 self.alarm(
                     out,
@@ -870,18 +805,18 @@ impl Engine {
                     ),
                 );
             }
-            (None, Some(_)) => self.session = session,
+            (None, Some(_)) => self.link.session = session,
             _ => {}
         }
-        self.rig_id = m.rig.clone().or(self.rig_id.take());
-        self.subscribed = true;
-        self.outstanding_resync = None;
+        self.link.rig_id = m.rig.clone().or(self.link.rig_id.take());
+        self.link.subscribed();
+        self.link.resync.outstanding = None;
         self.send(out, "SUBSCRIBE", &[]);
         self.request_resync(out);
     }
 
     fn version_refused(&mut self, out: &mut Vec<Output>, theirs: &str) {
-        self.version_refused = true;
+        self.link.version_refused = true;
         self.alarm(
             out,
             Alarm::new(
@@ -895,7 +830,7 @@ impl Engine {
 
     fn announce(&mut self, out: &mut Vec<Output>, idx: u64, a: Announcement) {
         if let Some(prev) = self.announced.get(&idx) {
-            self.stats.duplicate_announcements += 1;
+            self.link.stats.duplicate_announcements += 1;
             if prev.file != a.file || prev.entry != a.entry {
                 let msg = format!(
                     "capture index {idx} was announced twice: first {} (entry {}), now {} (entry {}); the first is kept",
@@ -992,8 +927,8 @@ impl Engine {
                     self.regular_checked += 1;
                     if self.probe_every > 0
                         && self.regular_checked.is_multiple_of(self.probe_every)
-                        && self.connected
-                        && self.subscribed
+                        && self.link.is_connected()
+                        && self.link.is_subscribed()
                         && !self.done
                     {
                         let entry = self.probe_entry.to_string();
@@ -1009,7 +944,7 @@ impl Engine {
         if self.done
             && !self.finished
             && self.next_check >= self.controller_next
-            && self.outstanding_resync.is_none()
+            && self.link.resync.outstanding.is_none()
         {
             self.finished = true;
             let res = self.checker.finish(self.last_t);
