@@ -13,6 +13,7 @@ use crate::checks::{
     CaptureInput, CaptureRecord, CheckCounts, Checker, IsotropyRecord, Outcome, PairRecord, Table2,
 };
 mod alarms;
+mod ledger;
 mod link;
 
 use crate::config::{AlarmSpec, Config, ConfigError};
@@ -110,11 +111,7 @@ pub struct Engine {
     checker: Checker,
     spec: AlarmSpec,
     link: link::Link,
-    announced: BTreeMap<u64, Announcement>,
-    outcomes: BTreeMap<u64, Outcome>,
-    missing_announcements: BTreeSet<u64>,
-    next_check: u64,
-    controller_next: u64,
+    ledger: ledger::Ledger,
     done: bool,
     finished: bool,
     /// Controller time of the last checked capture (the time of end-of-session results).
@@ -126,8 +123,6 @@ pub struct Engine {
     probe_every: u64,
     probe_entry: usize,
     regular_checked: u64,
-    /// Capture indices whose CAPTURE line could not be accepted, and how many times.
-    refused: BTreeMap<u64, u32>,
     /// Inputs handled so far (the alarm aggregation's clock).
     inputs: u64,
 }
@@ -170,11 +165,7 @@ impl Engine {
             checker,
             spec,
             link: link::Link::default(),
-            announced: BTreeMap::new(),
-            outcomes: BTreeMap::new(),
-            missing_announcements: BTreeSet::new(),
-            next_check: 0,
-            controller_next: 0,
+            ledger: ledger::Ledger::default(),
             done: false,
             finished: false,
             last_t: 0.0,
@@ -184,7 +175,6 @@ impl Engine {
             probe_every: 0,
             probe_entry: 0,
             regular_checked: 0,
-            refused: BTreeMap::new(),
             inputs: 0,
         }
     }
@@ -197,7 +187,7 @@ impl Engine {
 
     /// Captures checked so far (the next index to check).
     pub fn checked_through(&self) -> u64 {
-        self.next_check
+        self.ledger.next_check
     }
     /// Captures expected in this session (the controller's count once known).
     pub fn captures_planned(&self) -> u64 {
@@ -218,16 +208,12 @@ impl Engine {
 
     /// Announced captures still waiting for an outcome (to re-ingest after a restart).
     pub fn pending_ingest(&self) -> Vec<(u64, String)> {
-        self.announced
-            .range(self.next_check..)
-            .filter(|(i, _)| !self.outcomes.contains_key(i))
-            .map(|(i, a)| (*i, a.file.clone()))
-            .collect()
+        self.ledger.pending_ingest()
     }
 
     /// Every file name the controller announced in this session.
     pub fn announced_files(&self) -> impl Iterator<Item = &str> {
-        self.announced.values().map(|a| a.file.as_str())
+        self.ledger.announced.values().map(|a| a.file.as_str())
     }
 
     /// Alarm conditions that hold right now (evaluated on start and resume).
@@ -274,7 +260,7 @@ impl Engine {
             session: self.link.session.clone(),
             rig: self.link.rig_id.clone(),
             captures_planned: self.captures_planned,
-            captures_announced: self.announced.len() as u64,
+            captures_announced: self.ledger.announced.len() as u64,
             checked: self.checker.counts().clone(),
             table2: self.checker.table2().clone(),
             isotropy: self.checker.isotropy_table().clone(),
@@ -339,11 +325,7 @@ impl Engine {
 
     /// The lowest capture index neither announced nor known to be missing.
     fn lowest_unseen(&self) -> u64 {
-        let mut i = self.next_check;
-        while self.announced.contains_key(&i) || self.missing_announcements.contains(&i) {
-            i += 1;
-        }
-        i
+        self.ledger.lowest_unseen()
     }
 
     fn request_resync(&mut self, out: &mut Vec<Output>) {
@@ -401,10 +383,10 @@ impl Engine {
             self.request_resync(out);
             return;
         };
-        if i < self.next_check || self.announced.contains_key(&i) {
+        if i < self.ledger.next_check || self.ledger.announced.contains_key(&i) {
             return; // already have it: a stray bad copy changes nothing
         }
-        let n = self.refused.entry(i).or_default();
+        let n = self.ledger.refused.entry(i).or_default();
         *n += 1;
         if *n == 1 {
             self.alarm(
@@ -419,7 +401,7 @@ impl Engine {
             );
             self.request_resync(out);
         } else if *n == 2 {
-            self.missing_announcements.insert(i);
+            self.ledger.missing.insert(i);
             self.alarm(
                 out,
                 Alarm::new(
@@ -482,7 +464,7 @@ impl Engine {
                         "daemon-restart",
                         format!(
                             "goniowatch restarted on this session; {} captures already checked",
-                            self.next_check
+                            self.ledger.next_check
                         ),
                     ),
                 );
@@ -493,8 +475,8 @@ impl Engine {
             }
             Input::Rx { line } => self.rx(&mut out, line),
             Input::Outcome { idx, outcome } => {
-                if self.announced.contains_key(idx) && *idx >= self.next_check {
-                    self.outcomes.insert(*idx, outcome.clone());
+                if self.ledger.announced.contains_key(idx) && *idx >= self.ledger.next_check {
+                    self.ledger.outcomes.insert(*idx, outcome.clone());
                     self.drain(&mut out);
                 }
             }
@@ -658,7 +640,7 @@ impl Engine {
             self.done = true;
         }
         if let Some(next) = a.next.filter(|n| *n <= self.index_limit()) {
-            self.controller_next = self.controller_next.max(next);
+            self.ledger.controller_next = self.ledger.controller_next.max(next);
             if !self.link.resync.gap_during {
                 self.note_never_announced(out, next);
             } else {
@@ -674,10 +656,10 @@ impl Engine {
     /// After a clean resync: the controller's log has nothing below `next` that is not yet
     /// announced, so those captures are missing for good.
     fn note_never_announced(&mut self, out: &mut Vec<Output>, next: u64) {
-        let lost: Vec<u64> = (self.next_check..next)
-            .filter(|i| !self.announced.contains_key(i) && !self.missing_announcements.contains(i))
+        let lost: Vec<u64> = (self.ledger.next_check..next)
+            .filter(|i| !self.ledger.announced.contains_key(i) && !self.ledger.missing.contains(i))
             .collect();
-        self.missing_announcements.extend(lost.iter().copied());
+        self.ledger.missing.extend(lost.iter().copied());
         if lost.len() <= 20 {
             for i in lost {
                 self.alarm(
@@ -731,13 +713,13 @@ impl Engine {
 
     fn status(&mut self, out: &mut Vec<Output>, s: &Status) {
         if let Some(next) = s.next.filter(|n| *n <= self.index_limit()) {
-            self.controller_next = self.controller_next.max(next);
+            self.ledger.controller_next = self.ledger.controller_next.max(next);
         }
         match s.state.as_deref() {
             Some("done") => {
                 self.done = true;
                 // make sure nothing before `next` is unseen
-                if self.lowest_unseen() < self.controller_next {
+                if self.lowest_unseen() < self.ledger.controller_next {
                     self.request_resync(out);
                 }
                 self.drain(out);
@@ -829,7 +811,7 @@ impl Engine {
     }
 
     fn announce(&mut self, out: &mut Vec<Output>, idx: u64, a: Announcement) {
-        if let Some(prev) = self.announced.get(&idx) {
+        if let Some(prev) = self.ledger.announced.get(&idx) {
             self.link.stats.duplicate_announcements += 1;
             if prev.file != a.file || prev.entry != a.entry {
                 let msg = format!(
@@ -850,23 +832,24 @@ impl Engine {
             }
             return;
         }
-        if idx < self.next_check {
+        if idx < self.ledger.next_check {
             return; // already checked (e.g. replayed after a restart)
         }
         let expected = self
+            .ledger
             .announced
             .keys()
             .next_back()
             .map(|k| k.saturating_add(1))
             .unwrap_or(0)
-            .max(self.next_check);
+            .max(self.ledger.next_check);
         out.push(Output::Ingest {
             idx,
             file: a.file.clone(),
         });
-        self.missing_announcements.remove(&idx);
-        self.announced.insert(idx, a);
-        self.controller_next = self.controller_next.max(idx.saturating_add(1));
+        self.ledger.missing.remove(&idx);
+        self.ledger.announced.insert(idx, a);
+        self.ledger.controller_next = self.ledger.controller_next.max(idx.saturating_add(1));
         if idx > expected && self.lowest_unseen() < idx {
             self.request_resync(out);
         }
@@ -874,9 +857,9 @@ impl Engine {
 
     fn drain(&mut self, out: &mut Vec<Output>) {
         loop {
-            let i = self.next_check;
-            if let Some(a) = self.announced.get(&i) {
-                let Some(outcome) = self.outcomes.remove(&i) else {
+            let i = self.ledger.next_check;
+            if let Some(a) = self.ledger.announced.get(&i) {
+                let Some(outcome) = self.ledger.outcomes.remove(&i) else {
                     break;
                 };
                 let input = CaptureInput {
@@ -922,7 +905,7 @@ impl Engine {
                 for al in res.alarms {
                     self.alarm(out, al);
                 }
-                self.next_check += 1;
+                self.ledger.next_check += 1;
                 if !input.probe {
                     self.regular_checked += 1;
                     if self.probe_every > 0
@@ -935,15 +918,15 @@ impl Engine {
                         self.send(out, "PROBE", &[("entry", entry)]);
                     }
                 }
-            } else if self.missing_announcements.contains(&i) {
-                self.next_check += 1;
+            } else if self.ledger.missing.contains(&i) {
+                self.ledger.next_check += 1;
             } else {
                 break;
             }
         }
         if self.done
             && !self.finished
-            && self.next_check >= self.controller_next
+            && self.ledger.next_check >= self.ledger.controller_next
             && self.link.resync.outstanding.is_none()
         {
             self.finished = true;
