@@ -121,10 +121,10 @@ fn substitutes_are_paired_with_an_interpolated_partner_once_its_light_is_complet
             beyond += 1;
         }
     }
-    // a reciprocal BRDF: the only difference is the interpolation's error (measured: worst
+    // a reciprocal BRDF: the only difference is the interpolation's error (worst
     // 1.38 ΔE00 at a 30° light, where the 15° grid barely resolves this lobe; median < 0.1)
     assert!(worst < 2.0, "worst ΔE00 {worst}");
-    // measured: 4 of 81 beyond 3σ + 0.05 (the nodal spread underestimates the error next
+    // a few beyond 3σ + 0.05 (the nodal spread underestimates the error next
     // to the retro-reflection hole, where the lobe peaks between nodes)
     assert!(
         beyond * 10 <= interpolated.len(),

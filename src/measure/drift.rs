@@ -1,8 +1,6 @@
 //! Temporal gain drift from pairs of captures: a rate fit with geometry fixed effects and a CUSUM.
 //! Wired in with *isotropy-class* observations (`Checker`: each capture against the first
-//! capture of the same (θi, θo, |Δφ|)), rate only. Fed with reciprocal pairs it is not fit for
-//! use on the simulator's realistic preset, for a reason that shapes issue 5 (measured,
-//! 2026-11-22):
+//! capture of the same (θi, θo, |Δφ|)), rate only. It is not fed with reciprocal pairs, because:
 //!
 //! - The realistic non-reciprocity depends on the light direction (footprint) and the camera
 //!   direction (holder bleed) separately, so a pair's nuisance is v(c) − v(ℓ) for the capture
@@ -10,12 +8,12 @@
 //!   difference is 80(c − ℓ)·T: a *linear* drift r·Δt = F(c) − F(ℓ) has exactly that form.
 //!   Reciprocal pairs alone cannot separate a linear drift from per-direction non-reciprocity in
 //!   this order; only non-linear gain changes (steps, curvature) are identifiable from them.
-//!   The θ-bucket model below leaves azimuth-dependent effects in the residuals: on a fault-free
-//!   realistic run it reported −0.28 ± 0.14 %/h and its CUSUM fired dozens of times (the
-//!   residuals of consecutive pairs are strongly correlated, not independent).
+//!   The θ-bucket model below also leaves azimuth-dependent effects in the residuals, which are
+//!   strongly correlated between consecutive pairs, so a rate and a CUSUM on them are biased and
+//!   overconfident (ARCHITECTURE.md, "Drift and positioning detection design").
 //! - What breaks the confounding: isotropy classes (same geometry, different directions and
 //!   times), drift probes (re-captures of one pose), or an acquisition order whose times are not
-//!   a function of the direction indices alone. Issue 5 has to build the estimator on those.
+//!   a function of the direction indices alone. The estimators are built on those.
 //!
 //! Each exact pair (a earlier, b later) gives d = ln(Y′_b / Y′_a) of the re-corrected luminances.
 //! With a lamp gain g(t), d = ln g(t_b) − ln g(t_a) + ν + ε, where ν is the pair's stationary,

@@ -2,7 +2,7 @@
 //! unless the operator enables `[probes] every`). A probe and the original capture of its plan
 //! entry share the geometry exactly, so ln(Y_probe / Y_original) is the gain change between the
 //! two times with no geometric nuisance: the confounding that reciprocal pairs suffer (see
-//! `measure::drift`) does not arise. Part of issue 5 (which stays open).
+//! `measure::drift`) does not arise.
 //!
 //! Model: d(t) = a + r·(t − t₀) on the current segment (ordinary least squares; r in ln-gain per
 //! hour). A rate alarm when |r| − z·SE(r) exceeds the tolerance (with hysteresis). A step alarm

@@ -56,8 +56,8 @@ pub struct ResampleSpec {
     pub theta_per_deg: f64,
     /// Interpolate ln(value) when every value is positive: a specular lobe is close to a
     /// Gaussian, i.e. a quadratic in ln f, so the nodal quadratics follow it instead of
-    /// overshooting beside it (measured on the simulator's reference: without it, a 10:1 lobe
-    /// made nodal fits 40° away swing by ±100 %). Data with zero or negative values stay linear.
+    /// overshooting beside it (a steep lobe otherwise makes nodal fits far from it swing by
+    /// the lobe's height). Data with zero or negative values stay linear.
     pub log_values: bool,
 }
 
@@ -97,9 +97,9 @@ pub struct Resampler {
     log: bool,
     /// Per channel, the range of the node values (in the interpolated space): results are
     /// clamped to it widened by `RANGE_MARGIN` of its span on each side. A nodal polynomial
-    /// fitted across a steep lobe can swing far beyond the data beside it (measured: 970× the
-    /// true value on UBO-sampled walkway data); a peak just off the data (a retro-reflection
-    /// hole) may rightly lie a little above the largest node.
+    /// fitted across a steep lobe can swing far beyond the data beside it (by orders of
+    /// magnitude on UBO-sampled data); a peak just off the data (a retro-reflection hole) may
+    /// rightly lie a little above the largest node.
     range: [(f64, f64); 3],
 }
 

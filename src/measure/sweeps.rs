@@ -4,11 +4,10 @@
 //! Why per sweep: on a real sample ln Y is close to
 //!   F(θi, θo, |Δφ|) + L(light) + C(camera) + ln g(t),
 //! where F is the isotropic BRDF, L a per-light effect (lamp footprint on a square sample), C a
-//! per-camera effect (border bleed, the texture under the view) and g the lamp gain. Measured on
-//! the simulator's realistic preset: isotropy-class residuals have sd 2.2 % with F alone and
-//! 1.4 % with F + L + C; consecutive captures share their light, so capture-level tests are
-//! overconfident (a CUSUM on them raised 1–3 false steps per fault-free run). A light sweep is
-//! the natural unit: within one sweep L and g are constant, so
+//! per-camera effect (border bleed, the texture under the view) and g the lamp gain. L and C are
+//! a large part of the isotropy-class residuals, and consecutive captures share their light, so
+//! capture-level tests are overconfident (ARCHITECTURE.md, "Drift and positioning detection design"). A light sweep
+//! is the natural unit: within one sweep L and g are constant, so
 //! - the sweep's *level* (its mean residual against F and C fitted on the earlier sweeps) moves
 //!   with the gain: a lamp step shows in the sweep it happens in and in every later one;
 //! - the *pattern* across its cameras moves with the pose: a joint offset δ changes ln Y by
@@ -386,11 +385,10 @@ impl SweepMonitor {
     /// The interpolant of BRDF-like values (Y / cos θi), rebuilt when the data grew by a
     /// quarter or the current layer doubled. `class_effect` is the F of the back-fit (ln units,
     /// per class id; NaN where a class has no earlier member): each class is one node at its
-    /// first member's directions, free of the per-light and per-camera effects (measured: raw
-    /// captures as nodes on the realistic preset gave sensitivities uncorrelated with the
-    /// truth). No reciprocal swaps: F(θi, θo)
-    /// keeps the θi-dependent part of the lamp footprint, so a swapped node can be off by tens
-    /// of per cent at grazing light (measured: sensitivities 10× too large and uncorrelated).
+    /// first member's directions, free of the per-light and per-camera effects (raw captures as
+    /// nodes carry those effects into the sensitivities). No reciprocal swaps: F(θi, θo) keeps
+    /// the θi-dependent part of the lamp footprint, so a swapped node can be off by tens of per
+    /// cent at grazing light.
     fn ensure_model(&mut self, layer: i64, class_effect: &[f64]) {
         let total = self.captures.len();
         let here = self.layer_count(layer);
