@@ -15,8 +15,7 @@
 //! - [`report`]: shell side, `goniowatch report`: the end-of-run HTML report and CSV tables.
 
 pub mod checks;
-pub mod commands;
-pub mod compare;
+pub mod cli;
 pub mod config;
 pub mod daemon;
 pub mod decode;
@@ -24,5 +23,4 @@ pub mod engine;
 pub mod measure;
 pub mod protocol;
 pub mod reference;
-pub mod report;
 pub mod session;

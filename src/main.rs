@@ -2,7 +2,7 @@
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use goniowatch::commands::{average_file, plan_summary, AverageOutcome};
+use goniowatch::cli::commands::{average_file, plan_summary, AverageOutcome};
 use goniowatch::config::Config;
 use goniowatch::measure::averaging::Roi;
 use std::io::Write;
@@ -240,7 +240,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             quiet,
             http,
         } => {
-            use goniowatch::daemon::run::{print_summary, run, RunEnd, RunOptions};
+            use goniowatch::cli::summary::print_summary;
+            use goniowatch::daemon::run::{run, RunEnd, RunOptions};
             let rt = tokio::runtime::Builder::new_multi_thread()
                 .worker_threads(2)
                 .enable_all()
@@ -273,8 +274,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             recorded_outcomes,
             quiet,
         } => {
+            use goniowatch::cli::summary::print_summary;
             use goniowatch::daemon::replay::{replay, ReplayOptions};
-            use goniowatch::daemon::run::print_summary;
             let r = replay(
                 &session,
                 &ReplayOptions {
@@ -317,7 +318,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 ))
                 .into());
             }
-            use goniowatch::compare::{compare, render, GainChoice};
+            use goniowatch::cli::compare::{compare, render, GainChoice};
             if let Some(r) = drift_rate {
                 if !r.is_finite() {
                     return Err(
@@ -347,7 +348,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             session,
             out: out_dir,
         } => {
-            let files = goniowatch::report::report(&session, out_dir.as_deref())?;
+            let files = goniowatch::cli::report::report(&session, out_dir.as_deref())?;
             for f in &files {
                 writeln!(out, "{}", f.display())?;
             }

@@ -3,8 +3,8 @@
 //! CSV. It reads only the session's recorded files, so a replayed session's report is the live
 //! session's report, byte for byte (no dates, no paths).
 
+use super::compare::CompareReport;
 use crate::checks::{CaptureRecord, PairRecord, Table2};
-use crate::compare::CompareReport;
 use crate::config::Config;
 use crate::engine::Summary;
 use crate::measure::alarm::{Alarm, Severity};

@@ -1,0 +1,126 @@
+//! The end-of-run summary as the terminal shows it (`run` and `replay`).
+
+use crate::engine::Summary;
+
+/// Print the end-of-run summary in the paper's Table 2 form.
+pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "session {}  rig {}",
+        s.session.as_deref().unwrap_or("?"),
+        s.rig.as_deref().unwrap_or("?")
+    )?;
+    writeln!(
+        out,
+        "captures: {} planned, {} announced, {} checked ({} ok, {} failed, {} missing, {} probes)",
+        s.captures_planned,
+        s.captures_announced,
+        s.checked.captures,
+        s.checked.ok,
+        s.checked.failed,
+        s.checked.missing,
+        s.checked.probes
+    )?;
+    writeln!(
+        out,
+        "pairs: {} exact, {} need resampling, {} grazing; isotropy comparisons: {}",
+        s.checked.pairs_exact,
+        s.checked.pairs_needs_resampling,
+        s.checked.pairs_grazing,
+        s.checked.isotropy_comparisons
+    )?;
+    writeln!(out, "Table 2 (means over exact reciprocal pairs):")?;
+    writeln!(
+        out,
+        "  |ΔX|     |ΔY|     |ΔZ|     ΔE*ab    ΔC*ab    ΔH*ab    ΔE00"
+    )?;
+    let t = &s.table2;
+    writeln!(
+        out,
+        "  {:<8.3} {:<8.3} {:<8.3} {:<8.3} {:<8.3} {:<8.3} {:<8.3}",
+        t.abs_dx, t.abs_dy, t.abs_dz, t.de76, t.dc, t.dh, t.de2000
+    )?;
+    if s.checked.pairs_interpolated + s.checked.pairs_unresolved > 0 {
+        let t = &s.interpolated;
+        writeln!(
+            out,
+            "occlusion substitutes vs interpolated partners: ΔE*ab {:.3}  ΔE00 {:.3} over {} ({} unresolved)",
+            t.de76, t.de2000, t.pairs, s.checked.pairs_unresolved
+        )?;
+    }
+    if s.isotropy.pairs > 0 {
+        let t = &s.isotropy;
+        writeln!(
+            out,
+            "isotropy (capture vs class mean): ΔE*ab {:.3}  ΔE00 {:.3} over {}",
+            t.de76, t.de2000, t.pairs
+        )?;
+    }
+    if let Some(d) = &s.isotropy_drift {
+        writeln!(
+            out,
+            "gain drift from isotropy classes: {:+.3} %/h ± {:.3} (standard error, {} comparisons)",
+            d.rate_pct_per_h, d.se_pct_per_h, d.pairs
+        )?;
+        for st in &s.isotropy_steps {
+            writeln!(
+                out,
+                "  with a gain step at {:.2} h of {:+.2} % ± {:.2} (found by the light sweeps)",
+                st.t_h,
+                100.0 * st.ln_size.exp_m1(),
+                100.0 * st.se
+            )?;
+        }
+    }
+    if let Some(sw) = &s.sweeps {
+        match &sw.last {
+            Some(r) => {
+                let joints: Vec<String> = r
+                    .joints
+                    .iter()
+                    .map(|j| format!("joint {} {:+.2}° ± {:.2}", j.joint, j.offset_deg, j.se_deg))
+                    .collect();
+                writeln!(
+                    out,
+                    "light sweeps: {} tested; the last (light {}): level {:+.2} % ± {:.2}{}{}",
+                    sw.tested,
+                    r.light,
+                    r.level_pct,
+                    r.level_se_pct,
+                    if joints.is_empty() { "" } else { ", " },
+                    joints.join(", ")
+                )?;
+            }
+            None => writeln!(out, "light sweeps: none tested yet")?,
+        }
+    }
+    if let Some(d) = &s.probe_drift {
+        writeln!(
+            out,
+            "gain drift from probes: {:+.3} %/h ± {:.3} (standard error, {} probes)",
+            d.rate_pct_per_h, d.se_pct_per_h, d.pairs
+        )?;
+    }
+    let alarms: Vec<String> = s.alarms.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    writeln!(
+        out,
+        "alarms: {}",
+        if alarms.is_empty() {
+            "none".into()
+        } else {
+            alarms.join(", ")
+        }
+    )?;
+    let l = &s.link;
+    writeln!(
+        out,
+        "link: {} lines, {} CRC errors, {} sequence gaps, {} reconnects, {} controller reboots, {} resyncs",
+        l.lines,
+        l.crc_errors,
+        l.sequence_gaps,
+        l.connects.saturating_sub(1),
+        l.reboots,
+        l.resyncs
+    )?;
+    Ok(())
+}
