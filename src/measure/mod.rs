@@ -2,7 +2,7 @@
 //!
 //! Nothing in this module reads a clock, a file, a port or the environment. Time arrives as data
 //! (controller timestamps), pixels arrive as decoded buffers, and every function returns typed
-//! errors (`thiserror`). The shell (`crate::decode`, `crate::cli`, and later the daemon) does
+//! errors (`thiserror`). The shell (`crate::decode`, `crate::daemon`, `crate::cli`) does
 //! the I/O and feeds this module. Replaying the same inputs gives the same bytes out.
 
 pub mod alarm;

@@ -1,0 +1,13 @@
+//! The wire: the line framing of docs/protocol.md (`frame`) and the controller's messages typed
+//! from it (`messages`). Pure; the engine consumes `Line`s and produces lines with `format`.
+
+mod frame;
+mod messages;
+
+pub use frame::{
+    crc16, decode_value, encode_value, format, parse, parse_line, parse_pose, ContentError,
+    FrameError, LineError, Message, MAX_LINE, PROTO_VERSION, SEQ_MOD,
+};
+pub use messages::{
+    parse_message, Ack, Announcement, FromController, Ident, Line, Nak, Status, MAX_CONTROLLER_T,
+};
