@@ -771,53 +771,72 @@ fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
 }
 
 /// The CSV files: (name, contents).
-pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
-    let plan = inp.config.plan().context("the session's plan")?;
-    let mut caps = String::from("idx,entry,light,camera,probe,t_s,status,theta_i,phi_i,theta_o,phi_o,R,G,B,X,Y,Z,L,a,b,pixels,nonfinite,clipped,pose_error_deg,substitute_theta_i,X_gain_corrected,Y_gain_corrected,Z_gain_corrected,gain,gain_sigma_rel,gain_source,error\n");
-    for c in &inp.captures {
-        let a = c.angles;
-        let _ = writeln!(
-            caps,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
-            c.idx,
-            c.entry,
-            c.light,
-            c.camera,
-            c.probe,
-            c.t,
-            c.status,
-            opt(a.map(|a| a.theta_i_deg)),
-            opt(a.map(|a| a.phi_i_deg)),
-            opt(a.map(|a| a.theta_o_deg)),
-            opt(a.map(|a| a.phi_o_deg)),
-            opt(c.mean_rgb.map(|v| v[0])),
-            opt(c.mean_rgb.map(|v| v[1])),
-            opt(c.mean_rgb.map(|v| v[2])),
-            opt(c.xyz.map(|v| v[0])),
-            opt(c.xyz.map(|v| v[1])),
-            opt(c.xyz.map(|v| v[2])),
-            opt(c.lab.map(|v| v.l)),
-            opt(c.lab.map(|v| v.a)),
-            opt(c.lab.map(|v| v.b)),
-            opt(c.pixels),
-            opt(c.nonfinite),
-            opt(c.clipped),
-            opt(c.pose_error_deg),
-            opt(c.substitute),
-            opt(c.gain_corrected.as_ref().map(|g| g.xyz[0])),
-            opt(c.gain_corrected.as_ref().map(|g| g.xyz[1])),
-            opt(c.gain_corrected.as_ref().map(|g| g.xyz[2])),
-            opt(c.gain_corrected.as_ref().map(|g| g.gain)),
-            opt(c.gain_corrected.as_ref().map(|g| g.sigma_rel)),
-            csv_field(c.gain_corrected.as_ref().map(|g| g.source.as_str()).unwrap_or("")),
-            csv_field(c.error.as_deref().unwrap_or(""))
-        );
+/// A record that is a row of one of the report's CSV tables: it owns its header and its row.
+trait CsvRow {
+    const HEADER: &'static str;
+    fn row(&self) -> String;
+}
+
+/// A CSV table: the header, then one row per record.
+fn csv_table<T: CsvRow>(records: &[T]) -> String {
+    let mut out = String::from(T::HEADER);
+    out.push('\n');
+    for r in records {
+        out.push_str(&r.row());
+        out.push('\n');
     }
-    let mut pairs = String::from("a,b,entry_a,entry_b,status,t_s,mismatch_deg,abs_dX,abs_dY,abs_dZ,dE76,dC,dH,dE00,sigma_dE00\n");
-    for p in &inp.pairs {
+    out
+}
+
+impl CsvRow for CaptureRecord {
+    const HEADER: &'static str = "idx,entry,light,camera,probe,t_s,status,theta_i,phi_i,theta_o,phi_o,R,G,B,X,Y,Z,L,a,b,pixels,nonfinite,clipped,pose_error_deg,substitute_theta_i,X_gain_corrected,Y_gain_corrected,Z_gain_corrected,gain,gain_sigma_rel,gain_source,error";
+    fn row(&self) -> String {
+        let c = self;
+        let a = c.angles;
+        format!(
+        "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        c.idx,
+        c.entry,
+        c.light,
+        c.camera,
+        c.probe,
+        c.t,
+        c.status,
+        opt(a.map(|a| a.theta_i_deg)),
+        opt(a.map(|a| a.phi_i_deg)),
+        opt(a.map(|a| a.theta_o_deg)),
+        opt(a.map(|a| a.phi_o_deg)),
+        opt(c.mean_rgb.map(|v| v[0])),
+        opt(c.mean_rgb.map(|v| v[1])),
+        opt(c.mean_rgb.map(|v| v[2])),
+        opt(c.xyz.map(|v| v[0])),
+        opt(c.xyz.map(|v| v[1])),
+        opt(c.xyz.map(|v| v[2])),
+        opt(c.lab.map(|v| v.l)),
+        opt(c.lab.map(|v| v.a)),
+        opt(c.lab.map(|v| v.b)),
+        opt(c.pixels),
+        opt(c.nonfinite),
+        opt(c.clipped),
+        opt(c.pose_error_deg),
+        opt(c.substitute),
+        opt(c.gain_corrected.as_ref().map(|g| g.xyz[0])),
+        opt(c.gain_corrected.as_ref().map(|g| g.xyz[1])),
+        opt(c.gain_corrected.as_ref().map(|g| g.xyz[2])),
+        opt(c.gain_corrected.as_ref().map(|g| g.gain)),
+        opt(c.gain_corrected.as_ref().map(|g| g.sigma_rel)),
+        csv_field(c.gain_corrected.as_ref().map(|g| g.source.as_str()).unwrap_or("")),
+        csv_field(c.error.as_deref().unwrap_or(""))
+        )
+    }
+}
+
+impl CsvRow for PairRecord {
+    const HEADER: &'static str = "a,b,entry_a,entry_b,status,t_s,mismatch_deg,abs_dX,abs_dY,abs_dZ,dE76,dC,dH,dE00,sigma_dE00";
+    fn row(&self) -> String {
+        let p = self;
         let d = p.diff;
-        let _ = writeln!(
-            pairs,
+        format!(
             "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             p.a,
             p.b,
@@ -834,10 +853,14 @@ pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
             opt(d.map(|d| d.dh)),
             opt(d.map(|d| d.de2000)),
             opt(p.interpolated.as_ref().and_then(|i| i.sigma_de2000))
-        );
+        )
     }
-    let mut alarms = String::from("idx,t_s,severity,kind,code,message\n");
-    for a in &inp.alarms {
+}
+
+impl CsvRow for Alarm {
+    const HEADER: &'static str = "idx,t_s,severity,kind,code,message";
+    fn row(&self) -> String {
+        let a = self;
         let sev = serde_json::to_value(a.severity)
             .ok()
             .and_then(|v| v.as_str().map(str::to_string))
@@ -846,8 +869,7 @@ pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
             .ok()
             .and_then(|v| v.as_str().map(str::to_string))
             .unwrap_or_default();
-        let _ = writeln!(
-            alarms,
+        format!(
             "{},{},{},{},{},{}",
             opt(a.idx),
             opt(a.t),
@@ -855,8 +877,40 @@ pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
             kind,
             csv_field(&a.code),
             csv_field(&a.message)
-        );
+        )
     }
+}
+
+impl CsvRow for SweepRecord {
+    const HEADER: &'static str = "light,idx,t_s,captures,level_pct,level_se_pct,level_z,level_cusum,joint1_offset_deg,joint1_se_deg,joint1_z,joint1_cusum,joint2_offset_deg,joint2_se_deg,joint2_z,joint2_cusum,residual_sd";
+    fn row(&self) -> String {
+        let r = self;
+        let j = |k: usize| r.joints.iter().find(|f| f.joint == k);
+        format!(
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            r.light,
+            r.idx,
+            r.t,
+            r.captures,
+            r.level_pct,
+            r.level_se_pct,
+            opt(r.level_z),
+            r.level_cusum,
+            opt(j(1).map(|f| f.offset_deg)),
+            opt(j(1).map(|f| f.se_deg)),
+            opt(j(1).and_then(|f| f.z)),
+            opt(j(1).map(|f| f.cusum)),
+            opt(j(2).map(|f| f.offset_deg)),
+            opt(j(2).map(|f| f.se_deg)),
+            opt(j(2).and_then(|f| f.z)),
+            opt(j(2).map(|f| f.cusum)),
+            r.residual_sd
+        )
+    }
+}
+
+pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
+    let plan = inp.config.plan().context("the session's plan")?;
     let s = &inp.summary;
     let mut t2 = String::from("set,pairs,abs_dX,abs_dY,abs_dZ,dE76,dC,dH,dE00\n");
     for (name, t) in [
@@ -900,39 +954,14 @@ pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
         );
     }
     let mut out = vec![
-        ("captures.csv", caps),
-        ("pairs.csv", pairs),
-        ("alarms.csv", alarms),
+        ("captures.csv", csv_table(&inp.captures)),
+        ("pairs.csv", csv_table(&inp.pairs)),
+        ("alarms.csv", csv_table(&inp.alarms)),
         ("table2.csv", t2),
         ("light_residuals.csv", lights),
     ];
     if !inp.sweeps.is_empty() {
-        let mut sw = String::from("light,idx,t_s,captures,level_pct,level_se_pct,level_z,level_cusum,joint1_offset_deg,joint1_se_deg,joint1_z,joint1_cusum,joint2_offset_deg,joint2_se_deg,joint2_z,joint2_cusum,residual_sd\n");
-        for r in &inp.sweeps {
-            let j = |k: usize| r.joints.iter().find(|f| f.joint == k);
-            let _ = writeln!(
-                sw,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
-                r.light,
-                r.idx,
-                r.t,
-                r.captures,
-                r.level_pct,
-                r.level_se_pct,
-                opt(r.level_z),
-                r.level_cusum,
-                opt(j(1).map(|f| f.offset_deg)),
-                opt(j(1).map(|f| f.se_deg)),
-                opt(j(1).and_then(|f| f.z)),
-                opt(j(1).map(|f| f.cusum)),
-                opt(j(2).map(|f| f.offset_deg)),
-                opt(j(2).map(|f| f.se_deg)),
-                opt(j(2).and_then(|f| f.z)),
-                opt(j(2).map(|f| f.cusum)),
-                r.residual_sd
-            );
-        }
-        out.push(("sweeps.csv", sw));
+        out.push(("sweeps.csv", csv_table(&inp.sweeps)));
     }
     if let Some(cv) = &inp.crossval {
         let mut t3 = String::from("table,metric,max,avg,median,condition\n");

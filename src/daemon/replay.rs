@@ -90,7 +90,7 @@ pub fn replay(session_dir: &Path, options: &ReplayOptions) -> Result<ReplayRepor
     let mut session = Session::open_read_only(session_dir)?;
     if let Some(c) = &options.capture_root {
         session.info.capture_root = c.to_path_buf();
-    } else if session.info.capture_root.is_relative() {
+    } else if session.info.capture_root.is_relative() && !options.recorded_outcomes {
         tracing::warn!(
             "the session's capture root {} is relative (recorded by an older goniowatch); it is taken from the working directory; give --capture-root if the captures are elsewhere",
             session.info.capture_root.display()

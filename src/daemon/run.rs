@@ -215,26 +215,13 @@ impl Live {
     }
 }
 
+/// Run beside the rig until the run is done (or a signal): start, then step on every input and
+/// tick, then shut down.
 pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
     // the status address is checked and bound before the session folder is touched
     let listener = match opts.http {
         None => None,
-        Some(addr) => {
-            if !addr.ip().to_canonical().is_loopback() {
-                let stored = opts.session_dir.join("config.toml");
-                let path = if stored.exists() {
-                    Some(stored)
-                } else {
-                    opts.config.clone()
-                };
-                let allow = match path {
-                    Some(p) => crate::config::Config::load(&p)?.0.http.allow_remote,
-                    None => false,
-                };
-                super::http::check_address(&addr, allow)?;
-            }
-            Some(super::http::bind(addr).await?)
-        }
+        Some(addr) => Some(bind_status(&opts, addr).await?),
     };
     let session = Session::open_or_create(
         &opts.session_dir,
@@ -243,43 +230,85 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         opts.capture_root.as_deref(),
     )?;
     let _lock = SessionLock::acquire(&session.dir)?;
-    let cfg = session.config.clone();
+    let (mut live, mut ch) = start(&session, &opts, listener).await?;
+    let end = steps(&mut live, &mut ch, opts.keep_running).await?;
+    let summary = shutdown(live, ch).await?;
+    Ok((end, summary))
+}
 
-    let bar = if opts.progress && std::io::stderr().is_terminal() {
-        let b = indicatif::ProgressBar::new(cfg.plan()?.capture_count() as u64);
-        b.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} {per_sec} ETA {eta} {msg}",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        b.enable_steady_tick(Duration::from_millis(250));
-        Some(b)
-    } else {
-        None
-    };
+/// The channels between the run loop and its tasks.
+struct Channels {
+    events: mpsc::UnboundedReceiver<Input>,
+    stop: watch::Sender<bool>,
+    link: tokio::task::JoinHandle<()>,
+    /// The session had finished before this start: nothing is left to wait for.
+    already_finished: bool,
+}
 
-    // recover: rebuild the results from the journal, then note the restart
-    let (engine, recovered) = if session.resumed {
-        let (e, n) = recover(&session).context("cannot recover the session from its journal")?;
-        (e, n)
-    } else {
-        (crate::engine::Engine::from_config(&cfg)?, 0)
-    };
-    if session.resumed {
-        eprintln!(
-            "goniowatch: resuming {} ({recovered} journaled inputs, {} captures already checked)",
-            session.dir.display(),
-            engine.checked_through()
-        );
+/// Check a non-loopback status address against the config (before the session is opened, so
+/// the stored config is read directly) and bind it.
+async fn bind_status(
+    opts: &RunOptions,
+    addr: std::net::SocketAddr,
+) -> Result<tokio::net::TcpListener> {
+    if !addr.ip().to_canonical().is_loopback() {
+        let stored = opts.session_dir.join("config.toml");
+        let path = if stored.exists() {
+            Some(stored)
+        } else {
+            opts.config.clone()
+        };
+        let allow = match path {
+            Some(p) => crate::config::Config::load(&p)?.0.http.allow_remote,
+            None => false,
+        };
+        super::http::check_address(&addr, allow)?;
     }
+    super::http::bind(addr).await
+}
+
+fn progress_bar(opts: &RunOptions, captures: u64) -> Option<indicatif::ProgressBar> {
+    if !(opts.progress && std::io::stderr().is_terminal()) {
+        return None;
+    }
+    let b = indicatif::ProgressBar::new(captures);
+    b.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} {per_sec} ETA {eta} {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    b.enable_steady_tick(Duration::from_millis(250));
+    Some(b)
+}
+
+/// Recover the session (on a resume), open its files, start the ingestion pool, the status
+/// page and the link, and report the alarm states that hold now.
+async fn start(
+    session: &Session,
+    opts: &RunOptions,
+    listener: Option<tokio::net::TcpListener>,
+) -> Result<(Live, Channels)> {
+    let cfg = &session.config;
+    let bar = progress_bar(opts, cfg.plan()?.capture_count() as u64);
+    // recover: rebuild the results from the journal, then note the restart
+    let engine = if session.resumed {
+        let (e, n) = recover(session).context("cannot recover the session from its journal")?;
+        eprintln!(
+            "goniowatch: resuming {} ({n} journaled inputs, {} captures already checked)",
+            session.dir.display(),
+            e.checked_through()
+        );
+        e
+    } else {
+        crate::engine::Engine::from_config(cfg)?
+    };
     let results = Results::open(&session.dir, !session.resumed)?;
     let journal = JsonlFile::append(&session.dir.join("journal.jsonl"))?;
 
-    let (ev_tx, mut ev_rx) = mpsc::unbounded_channel::<Input>();
+    let (ev_tx, ev_rx) = mpsc::unbounded_channel::<Input>();
     let (link_tx, link_rx) = mpsc::unbounded_channel::<String>();
     let (stop_tx, stop_rx) = watch::channel(false);
-
     let outcome_tx = ev_tx.clone();
     let pool = Pool::start(
         session.info.capture_root.clone(),
@@ -289,7 +318,6 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
             let _ = outcome_tx.send(Input::Outcome { idx, outcome });
         },
     );
-
     let mut live = Live {
         engine,
         journal,
@@ -306,7 +334,6 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         hooks: Vec::new(),
         status: None,
     };
-
     if let Some(listener) = listener {
         let mut model = StatusModel::new(&cfg.plan()?, cfg.checks.dark_y);
         if session.resumed {
@@ -323,7 +350,6 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         });
         live.publish_status(true);
     }
-
     if session.resumed {
         live.process(Input::Restart)?;
         for (idx, file) in live.engine.pending_ingest() {
@@ -339,38 +365,50 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         log_alarm(&a, live.bar.as_ref(), true);
         live.hooks.extend(run_hook(&live.hook, &a, true));
     }
-
     let mut link_spec = cfg.link.clone();
     link_spec.port = session.info.port.clone();
-    let link = tokio::spawn(super::link::run(link_spec, ev_tx.clone(), link_rx, stop_rx));
+    let link = tokio::spawn(super::link::run(link_spec, ev_tx, link_rx, stop_rx));
+    Ok((
+        live,
+        Channels {
+            events: ev_rx,
+            stop: stop_tx,
+            link,
+            already_finished,
+        },
+    ))
+}
 
+/// Carry out inputs as they come, and the 2-s tick (idle question, queued jobs, progress,
+/// status, summary), until the run is done or a signal arrives.
+async fn steps(live: &mut Live, ch: &mut Channels, keep_running: bool) -> Result<RunEnd> {
     let mut sigterm = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
         .context("cannot install SIGTERM handler")?;
     let mut tick = tokio::time::interval(Duration::from_secs(2));
     let mut last_input = Instant::now();
-    let end = loop {
-        if already_finished && !opts.keep_running {
-            break RunEnd::Finished {
+    loop {
+        if ch.already_finished && !keep_running {
+            return Ok(RunEnd::Finished {
                 critical: live.critical,
-            };
+            });
         }
-        if live.finished && !opts.keep_running {
+        if live.finished && !keep_running {
             let files = live.unannounced();
             live.process(Input::Unannounced { files })?;
-            break RunEnd::Finished {
+            return Ok(RunEnd::Finished {
                 critical: live.critical,
-            };
+            });
         }
         tokio::select! {
-            ev = ev_rx.recv() => {
-                let Some(ev) = ev else { break RunEnd::Signal(0) };
+            ev = ch.events.recv() => {
+                let Some(ev) = ev else { return Ok(RunEnd::Signal(0)) };
                 if matches!(ev, Input::Rx { .. }) {
                     last_input = Instant::now();
                 }
                 live.process(ev)?;
             }
-            _ = tokio::signal::ctrl_c() => break RunEnd::Signal(2),
-            _ = sigterm.recv() => break RunEnd::Signal(15),
+            _ = tokio::signal::ctrl_c() => return Ok(RunEnd::Signal(2)),
+            _ = sigterm.recv() => return Ok(RunEnd::Signal(15)),
             _ = tick.tick() => {
                 if last_input.elapsed() >= IDLE_AFTER {
                     last_input = Instant::now();
@@ -382,13 +420,15 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
                 live.results.write_summary(&live.engine.summary())?;
             }
         }
-    };
+    }
+}
 
-    // shut down: stop the link, flush everything; workers still retrying are abandoned (their
-    // captures are redone on resume)
-    let _ = stop_tx.send(true);
-    let _ = tokio::time::timeout(Duration::from_secs(2), link).await;
-    // alarm hooks still running get their time (each has its own 10 s limit)
+/// Stop the link, give alarm hooks their time, flush everything. Workers still retrying are
+/// abandoned: their captures are redone on resume.
+async fn shutdown(mut live: Live, ch: Channels) -> Result<Summary> {
+    let _ = ch.stop.send(true);
+    let _ = tokio::time::timeout(Duration::from_secs(2), ch.link).await;
+    // each hook has its own 10 s limit
     for h in live.hooks.drain(..) {
         let _ = tokio::time::timeout(Duration::from_secs(11), h).await;
     }
@@ -401,5 +441,5 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         b.finish_and_clear();
     }
     drop(live.pool);
-    Ok((end, summary))
+    Ok(summary)
 }
