@@ -108,54 +108,11 @@ pub fn replay(session_dir: &Path, options: &ReplayOptions) -> Result<ReplayRepor
     let config_text = std::fs::read(session_dir.join("config.toml"))
         .with_context(|| format!("cannot read {}", session_dir.join("config.toml").display()))?;
     write_atomic(&out_dir.join("config.toml"), &config_text)?;
-    let journal_path = session_dir.join("journal.jsonl");
-    let read = verified_journal(&journal_path, session.info.journal_checksums)?;
-    if read.torn_tail {
-        tracing::warn!(
-            "{} ends in a torn line (a write cut short); it is left out",
-            journal_path.display()
-        );
-    }
-    let all: Vec<(u64, Input)> = inputs(&read.entries).map(|(w, i)| (w, i.clone())).collect();
-    if all.is_empty() {
-        bail!(
-            "{} has no journaled inputs ({} is {}): there is nothing to replay",
-            session_dir.display(),
-            journal_path.display(),
-            if journal_path.exists() {
-                "empty"
-            } else {
-                "missing"
-            }
-        );
-    }
-
-    // the captures to measure again, in journal order (none when outcomes are taken as recorded)
-    let jobs: Vec<(usize, String)> = if options.recorded_outcomes {
+    let all = journaled_inputs(session_dir, &session)?;
+    let jobs = if options.recorded_outcomes {
         Vec::new()
     } else {
-        let mut files: HashMap<u64, String> = HashMap::new();
-        for (_, i) in &all {
-            if let Input::Rx { line } = i {
-                if let Ok(crate::protocol::Line {
-                    message: crate::protocol::FromController::Capture(a),
-                    ..
-                }) = crate::protocol::parse_message(line)
-                {
-                    files.entry(a.idx).or_insert(a.file);
-                }
-            }
-        }
-        all.iter()
-            .enumerate()
-            .filter_map(|(n, (_, i))| match i {
-                Input::Outcome {
-                    idx,
-                    outcome: Outcome::Ok { .. },
-                } => files.get(idx).map(|f| (n, f.clone())),
-                _ => None,
-            })
-            .collect()
+        capture_jobs(&all)
     };
 
     // measure ahead of the engine on a pool; results keyed by journal position
@@ -281,4 +238,57 @@ pub fn replay(session_dir: &Path, options: &ReplayOptions) -> Result<ReplayRepor
         b.finish_and_clear();
     }
     Ok(report)
+}
+
+/// The journal's inputs (with their wall times), verified; refused when there are none.
+fn journaled_inputs(session_dir: &Path, session: &Session) -> Result<Vec<(u64, Input)>> {
+    let journal_path = session_dir.join("journal.jsonl");
+    let read = verified_journal(&journal_path, session.info.journal_checksums)?;
+    if read.torn_tail {
+        tracing::warn!(
+            "{} ends in a torn line (a write cut short); it is left out",
+            journal_path.display()
+        );
+    }
+    let all: Vec<(u64, Input)> = inputs(&read.entries).map(|(w, i)| (w, i.clone())).collect();
+    if all.is_empty() {
+        bail!(
+            "{} has no journaled inputs ({} is {}): there is nothing to replay",
+            session_dir.display(),
+            journal_path.display(),
+            if journal_path.exists() {
+                "empty"
+            } else {
+                "missing"
+            }
+        );
+    }
+    Ok(all)
+}
+
+/// The captures to measure again, in journal order: (journal position, file) of every `ok`
+/// outcome whose file an announcement named.
+fn capture_jobs(all: &[(u64, Input)]) -> Vec<(usize, String)> {
+    let mut files: HashMap<u64, String> = HashMap::new();
+    for (_, i) in all {
+        if let Input::Rx { line } = i {
+            if let Ok(crate::protocol::Line {
+                message: crate::protocol::FromController::Capture(a),
+                ..
+            }) = crate::protocol::parse_message(line)
+            {
+                files.entry(a.idx).or_insert(a.file);
+            }
+        }
+    }
+    all.iter()
+        .enumerate()
+        .filter_map(|(n, (_, i))| match i {
+            Input::Outcome {
+                idx,
+                outcome: Outcome::Ok { .. },
+            } => files.get(idx).map(|f| (n, f.clone())),
+            _ => None,
+        })
+        .collect()
 }
