@@ -1,6 +1,7 @@
 //! The tabulated reference-BRDF format (docs/reference-format.md): an independent measurement of
 //! the same sample, spectral (e.g. 30 bands 400–690 nm, as the Integra data) or RGB/XYZ, for the
-//! cross-validation of issue 6. Pure parsing; every error names its line and column.
+//! cross-validation of issue 6. Pure parsing; every error names its line and column (both from
+//! 1, columns counted in characters), and the time is linear in the length of the text.
 
 use crate::measure::colour::{RgbPrimaries, RgbToXyz, SpectralToXyz, Xyz};
 use crate::measure::geometry::{Spherical, Vec3};
@@ -48,25 +49,25 @@ fn err(line: usize, column: usize, message: impl Into<String>) -> ReferenceError
     }
 }
 
-/// Whitespace-separated tokens with their 1-based columns.
+/// Whitespace-separated tokens with their 1-based columns (in characters), in one pass: the
+/// column is counted along the way, never recounted from the start of the line per token.
 fn tokens(s: &str) -> Vec<(usize, &str)> {
     let mut out = Vec::new();
-    let mut start = None;
-    for (i, ch) in s.char_indices() {
+    // (byte offset, 0-based column) of the token being read
+    let mut start: Option<(usize, usize)> = None;
+    for (col, (i, ch)) in s.char_indices().enumerate() {
         if ch.is_whitespace() {
-            if let Some(b) = start.take() {
-                out.push((b, &s[b..i]));
+            if let Some((b, c)) = start.take() {
+                out.push((c + 1, &s[b..i]));
             }
         } else if start.is_none() {
-            start = Some(i);
+            start = Some((i, col));
         }
     }
-    if let Some(b) = start {
-        out.push((b, &s[b..]));
+    if let Some((b, c)) = start {
+        out.push((c + 1, &s[b..]));
     }
-    out.into_iter()
-        .map(|(b, t)| (s[..b].chars().count() + 1, t))
-        .collect()
+    out
 }
 
 fn number(line: usize, col: usize, t: &str, what: &str) -> Result<f64, ReferenceError> {
@@ -113,8 +114,12 @@ pub fn parse(text: &str) -> Result<Reference, ReferenceError> {
                 return Err(err(line, 1, "header lines must come before the data"));
             }
             let key = content[..eq].trim();
-            let value = content[eq + 1..].trim();
-            let vcol = eq + 2 + (content[eq + 1..].len() - content[eq + 1..].trim_start().len());
+            let after = &content[eq + 1..];
+            let value = after.trim();
+            // the value's column: past the key, the '=' and the blanks after it, in characters
+            let vcol = content[..eq].chars().count()
+                + 2
+                + (after.chars().count() - after.trim_start().chars().count());
             match key {
                 "format" => {
                     if kind.is_some() {

@@ -445,14 +445,25 @@ pub fn delta_c76(a: Lab, b: Lab) -> f64 {
     b.chroma() - a.chroma()
 }
 
-/// Hue difference ΔH*ab, signed by the hue rotation from `a` to `b`.
+/// Hue difference ΔH*ab, signed by the hue rotation from `a` to `b`: negative when the
+/// rotation is clockwise (a₁b₂ − b₁a₂ < 0), positive otherwise, including for opposite hues.
+/// NaN when any coordinate is NaN: a difference that cannot be computed never reads as a match.
 ///
-/// Uses ΔH² = 2(C₁C₂ − a₁a₂ − b₁b₂), which is exact for neutral colours and does not suffer the
-/// cancellation of ΔE² − ΔL² − ΔC² (Sève 1991).
+/// ΔH = 2·√(C₁C₂)·sin(|Δh|/2) with the hue angle difference Δh = atan2(a₁b₂ − b₁a₂,
+/// a₁a₂ + b₁b₂) taken from the two (a, b) vectors directly. The cross product is a compensated
+/// difference of products (one fused multiply-add recovers the rounding error of the other
+/// product), so it is accurate to a few ulps even for nearly equal hues: ΔH is exactly 0 for
+/// identical colours, |ΔH| ≤ ΔE*ab to rounding, and hue differences far below √ε·C are
+/// resolved. The textbook ΔH² = 2(C₁C₂ − a₁a₂ − b₁b₂) and ΔE² − ΔL² − ΔC² both lose every
+/// difference below about √ε·C to cancellation.
 pub fn delta_h76(a: Lab, b: Lab) -> f64 {
-    let h2 = 2.0 * (a.chroma() * b.chroma() - a.a * b.a - a.b * b.b);
-    let mag = h2.max(0.0).sqrt();
-    let cross = a.a * b.b - a.b * b.a; // sign of the hue rotation
+    if [a.l, a.a, a.b, b.l, b.a, b.b].iter().any(|v| v.is_nan()) {
+        return f64::NAN;
+    }
+    let cross = cross2(a.a, a.b, b.a, b.b);
+    let dot = a.a.mul_add(b.a, a.b * b.b);
+    let dh = cross.atan2(dot).abs();
+    let mag = 2.0 * a.chroma().sqrt() * b.chroma().sqrt() * (dh / 2.0).sin();
     if cross < 0.0 {
         -mag
     } else {
@@ -460,20 +471,51 @@ pub fn delta_h76(a: Lab, b: Lab) -> f64 {
     }
 }
 
+/// a₁b₂ − b₁a₂, accurate to a few ulps of the result even where the two products nearly cancel
+/// (Kahan's compensated 2×2 determinant): `e` is exactly the rounding error of the product b₁a₂.
+fn cross2(a1: f64, b1: f64, a2: f64, b2: f64) -> f64 {
+    let w = b1 * a2;
+    let e = (-b1).mul_add(a2, w);
+    let f = a1.mul_add(b2, -w);
+    f + e
+}
+
+/// √(C⁷ / (C⁷ + 25⁷)), the chroma weight in CIEDE2000's G and R_C, without overflow. Where C⁷
+/// is finite the textbook quotient is kept, so every ordinary result is bit for bit the
+/// textbook one; where it overflows (C above about 1e44), with r = 25/C the same value is
+/// 1/√(1 + r⁷). 0 at C = 0, tends to 1 as C grows, NaN for NaN.
+fn chroma_weight(c: f64) -> f64 {
+    const POW25_7: f64 = 6_103_515_625.0; // 25^7
+    let c7 = c.powi(7);
+    if c7.is_finite() {
+        (c7 / (c7 + POW25_7)).sqrt()
+    } else {
+        (1.0 / (1.0 + (25.0 / c).powi(7))).sqrt()
+    }
+}
+
 /// CIEDE2000 colour difference (kL = kC = kH = 1), following Sharma, Wu & Dalal (2005),
 /// including the C′₁C′₂ = 0 branches and their Eq. 14 for the mean hue.
+///
+/// NaN when any input is NaN (a difference that cannot be computed never reads as a match).
+/// Finite for chromas up to about 1e300: the C̄⁷ terms and √(C′₁C′₂) switch to forms that do not
+/// overflow where the textbook ones would.
 pub fn ciede2000(lab1: Lab, lab2: Lab) -> f64 {
     ciede2000_weighted(lab1, lab2, 1.0, 1.0, 1.0)
 }
 
 /// CIEDE2000 with parametric factors kL, kC, kH.
 pub fn ciede2000_weighted(lab1: Lab, lab2: Lab, kl: f64, kc: f64, kh: f64) -> f64 {
-    const POW25_7: f64 = 6_103_515_625.0; // 25^7
+    if [lab1.l, lab1.a, lab1.b, lab2.l, lab2.a, lab2.b, kl, kc, kh]
+        .iter()
+        .any(|v| v.is_nan())
+    {
+        return f64::NAN;
+    }
     let c1 = lab1.chroma();
     let c2 = lab2.chroma();
     let cbar = (c1 + c2) / 2.0;
-    let cbar7 = cbar.powi(7);
-    let g = 0.5 * (1.0 - (cbar7 / (cbar7 + POW25_7)).sqrt());
+    let g = 0.5 * (1.0 - chroma_weight(cbar));
     let a1p = (1.0 + g) * lab1.a;
     let a2p = (1.0 + g) * lab2.a;
     let c1p = a1p.hypot(lab1.b);
@@ -483,8 +525,10 @@ pub fn ciede2000_weighted(lab1: Lab, lab2: Lab, kl: f64, kc: f64, kh: f64) -> f6
 
     let dlp = lab2.l - lab1.l;
     let dcp = c2p - c1p;
-    let cprod = c1p * c2p;
-    let dhp = if cprod == 0.0 {
+    // C′₁C′₂ = 0 decides Sharma's neutral branches; testing the factors keeps the product's
+    // underflow out of that decision
+    let neutral = c1p == 0.0 || c2p == 0.0;
+    let dhp = if neutral {
         0.0
     } else {
         let d = h2p - h1p;
@@ -496,11 +540,18 @@ pub fn ciede2000_weighted(lab1: Lab, lab2: Lab, kl: f64, kc: f64, kh: f64) -> f6
             d
         }
     };
-    let dhp_big = 2.0 * cprod.sqrt() * (dhp.to_radians() / 2.0).sin();
+    // √(C′₁C′₂), as √C′₁·√C′₂ only where the product overflows (chromas above about 1e154)
+    let cprod = c1p * c2p;
+    let root = if cprod.is_finite() {
+        cprod.sqrt()
+    } else {
+        c1p.sqrt() * c2p.sqrt()
+    };
+    let dhp_big = 2.0 * root * (dhp.to_radians() / 2.0).sin();
 
     let lbarp = (lab1.l + lab2.l) / 2.0;
     let cbarp = (c1p + c2p) / 2.0;
-    let hbarp = if cprod == 0.0 {
+    let hbarp = if neutral {
         h1p + h2p
     } else if (h1p - h2p).abs() <= 180.0 {
         (h1p + h2p) / 2.0
@@ -515,8 +566,7 @@ pub fn ciede2000_weighted(lab1: Lab, lab2: Lab, kl: f64, kc: f64, kh: f64) -> f6
         + 0.32 * (3.0 * hbarp + 6.0).to_radians().cos()
         - 0.20 * (4.0 * hbarp - 63.0).to_radians().cos();
     let dtheta = 30.0 * (-((hbarp - 275.0) / 25.0).powi(2)).exp();
-    let cbarp7 = cbarp.powi(7);
-    let rc = 2.0 * (cbarp7 / (cbarp7 + POW25_7)).sqrt();
+    let rc = 2.0 * chroma_weight(cbarp);
     let l50 = (lbarp - 50.0).powi(2);
     let sl = 1.0 + 0.015 * l50 / (20.0 + l50).sqrt();
     let sc = 1.0 + 0.045 * cbarp;
@@ -526,7 +576,14 @@ pub fn ciede2000_weighted(lab1: Lab, lab2: Lab, kl: f64, kc: f64, kh: f64) -> f6
     let tl = dlp / (kl * sl);
     let tc = dcp / (kc * sc);
     let th = dhp_big / (kh * sh);
-    (tl * tl + tc * tc + th * th + rt * tc * th).max(0.0).sqrt()
+    // the form is positive semi-definite (|R_T| < 2); a rounding-negative sum is 0, while a NaN
+    // (from infinite inputs) stays NaN instead of reading as a perfect match
+    let s = tl * tl + tc * tc + th * th + rt * tc * th;
+    if s < 0.0 {
+        0.0
+    } else {
+        s.sqrt()
+    }
 }
 
 /// All the differences the paper's Table 2 reports for one pair, on already re-corrected XYZ.

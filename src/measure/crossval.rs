@@ -4,11 +4,13 @@
 //! resampler of `measure::resample`), fits T, and gives Table 3 with and without the gain
 //! correction of a drift estimate.
 //!
-//! T is found row by row from the n×3 least-squares system V·tₖ = wₖ with an SVD of V (never the
-//! normal equations' inverse): its condition number κ(V) is reported, and near-grey data (all
-//! colours almost proportional to one another, so V is nearly rank 1) make κ large, which the
-//! result flags. The paper shows channel weights aₖ leave T unchanged (each row is its own
-//! problem); `fit_transform_weighted` exists to test exactly that.
+//! T is found row by row from the n×3 least-squares system V·tₖ = wₖ with an SVD (never the
+//! normal equations' inverse) of V with its columns scaled to unit norm: a channel that reads on
+//! another scale changes T's column by the inverse factor but not how well T is determined, so
+//! the scaled matrix's condition number decides. Near-grey data (all colours almost proportional
+//! to one another, so V is nearly rank 1) make it large, which the result flags; both it and the
+//! raw κ(V) are reported. The paper shows channel weights aₖ leave T unchanged (each row is its
+//! own problem); `fit_transform_weighted` exists to test exactly that.
 
 use super::colour::{colour_difference, White, Xyz};
 use super::geometry::{Spherical, Vec3};
@@ -25,25 +27,82 @@ pub enum CrossValError {
     LengthMismatch(usize, usize),
     #[error("colour pair {0} is not finite")]
     NotFinite(usize),
-    #[error("the reference colours are (numerically) rank-deficient: no unique transform (condition number {0:.3e})")]
+    /// Carries the condition number of the column-scaled V (infinite for a zero column).
+    #[error("the reference colours are (numerically) rank-deficient: no unique transform (condition number {0:.3e} with the channels scaled to unit norm)")]
     Singular(f64),
     #[error("channel weights must be finite and positive, got {0:?}")]
     BadWeights([f64; 3]),
 }
 
-/// Above this condition number the fit is flagged as ill-conditioned (near-grey data).
+/// Above this condition number of the column-scaled V the fit is flagged as ill-conditioned
+/// (near-grey data).
 pub const ILL_CONDITIONED: f64 = 1e3;
+/// At or above this condition number of the column-scaled V the fit is refused as singular.
+pub const SINGULAR: f64 = 1e12;
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(from = "ColourTransformFields")]
 pub struct ColourTransform {
     /// Row-major T.
     pub t: [[f64; 3]; 3],
-    /// Condition number of the reference colour matrix V (σ_max / σ_min).
+    /// Condition number of the reference colour matrix V (σ_max / σ_min) as the data come, the
+    /// channels' scales included; `f64::MAX` when it exceeds the double range (JSON has no
+    /// infinity).
     pub condition: f64,
+    /// Condition number of V with each column divided by its norm: how well T is determined,
+    /// whatever scale each channel reads on. This one decides `ill_conditioned` and the refusal.
+    pub condition_scaled: f64,
     /// RMS of |T·v − w| over the pairs.
     pub rms_residual: f64,
-    /// `condition > ILL_CONDITIONED`: the data are close to grey and T is poorly determined.
+    /// `condition_scaled > ILL_CONDITIONED`: the data are close to grey and T is poorly
+    /// determined.
     pub ill_conditioned: bool,
+}
+
+/// The serialised form as read: files written before `condition_scaled` existed lack it, and
+/// their `ill_conditioned` was decided on the raw condition number, so that stands in for it.
+#[derive(Deserialize)]
+struct ColourTransformFields {
+    t: [[f64; 3]; 3],
+    condition: f64,
+    #[serde(default)]
+    condition_scaled: Option<f64>,
+    rms_residual: f64,
+    ill_conditioned: bool,
+}
+
+impl From<ColourTransformFields> for ColourTransform {
+    fn from(f: ColourTransformFields) -> Self {
+        ColourTransform {
+            t: f.t,
+            condition: f.condition,
+            condition_scaled: f.condition_scaled.unwrap_or(f.condition),
+            rms_residual: f.rms_residual,
+            ill_conditioned: f.ill_conditioned,
+        }
+    }
+}
+
+/// σ_max / σ_min, infinite when σ_min is 0 (or the values are not finite).
+fn condition_of(singular_values: &DVector<f64>) -> f64 {
+    let smax = singular_values.max();
+    let smin = singular_values.min();
+    let k = smax / smin;
+    if smin > 0.0 && k.is_finite() {
+        k
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The Euclidean norm of column `j`, scaled by its largest entry first so that squaring
+/// neither overflows nor underflows.
+fn column_norm(v: &[Xyz], j: usize) -> f64 {
+    let m = v.iter().map(|x| x[j].abs()).fold(0.0, f64::max);
+    if m == 0.0 {
+        return 0.0;
+    }
+    m * v.iter().map(|x| (x[j] / m).powi(2)).sum::<f64>().sqrt()
 }
 
 impl ColourTransform {
@@ -83,17 +142,17 @@ pub fn fit_transform_weighted(
             return Err(CrossValError::NotFinite(i));
         }
     }
-    let vm = DMatrix::from_fn(n, 3, |i, j| v[i][j]);
-    let svd = vm.clone().svd(true, true);
-    let smax = svd.singular_values.max();
-    let smin = svd.singular_values.min();
-    let condition = if smin > 0.0 {
-        smax / smin
-    } else {
-        f64::INFINITY
-    };
-    if !(condition < 1e12) {
-        return Err(CrossValError::Singular(condition));
+    let raw = DMatrix::from_fn(n, 3, |i, j| v[i][j]).singular_values();
+    let condition = condition_of(&raw).min(f64::MAX);
+    // equilibrate: V = Vₛ·diag(s) with unit-norm columns; Vₛ·uₖ = wₖ gives tₖⱼ = uₖⱼ / sⱼ
+    let scale = [0, 1, 2].map(|j| column_norm(v, j));
+    if !scale.iter().all(|s| *s > 0.0 && s.is_finite()) {
+        return Err(CrossValError::Singular(f64::INFINITY));
+    }
+    let svd = DMatrix::from_fn(n, 3, |i, j| v[i][j] / scale[j]).svd(true, true);
+    let condition_scaled = condition_of(&svd.singular_values);
+    if !(condition_scaled < SINGULAR) {
+        return Err(CrossValError::Singular(condition_scaled));
     }
     let mut t = [[0.0; 3]; 3];
     for k in 0..3 {
@@ -102,10 +161,10 @@ pub fn fit_transform_weighted(
         let rhs = DVector::from_fn(n, |i, _| w[i][k] * sa);
         let sol = svd
             .solve(&rhs, 0.0)
-            .map_err(|_| CrossValError::Singular(condition))?
+            .map_err(|_| CrossValError::Singular(condition_scaled))?
             / sa;
         for j in 0..3 {
-            t[k][j] = sol[j];
+            t[k][j] = sol[j] / scale[j];
         }
     }
     let tm = Matrix3::from_row_slice(&t.concat());
@@ -117,8 +176,9 @@ pub fn fit_transform_weighted(
     Ok(ColourTransform {
         t,
         condition,
+        condition_scaled,
         rms_residual: (ss / n as f64).sqrt(),
-        ill_conditioned: condition > ILL_CONDITIONED,
+        ill_conditioned: condition_scaled > ILL_CONDITIONED,
     })
 }
 
@@ -443,14 +503,13 @@ mod tests {
     #[test]
     fn near_grey_data_are_flagged_and_degenerate_data_refused() {
         let chromatic = fit_transform(&colours(200, 0.5, 2), &colours(200, 0.5, 3)).unwrap();
-        assert!(!chromatic.ill_conditioned, "{}", chromatic.condition);
+        assert!(!chromatic.ill_conditioned, "{chromatic:?}");
         let v = colours(200, 0.002, 4);
         let w: Vec<Xyz> = v.iter().map(|x| apply(&T, *x)).collect();
         let grey = fit_transform(&v, &w).unwrap();
         assert!(
-            grey.ill_conditioned && grey.condition > 1e3,
-            "{}",
-            grey.condition
+            grey.ill_conditioned && grey.condition_scaled > 1e3 && grey.condition > 1e3,
+            "{grey:?}"
         );
         // exactly proportional colours: rank 1, no transform
         let flat: Vec<Xyz> = (1..50)

@@ -14,6 +14,45 @@ pub type Vec3 = Vector3<f64>;
 /// Below this sin θ a direction is treated as the pole and its azimuth as undefined (φ = 0).
 pub const POLE_EPS: f64 = 1e-12;
 
+/// A vector of any length prepared for angle computations.
+enum Scaled {
+    /// All components zero (of either sign).
+    Zero,
+    /// A NaN or infinite component: no direction.
+    NotFinite,
+    /// The same direction with its largest component in [2⁻²⁵⁰, 2²⁵⁰].
+    Direction(Vec3),
+}
+
+/// `v` multiplied by powers of two until its largest component lies in [2⁻²⁵⁰, 2²⁵⁰], where
+/// squares, norms and the products of two such vectors neither overflow nor underflow. A vector
+/// already there is returned unchanged, and the scaling is exact, so ordinary vectors give
+/// exactly the angles they always gave.
+fn scaled(v: &Vec3) -> Scaled {
+    const HI: f64 = f64::from_bits((1023 + 250) << 52); // 2^250
+    const LO: f64 = f64::from_bits((1023 - 250) << 52); // 2^-250
+    const DOWN: f64 = f64::from_bits((1023 - 300) << 52); // 2^-300
+    const UP: f64 = f64::from_bits((1023 + 300) << 52); // 2^300
+    if !v.iter().all(|c| c.is_finite()) {
+        return Scaled::NotFinite;
+    }
+    let mut v = *v;
+    let mut m = v.amax();
+    if m == 0.0 {
+        return Scaled::Zero;
+    }
+    // at most three steps each way: 2^1024 and 2^-1074 bound a finite non-zero component
+    while m > HI {
+        v *= DOWN;
+        m *= DOWN;
+    }
+    while m < LO {
+        v *= UP;
+        m *= UP;
+    }
+    Scaled::Direction(v)
+}
+
 /// A direction in spherical angles (radians).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Spherical {
@@ -39,13 +78,33 @@ impl Spherical {
         let (sp, cp) = self.phi.sin_cos();
         Vec3::new(st * cp, st * sp, ct)
     }
-    /// Angles of a (not necessarily normalised, non-zero) vector. θ uses atan2 so it is accurate
-    /// at the pole and at grazing angles; φ ∈ [0, 2π), and 0 at the poles.
+    /// Angles of a vector of any length (it need not be normalised). θ uses atan2 so it is
+    /// accurate at the pole and at grazing angles; φ ∈ [0, 2π), and 0 at the poles.
+    ///
+    /// Tiny and huge vectors (subnormal components up to `f64::MAX`) give the angles of their
+    /// direction: the vector is scaled by a power of two first. The zero vector (of either sign
+    /// in any component) is taken as the north pole, θ = φ = 0. A vector with a NaN or infinite
+    /// component has no direction: θ = φ = NaN, which every range check refuses.
     pub fn from_vector(v: &Vec3) -> Self {
+        let v = match scaled(v) {
+            Scaled::Zero => {
+                return Spherical {
+                    theta: 0.0,
+                    phi: 0.0,
+                }
+            }
+            Scaled::NotFinite => {
+                return Spherical {
+                    theta: f64::NAN,
+                    phi: f64::NAN,
+                }
+            }
+            Scaled::Direction(v) => v,
+        };
         let rho = v.x.hypot(v.y);
         let theta = rho.atan2(v.z);
         let norm = v.norm();
-        let phi = if norm == 0.0 || rho <= POLE_EPS * norm {
+        let phi = if rho <= POLE_EPS * norm {
             0.0
         } else {
             wrap_2pi(v.y.atan2(v.x))
@@ -89,9 +148,15 @@ pub fn mirror(omega: &Vec3) -> Vec3 {
     Vec3::new(-omega.x, -omega.y, omega.z)
 }
 
-/// Angle between two vectors (radians), accurate for nearly parallel and antiparallel vectors.
+/// Angle between two vectors (radians), accurate for nearly parallel and antiparallel vectors,
+/// for vectors of any length (each is scaled by a power of two first). 0 when either is the zero
+/// vector; NaN when either has a NaN or infinite component.
 pub fn angle_between(a: &Vec3, b: &Vec3) -> f64 {
-    a.cross(b).norm().atan2(a.dot(b))
+    match (scaled(a), scaled(b)) {
+        (Scaled::Direction(a), Scaled::Direction(b)) => a.cross(&b).norm().atan2(a.dot(&b)),
+        (Scaled::NotFinite, _) | (_, Scaled::NotFinite) => f64::NAN,
+        _ => 0.0,
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -156,9 +221,17 @@ pub fn square_to_sphere(u: f64, v: f64) -> Vec3 {
     Vec3::new(x * s, y * s, 1.0 - 2.0 * ra2)
 }
 
-/// Inverse of [`square_to_sphere`] for a unit vector. The south pole (a single point, the
-/// map's one discontinuity) maps to the square's corner (0, 0).
+/// Inverse of [`square_to_sphere`] for the direction of a vector of any length (scaled by a
+/// power of two first, so tiny and huge vectors map as their direction). The south pole (a
+/// single point, the map's one discontinuity) maps to the square's corner (0, 0). The zero
+/// vector maps to the centre (½, ½), the north pole as in [`Spherical::from_vector`]; a vector
+/// with a NaN or infinite component to (NaN, NaN).
 pub fn sphere_to_square(d: &Vec3) -> (f64, f64) {
+    let d = match scaled(d) {
+        Scaled::Zero => return (0.5, 0.5),
+        Scaled::NotFinite => return (f64::NAN, f64::NAN),
+        Scaled::Direction(d) => d,
+    };
     let n = d.norm();
     let (x, y, z) = (d.x / n, d.y / n, d.z / n);
     let rho2 = x * x + y * y;
@@ -179,8 +252,16 @@ pub fn sphere_to_square(d: &Vec3) -> (f64, f64) {
 /// and smooth over the whole upper hemisphere. For z < 0 it is the shortest-arc rotation to −t
 /// composed with a half turn about x, so 1/(1 + cos) never exceeds 1 and the result stays
 /// orthonormal to rounding even at and next to the south pole.
+///
+/// `target` may have any length (it is scaled by a power of two before it is normalised). The
+/// zero vector is taken as the north pole (the identity, as in [`Spherical::from_vector`]); a
+/// target with a NaN or infinite component gives a NaN matrix.
 pub fn rotation_pole_to(target: &Vec3) -> Matrix3<f64> {
-    let t = target.normalize();
+    let t = match scaled(target) {
+        Scaled::Zero => return Matrix3::identity(),
+        Scaled::NotFinite => return Matrix3::from_element(f64::NAN),
+        Scaled::Direction(t) => t.normalize(),
+    };
     if t.z >= 0.0 {
         shortest_arc_from_pole(&t)
     } else {

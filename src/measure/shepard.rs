@@ -509,6 +509,12 @@ impl Shepard {
     /// deviation of Q_k(q) about Q(q) under the weights W_k (0 at a node). Where the local fits
     /// agree the data are well resolved; where they disagree the value is uncertain, so the
     /// spread is the interpolation's uncertainty at no extra cost.
+    ///
+    /// At a node, and wherever `q` is so close to one that its weight overflows (closer than
+    /// about 1e-154 for the quadratic methods, 1e-103 for the cubic one), the result is that
+    /// node's nodal function Q_k(q) with spread 0: the limit the weighted mean and spread tend to
+    /// as W_k outgrows every other weight, so the interpolant stays continuous there. The
+    /// closest such node decides.
     pub fn value_with_spread(&self, q: &[f64]) -> Result<(f64, f64), ShepardError> {
         let dims = self.method.dims();
         let mut pq = [0.0; 3];
@@ -520,11 +526,9 @@ impl Shepard {
         // weighted Welford: no cancellation when the nodal values are large and nearly equal
         let (mut sw, mut mean, mut m2) = (0.0f64, 0.0f64, 0.0f64);
         let mut terms = Vec::with_capacity(self.method.terms());
-        let mut at_node = None;
+        // the node q coincides with, if any: (distance, Q_k(q))
+        let mut at_node: Option<(f64, f64)> = None;
         self.grid.within(&pq, self.rmax, |k| {
-            if at_node.is_some() {
-                return;
-            }
             let d = [
                 pq[0] - self.p[k][0],
                 pq[1] - self.p[k][1],
@@ -535,8 +539,9 @@ impl Shepard {
             if dist >= r {
                 return;
             }
-            if dist == 0.0 {
-                at_node = Some(self.f[k]);
+            let w = (1.0 / dist - 1.0 / r).powi(power);
+            let coincides = w == f64::INFINITY;
+            if at_node.is_some() && !coincides {
                 return;
             }
             self.method.terms_at(&d, 1.0, &mut terms);
@@ -546,8 +551,14 @@ impl Shepard {
                 .map(|(t, c)| t * c)
                 .sum::<f64>()
                 + self.f[k];
-            let w = (1.0 / dist - 1.0 / r).powi(power);
-            if !(w > 0.0 && w.is_finite()) {
+            if coincides {
+                // 1/d^p overflows (d = 0 included): this node's weight outgrows all others
+                if at_node.is_none_or(|(d0, _)| dist < d0) {
+                    at_node = Some((dist, qk));
+                }
+                return;
+            }
+            if !(w > 0.0) {
                 // 1/d and 1/r round to the same value: this node has no weight here
                 return;
             }
@@ -557,7 +568,7 @@ impl Shepard {
             m2 += w * delta * (qk - mean);
             sw = sw_new;
         });
-        if let Some(v) = at_node {
+        if let Some((_, v)) = at_node {
             return Ok((v, 0.0));
         }
         if sw == 0.0 || !sw.is_finite() {
