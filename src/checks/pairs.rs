@@ -67,10 +67,10 @@ impl PairStage {
         let pair = score_pair(ctx, partner, capture, [partner_entry, entry], capture.t);
         if let (Some(d), PairStatus::Exact) = (&pair.diff, pair.status) {
             self.table2.add(d);
-            if let Some(a) =
-                self.outlier(ctx, d.de2000, &pair, (Some(capture.idx), Some(capture.t)))
-            {
-                alarms.push(a);
+            // a non-finite difference has no place in the sorted history of the outlier test
+            if d.de2000.is_finite() {
+                let at = (Some(capture.idx), Some(capture.t));
+                alarms.extend(self.outlier(ctx, d.de2000, &pair, at));
             }
         }
         match pair.status {

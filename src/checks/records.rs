@@ -208,7 +208,21 @@ pub struct Table2 {
 }
 
 impl Table2 {
+    /// Take one difference into the running means. A difference with a non-finite value is
+    /// left out: one NaN would poison every mean for the rest of the run.
     pub(crate) fn add(&mut self, d: &ColourDifference) {
+        let values = [
+            d.abs_dxyz[0],
+            d.abs_dxyz[1],
+            d.abs_dxyz[2],
+            d.de76,
+            d.dc,
+            d.dh,
+            d.de2000,
+        ];
+        if !values.iter().all(|v| v.is_finite()) {
+            return;
+        }
         let n = self.pairs as f64;
         let upd = |m: &mut f64, v: f64| *m = (*m * n + v) / (n + 1.0);
         upd(&mut self.abs_dx, d.abs_dxyz[0]);

@@ -224,7 +224,8 @@ pub fn render(r: &CompareReport) -> String {
         let tr = &t.transform;
         let _ = writeln!(
             s,
-            "\n{title}\nT (session XYZ/cos θi → reference XYZ), condition number {:.1}{}:",
+            "\n{title}\nT (session XYZ/cos θi → reference XYZ), condition number {:.1} (of the fit with columns scaled to unit norm; {:.1} unscaled){}:",
+            tr.condition_scaled,
             tr.condition,
             if tr.ill_conditioned {
                 " — ILL-CONDITIONED: the data are nearly grey, T is poorly determined"

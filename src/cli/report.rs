@@ -578,7 +578,7 @@ fn table3_html(c: &CompareReport) -> String {
             t,
         ));
     }
-    s.push_str("<table><tr><th></th><th>metric</th><th>max</th><th>avg</th><th>median</th><th>κ(T)</th></tr>");
+    s.push_str("<table><tr><th></th><th>metric</th><th>max</th><th>avg</th><th>median</th><th>κ(T), columns scaled</th></tr>");
     for (name, t) in &tables {
         let flag = if t.transform.ill_conditioned {
             " (ill-conditioned)"
@@ -586,7 +586,7 @@ fn table3_html(c: &CompareReport) -> String {
             ""
         };
         let _ = write!(s, "<tr><td rowspan=2>{}</td><td>ΔE*ab</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td rowspan=2>{:.0}{flag}</td></tr><tr><td>CIEDE2000</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td></tr>",
-            esc(name), t.de76.max, t.de76.avg, t.de76.median, t.transform.condition, t.de2000.max, t.de2000.avg, t.de2000.median);
+            esc(name), t.de76.max, t.de76.avg, t.de76.median, t.transform.condition_scaled, t.de2000.max, t.de2000.avg, t.de2000.median);
     }
     s.push_str("</table>");
     if let Some(w) = x.table3.worst.first() {
@@ -964,7 +964,7 @@ pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
         out.push(("sweeps.csv", csv_table(&inp.sweeps)));
     }
     if let Some(cv) = &inp.crossval {
-        let mut t3 = String::from("table,metric,max,avg,median,condition\n");
+        let mut t3 = String::from("table,metric,max,avg,median,condition,condition_scaled\n");
         let x = &cv.result;
         let mut tables = vec![("as measured", &x.table3)];
         if let Some((_, t)) = &x.gain_corrected {
@@ -973,13 +973,21 @@ pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
         for (name, t) in tables {
             let _ = writeln!(
                 t3,
-                "{name},dE76,{},{},{},{}",
-                t.de76.max, t.de76.avg, t.de76.median, t.transform.condition
+                "{name},dE76,{},{},{},{},{}",
+                t.de76.max,
+                t.de76.avg,
+                t.de76.median,
+                t.transform.condition,
+                t.transform.condition_scaled
             );
             let _ = writeln!(
                 t3,
-                "{name},dE00,{},{},{},{}",
-                t.de2000.max, t.de2000.avg, t.de2000.median, t.transform.condition
+                "{name},dE00,{},{},{},{},{}",
+                t.de2000.max,
+                t.de2000.avg,
+                t.de2000.median,
+                t.transform.condition,
+                t.transform.condition_scaled
             );
         }
         out.push(("table3.csv", t3));
