@@ -1,7 +1,7 @@
 //! The `goniowatch` binary: argument parsing, logging and printing. The work is in the library.
 
 use anyhow::{Context, Result};
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 use goniowatch::cli::commands::{average_file, plan_summary, AverageOutcome};
 use goniowatch::config::Config;
 use goniowatch::measure::averaging::Roi;
@@ -20,114 +20,132 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Decode and average HDR captures (Radiance .hdr or OpenEXR) to one linear RGB and XYZ each.
-    Average {
-        /// Capture files.
-        #[arg(required = true)]
-        files: Vec<PathBuf>,
-        /// Config file for colour, region and clip settings (default: built-in UBO defaults).
-        #[arg(long)]
-        config: Option<PathBuf>,
-        /// One JSON object per file and line.
-        #[arg(long)]
-        json: bool,
-        /// Region of interest: full, rect:X,Y,W,H, margin:PIXELS or margin:PERCENT%.
-        #[arg(long)]
-        roi: Option<String>,
-    },
+    Average(AverageArgs),
     /// Run beside the rig: follow the controller on the serial link, check every capture as it
     /// is written, raise alarms, and record the session so it can be resumed and replayed.
-    Run {
-        /// Config file (required to start a new session; a session folder keeps its own copy).
-        #[arg(long)]
-        config: Option<PathBuf>,
-        /// Session folder (created if absent; resumed if it holds a journal).
-        #[arg(long, default_value = "session")]
-        session: PathBuf,
-        /// Serial port, overriding the config's `[link] port`.
-        #[arg(long)]
-        port: Option<PathBuf>,
-        /// Capture root, overriding the config's `[ingest] capture_root`.
-        #[arg(long)]
-        capture_root: Option<PathBuf>,
-        /// Stay attached after the controller reports the run done.
-        #[arg(long)]
-        keep_running: bool,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
-        /// Serve a live status page (and /status.json, /metrics) at this address, e.g.
-        /// 127.0.0.1:8080. Loopback only unless the config's [http] allow_remote is set.
-        #[arg(long)]
-        http: Option<std::net::SocketAddr>,
-    },
+    Run(RunArgs),
     /// Replay a recorded session through the same code path into a fresh results folder.
-    Replay {
-        /// The session folder to replay (only read).
-        session: PathBuf,
-        /// Where to write the results (default: SESSION/replay).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// max, realtime, or a factor of real time (e.g. 60).
-        #[arg(long, default_value = "max")]
-        speed: goniowatch::daemon::replay::Speed,
-        /// Decoding threads (1–64).
-        #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u16).range(1..=64))]
-        workers: u16,
-        /// Read the captures from here instead of the session's recorded capture root (a
-        /// capture set that moved).
-        #[arg(long)]
-        capture_root: Option<PathBuf>,
-        /// Take capture outcomes as journaled instead of measuring the files again (the
-        /// captures need not exist; checks only the journal's path through the engine).
-        #[arg(long)]
-        recorded_outcomes: bool,
-        #[arg(long)]
-        quiet: bool,
-    },
+    Replay(ReplayArgs),
     /// Cross-validate a session against an independent reference measurement of the same sample
     /// (docs/reference-format.md): resample the reference at the session's capture directions,
     /// fit the 3×3 colour transform, and print the paper's Table 3 and the worst directions,
     /// also with the session's gain drift divided out. Writes SESSION/crossval.json.
-    Compare {
-        /// The session folder (read; crossval.json is written into it).
-        session: PathBuf,
-        /// The reference file.
-        reference: PathBuf,
-        #[arg(long)]
-        json: bool,
-        /// How many of the largest deviations to list.
-        #[arg(long, default_value_t = 10)]
-        worst: usize,
-        /// Correct for this gain drift (%/h) instead of the session's own estimate.
-        #[arg(long, allow_hyphen_values = true)]
-        drift_rate: Option<f64>,
-        /// No gain correction.
-        #[arg(long, conflicts_with = "drift_rate")]
-        no_gain_correction: bool,
-        /// Leave out directions where the resampled reference's relative uncertainty exceeds
-        /// this (gaps in the reference's grid), in percent.
-        #[arg(long, default_value_t = 5.0)]
-        max_reference_spread_pct: f64,
-    },
+    Compare(CompareArgs),
     /// Write the end-of-run report: one self-contained HTML file with its plots (hemisphere
     /// maps of the reciprocity residual, the gain drift with its band and the alarms, the
     /// residual distribution, Tables 2 and 3, quality, link, configuration) and the tables as CSV.
-    Report {
-        /// The session folder (or a replay's output folder).
-        session: PathBuf,
-        /// Where to write (default: SESSION/report).
-        #[arg(long)]
-        out: Option<PathBuf>,
-    },
+    Report(ReportArgs),
     /// Print the sampling plan: directions, captures, reciprocal pairs, isotropy classes and the
     /// entries the rig must take at a substitute pose.
-    Plan {
-        /// Config file (default: built-in UBO defaults).
-        #[arg(long)]
-        config: Option<PathBuf>,
-        #[arg(long)]
-        json: bool,
-    },
+    Plan(PlanArgs),
+}
+
+#[derive(Args)]
+struct AverageArgs {
+    /// Capture files.
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+    /// Config file for colour, region and clip settings (default: built-in UBO defaults).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// One JSON object per file and line.
+    #[arg(long)]
+    json: bool,
+    /// Region of interest: full, rect:X,Y,W,H, margin:PIXELS or margin:PERCENT%.
+    #[arg(long)]
+    roi: Option<String>,
+}
+
+#[derive(Args)]
+struct RunArgs {
+    /// Config file (required to start a new session; a session folder keeps its own copy).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Session folder (created if absent; resumed if it holds a journal).
+    #[arg(long, default_value = "session")]
+    session: PathBuf,
+    /// Serial port, overriding the config's `[link] port`.
+    #[arg(long)]
+    port: Option<PathBuf>,
+    /// Capture root, overriding the config's `[ingest] capture_root`.
+    #[arg(long)]
+    capture_root: Option<PathBuf>,
+    /// Stay attached after the controller reports the run done.
+    #[arg(long)]
+    keep_running: bool,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+    /// Serve a live status page (and /status.json, /metrics) at this address, e.g.
+    /// 127.0.0.1:8080. Loopback only unless the config's [http] allow_remote is set.
+    #[arg(long)]
+    http: Option<std::net::SocketAddr>,
+}
+
+#[derive(Args)]
+struct ReplayArgs {
+    /// The session folder to replay (only read).
+    session: PathBuf,
+    /// Where to write the results (default: SESSION/replay).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// max, realtime, or a factor of real time (e.g. 60).
+    #[arg(long, default_value = "max")]
+    speed: goniowatch::daemon::replay::Speed,
+    /// Decoding threads (1–64).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u16).range(1..=64))]
+    workers: u16,
+    /// Read the captures from here instead of the session's recorded capture root (a
+    /// capture set that moved).
+    #[arg(long)]
+    capture_root: Option<PathBuf>,
+    /// Take capture outcomes as journaled instead of measuring the files again (the
+    /// captures need not exist; checks only the journal's path through the engine).
+    #[arg(long)]
+    recorded_outcomes: bool,
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Args)]
+struct CompareArgs {
+    /// The session folder (read; crossval.json is written into it).
+    session: PathBuf,
+    /// The reference file.
+    reference: PathBuf,
+    #[arg(long)]
+    json: bool,
+    /// How many of the largest deviations to list.
+    #[arg(long, default_value_t = 10)]
+    worst: usize,
+    /// Correct for this gain drift (%/h) instead of the session's own estimate.
+    #[arg(long, allow_hyphen_values = true)]
+    drift_rate: Option<f64>,
+    /// No gain correction.
+    #[arg(long, conflicts_with = "drift_rate")]
+    no_gain_correction: bool,
+    /// Leave out directions where the resampled reference's relative uncertainty exceeds
+    /// this (gaps in the reference's grid), in percent.
+    #[arg(long, default_value_t = 5.0)]
+    max_reference_spread_pct: f64,
+}
+
+#[derive(Args)]
+struct ReportArgs {
+    /// The session folder (or a replay's output folder).
+    session: PathBuf,
+    /// Where to write (default: SESSION/report).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct PlanArgs {
+    /// Config file (default: built-in UBO defaults).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    #[arg(long)]
+    json: bool,
 }
 
 /// Exit codes (documented in README.md).
@@ -194,202 +212,227 @@ fn run(cli: Cli) -> Result<ExitCode> {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     match cli.command {
-        Command::Average {
-            files,
-            config,
-            json,
-            roi,
-        } => {
-            let cfg = load_config(config.as_deref())?;
-            let mut opts = cfg.capture;
-            if let Some(r) = roi {
-                opts.roi = Roi::parse(&r).map_err(|e| UsageError(format!("--roi: {e}")))?;
-            }
-            let mut failed = 0usize;
-            for f in &files {
-                let rec = average_file(f, &cfg, &opts);
-                if json {
-                    writeln!(out, "{}", serde_json::to_string(&rec)?)?;
-                } else {
-                    match &rec.outcome {
-                        AverageOutcome::Ok(ok) => writeln!(
-                            out,
-                            "{}: {}×{} {:?}  mean RGB [{:.6e} {:.6e} {:.6e}]  XYZ [{:.4} {:.4} {:.4}]  pixels {}  non-finite {}  negative {}  clipped {}",
-                            rec.file, ok.width, ok.height, ok.format, ok.mean_rgb[0], ok.mean_rgb[1], ok.mean_rgb[2],
-                            ok.xyz[0], ok.xyz[1], ok.xyz[2], ok.pixels, ok.nonfinite, ok.negative, ok.clipped
-                        )?,
-                        AverageOutcome::Err { error } => writeln!(out, "{}: ERROR {error}", rec.file)?,
-                    }
-                }
-                if matches!(rec.outcome, AverageOutcome::Err { .. }) {
-                    tracing::warn!(file = %rec.file, "capture failed");
-                    failed += 1;
-                }
-            }
-            if failed > 0 {
-                eprintln!("{failed} of {} files failed", files.len());
-                return Ok(ExitCode::from(EXIT_FILE_FAILED));
-            }
-        }
-        Command::Run {
-            config,
-            session,
-            port,
-            capture_root,
-            keep_running,
-            quiet,
-            http,
-        } => {
-            use goniowatch::cli::summary::print_summary;
-            use goniowatch::daemon::run::{run, RunEnd, RunOptions};
-            let rt = tokio::runtime::Builder::new_multi_thread()
-                .worker_threads(2)
-                .enable_all()
-                .build()
-                .context("cannot start the async runtime")?;
-            let (end, summary) = rt.block_on(run(RunOptions {
-                session_dir: session.clone(),
-                config,
-                port,
-                capture_root,
-                keep_running,
-                progress: !quiet,
-                http,
-            }))?;
-            rt.shutdown_timeout(std::time::Duration::from_secs(1));
-            print_summary(&summary, &mut out)?;
-            writeln!(out, "results in {}", session.display())?;
-            return Ok(match end {
-                RunEnd::Finished { critical: false } => ExitCode::SUCCESS,
-                RunEnd::Finished { critical: true } => ExitCode::from(EXIT_CRITICAL),
-                RunEnd::Signal(n) => ExitCode::from(128 + n as u8),
-            });
-        }
-        Command::Replay {
-            session,
-            out: out_dir,
-            speed,
-            workers,
-            capture_root,
-            recorded_outcomes,
-            quiet,
-        } => {
-            use goniowatch::cli::summary::print_summary;
-            use goniowatch::daemon::replay::{replay, ReplayOptions};
-            let r = replay(
-                &session,
-                &ReplayOptions {
-                    out: out_dir,
-                    speed,
-                    workers: workers as usize,
-                    progress: !quiet,
-                    capture_root,
-                    recorded_outcomes,
-                },
-            )?;
-            print_summary(&r.summary, &mut out)?;
-            writeln!(
-                out,
-                "replayed {} inputs, {} captures decoded in {:.2} s ({:.1} captures/s)",
-                r.inputs,
-                r.captures_decoded,
-                r.seconds,
-                r.captures_decoded as f64 / r.seconds.max(1e-9)
-            )?;
-            for m in &r.mismatches {
-                writeln!(out, "MISMATCH: {m}")?;
-            }
-            if !r.mismatches.is_empty() {
-                return Ok(ExitCode::from(EXIT_REPLAY_MISMATCH));
-            }
-        }
-        Command::Compare {
-            session,
-            reference,
-            json,
-            worst,
-            drift_rate,
-            no_gain_correction,
-            max_reference_spread_pct,
-        } => {
-            if !(max_reference_spread_pct > 0.0 && max_reference_spread_pct.is_finite()) {
-                return Err(UsageError(format!(
-                    "--max-reference-spread-pct {max_reference_spread_pct} must be a positive number"
-                ))
-                .into());
-            }
-            use goniowatch::cli::compare::{compare, render, GainChoice};
-            if let Some(r) = drift_rate {
-                if !r.is_finite() {
-                    return Err(
-                        UsageError(format!("--drift-rate {r} is not a finite number")).into(),
-                    );
-                }
-            }
-            let gain = match (drift_rate, no_gain_correction) {
-                (Some(r), _) => GainChoice::Rate(r),
-                (None, true) => GainChoice::None,
-                (None, false) => GainChoice::Session,
-            };
-            let report = compare(
-                &session,
-                &reference,
-                gain,
-                worst,
-                max_reference_spread_pct / 100.0,
-            )?;
-            if json {
-                writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
-            } else {
-                write!(out, "{}", render(&report))?;
-            }
-        }
-        Command::Report {
-            session,
-            out: out_dir,
-        } => {
-            let files = goniowatch::cli::report::report(&session, out_dir.as_deref())?;
-            for f in &files {
-                writeln!(out, "{}", f.display())?;
-            }
-        }
-        Command::Plan { config, json } => {
-            let cfg = load_config(config.as_deref())?;
-            let s = plan_summary(&cfg)?;
-            if json {
-                writeln!(out, "{}", serde_json::to_string_pretty(&s)?)?;
-            } else {
-                writeln!(out, "Sampling plan ({:?} order)", s.order)?;
-                writeln!(out, "  θ [deg]   Δφ [deg]   directions")?;
-                for (t, d, n) in &s.table1 {
-                    writeln!(
-                        out,
-                        "  {t:>7}   {:>8}   {n:>10}",
-                        if *t == 0.0 {
-                            "-".to_string()
-                        } else {
-                            d.to_string()
-                        }
-                    )?;
-                }
-                writeln!(out, "directions             {}", s.directions)?;
-                writeln!(out, "captures               {}", s.captures)?;
-                writeln!(
+        Command::Average(a) => average_command(a, &mut out),
+        Command::Run(a) => run_command(a, &mut out),
+        Command::Replay(a) => replay_command(a, &mut out),
+        Command::Compare(a) => compare_command(a, &mut out),
+        Command::Report(a) => report_command(a, &mut out),
+        Command::Plan(a) => plan_command(a, &mut out),
+    }
+}
+
+fn average_command(args: AverageArgs, out: &mut impl Write) -> Result<ExitCode> {
+    let AverageArgs {
+        files,
+        config,
+        json,
+        roi,
+    } = args;
+    let cfg = load_config(config.as_deref())?;
+    let mut opts = cfg.capture;
+    if let Some(r) = roi {
+        opts.roi = Roi::parse(&r).map_err(|e| UsageError(format!("--roi: {e}")))?;
+    }
+    let mut failed = 0usize;
+    for f in &files {
+        let rec = average_file(f, &cfg, &opts);
+        if json {
+            writeln!(out, "{}", serde_json::to_string(&rec)?)?;
+        } else {
+            match &rec.outcome {
+                AverageOutcome::Ok(ok) => writeln!(
                     out,
-                    "reciprocal pairs       {} (+ {} self pairs)",
-                    s.reciprocal_pairs, s.self_pairs
-                )?;
-                writeln!(out, "isotropy classes       {}", s.isotropy_classes)?;
-                writeln!(
-                    out,
-                    "occlusion substitutes  {} (lamp–camera separation < {}°, θi changed)",
-                    s.occlusion_substitutes, s.min_separation_deg
-                )?;
-                if !s.unreachable.is_empty() {
-                    writeln!(out, "UNREACHABLE entries    {}", s.unreachable.len())?;
-                }
+                    "{}: {}×{} {:?}  mean RGB [{:.6e} {:.6e} {:.6e}]  XYZ [{:.4} {:.4} {:.4}]  pixels {}  non-finite {}  negative {}  clipped {}",
+                    rec.file, ok.width, ok.height, ok.format, ok.mean_rgb[0], ok.mean_rgb[1], ok.mean_rgb[2],
+                    ok.xyz[0], ok.xyz[1], ok.xyz[2], ok.pixels, ok.nonfinite, ok.negative, ok.clipped
+                )?,
+                AverageOutcome::Err { error } => writeln!(out, "{}: ERROR {error}", rec.file)?,
             }
+        }
+        if matches!(rec.outcome, AverageOutcome::Err { .. }) {
+            tracing::warn!(file = %rec.file, "capture failed");
+            failed += 1;
         }
     }
+    if failed > 0 {
+        eprintln!("{failed} of {} files failed", files.len());
+        return Ok(ExitCode::from(EXIT_FILE_FAILED));
+    }
+
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_command(args: RunArgs, out: &mut impl Write) -> Result<ExitCode> {
+    let RunArgs {
+        config,
+        session,
+        port,
+        capture_root,
+        keep_running,
+        quiet,
+        http,
+    } = args;
+    use goniowatch::cli::summary::print_summary;
+    use goniowatch::daemon::run::{run, RunEnd, RunOptions};
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")?;
+    let (end, summary) = rt.block_on(run(RunOptions {
+        session_dir: session.clone(),
+        config,
+        port,
+        capture_root,
+        keep_running,
+        progress: !quiet,
+        http,
+    }))?;
+    rt.shutdown_timeout(std::time::Duration::from_secs(1));
+    print_summary(&summary, out)?;
+    writeln!(out, "results in {}", session.display())?;
+    Ok(match end {
+        RunEnd::Finished { critical: false } => ExitCode::SUCCESS,
+        RunEnd::Finished { critical: true } => ExitCode::from(EXIT_CRITICAL),
+        RunEnd::Signal(n) => ExitCode::from(128 + n as u8),
+    })
+}
+
+fn replay_command(args: ReplayArgs, out: &mut impl Write) -> Result<ExitCode> {
+    let ReplayArgs {
+        session,
+        out: out_dir,
+        speed,
+        workers,
+        capture_root,
+        recorded_outcomes,
+        quiet,
+    } = args;
+    use goniowatch::cli::summary::print_summary;
+    use goniowatch::daemon::replay::{replay, ReplayOptions};
+    let r = replay(
+        &session,
+        &ReplayOptions {
+            out: out_dir,
+            speed,
+            workers: workers as usize,
+            progress: !quiet,
+            capture_root,
+            recorded_outcomes,
+        },
+    )?;
+    print_summary(&r.summary, out)?;
+    writeln!(
+        out,
+        "replayed {} inputs, {} captures decoded in {:.2} s ({:.1} captures/s)",
+        r.inputs,
+        r.captures_decoded,
+        r.seconds,
+        r.captures_decoded as f64 / r.seconds.max(1e-9)
+    )?;
+    for m in &r.mismatches {
+        writeln!(out, "MISMATCH: {m}")?;
+    }
+    if !r.mismatches.is_empty() {
+        return Ok(ExitCode::from(EXIT_REPLAY_MISMATCH));
+    }
+
+    Ok(ExitCode::SUCCESS)
+}
+
+fn compare_command(args: CompareArgs, out: &mut impl Write) -> Result<ExitCode> {
+    let CompareArgs {
+        session,
+        reference,
+        json,
+        worst,
+        drift_rate,
+        no_gain_correction,
+        max_reference_spread_pct,
+    } = args;
+    if !(max_reference_spread_pct > 0.0 && max_reference_spread_pct.is_finite()) {
+        return Err(UsageError(format!(
+            "--max-reference-spread-pct {max_reference_spread_pct} must be a positive number"
+        ))
+        .into());
+    }
+    use goniowatch::cli::compare::{compare, render, GainChoice};
+    if let Some(r) = drift_rate {
+        if !r.is_finite() {
+            return Err(UsageError(format!("--drift-rate {r} is not a finite number")).into());
+        }
+    }
+    let gain = match (drift_rate, no_gain_correction) {
+        (Some(r), _) => GainChoice::Rate(r),
+        (None, true) => GainChoice::None,
+        (None, false) => GainChoice::Session,
+    };
+    let report = compare(
+        &session,
+        &reference,
+        gain,
+        worst,
+        max_reference_spread_pct / 100.0,
+    )?;
+    if json {
+        writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
+    } else {
+        write!(out, "{}", render(&report))?;
+    }
+
+    Ok(ExitCode::SUCCESS)
+}
+
+fn report_command(args: ReportArgs, out: &mut impl Write) -> Result<ExitCode> {
+    let ReportArgs {
+        session,
+        out: out_dir,
+    } = args;
+    let files = goniowatch::cli::report::report(&session, out_dir.as_deref())?;
+    for f in &files {
+        writeln!(out, "{}", f.display())?;
+    }
+
+    Ok(ExitCode::SUCCESS)
+}
+
+fn plan_command(args: PlanArgs, out: &mut impl Write) -> Result<ExitCode> {
+    let PlanArgs { config, json } = args;
+    let cfg = load_config(config.as_deref())?;
+    let s = plan_summary(&cfg)?;
+    if json {
+        writeln!(out, "{}", serde_json::to_string_pretty(&s)?)?;
+    } else {
+        writeln!(out, "Sampling plan ({:?} order)", s.order)?;
+        writeln!(out, "  θ [deg]   Δφ [deg]   directions")?;
+        for (t, d, n) in &s.table1 {
+            writeln!(
+                out,
+                "  {t:>7}   {:>8}   {n:>10}",
+                if *t == 0.0 {
+                    "-".to_string()
+                } else {
+                    d.to_string()
+                }
+            )?;
+        }
+        writeln!(out, "directions             {}", s.directions)?;
+        writeln!(out, "captures               {}", s.captures)?;
+        writeln!(
+            out,
+            "reciprocal pairs       {} (+ {} self pairs)",
+            s.reciprocal_pairs, s.self_pairs
+        )?;
+        writeln!(out, "isotropy classes       {}", s.isotropy_classes)?;
+        writeln!(
+            out,
+            "occlusion substitutes  {} (lamp–camera separation < {}°, θi changed)",
+            s.occlusion_substitutes, s.min_separation_deg
+        )?;
+        if !s.unreachable.is_empty() {
+            writeln!(out, "UNREACHABLE entries    {}", s.unreachable.len())?;
+        }
+    }
+
     Ok(ExitCode::SUCCESS)
 }
