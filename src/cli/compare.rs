@@ -73,7 +73,6 @@ pub fn session_values(dir: &Path, dark_y: f64) -> Result<Vec<SessionValue>> {
     Ok(out)
 }
 
-/// Directions where the resampled reference's relative uncertainty exceeds this are left out.
 pub const DEFAULT_MAX_REFERENCE_SPREAD: f64 = 0.05;
 
 /// The probes' gain curve: (t in hours, Y of the probe / Y of the first capture of its entry),

@@ -199,9 +199,6 @@ impl Engine {
     pub fn alarm_count(&self) -> u64 {
         self.alarm_book.total()
     }
-    pub fn link_stats(&self) -> &LinkStats {
-        &self.link.stats
-    }
     pub fn table2(&self) -> &Table2 {
         self.checker.table2()
     }

@@ -137,13 +137,6 @@ impl RgbToXyz {
             },
         }
     }
-    pub fn from_matrix(m: [[f64; 3]; 3]) -> Result<Self, ColourError> {
-        let m = Matrix3::from_row_slice(&m.concat());
-        if !m.iter().all(|v| v.is_finite()) || m.determinant().abs() < 1e-12 {
-            return Err(ColourError::SingularMatrix);
-        }
-        Ok(RgbToXyz { m })
-    }
     pub fn matrix(&self) -> [[f64; 3]; 3] {
         let m = &self.m;
         [

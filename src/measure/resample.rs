@@ -331,10 +331,6 @@ impl Resampler {
         Ok(Resampled { value, spread })
     }
 
-    /// Whether values are interpolated as logarithms.
-    pub fn interpolates_logarithms(&self) -> bool {
-        self.log
-    }
 
     /// The value at a direction pair (a slice ignores `omega_i`).
     pub fn at(&self, omega_i: &Vec3, omega_o: &Vec3) -> Result<Resampled, ResampleError> {

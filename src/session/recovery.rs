@@ -5,7 +5,7 @@
 use super::folder::{write_atomic, Results, RESULT_FILES};
 use super::journal::{read_journal, repair_jsonl, JournalEntry, JournalItem, JournalRead};
 use crate::config::Config;
-use crate::engine::{Engine, Input, Output};
+use crate::engine::{Engine, Input};
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -238,15 +238,3 @@ pub fn inputs(entries: &[JournalEntry]) -> impl Iterator<Item = (u64, &Input)> {
     })
 }
 
-/// Whether an output is a result record.
-pub fn is_record(o: &Output) -> bool {
-    matches!(
-        o,
-        Output::Capture(_)
-            | Output::Pair(_)
-            | Output::Isotropy(_)
-            | Output::Sweep(_)
-            | Output::Alarm(_)
-            | Output::Manifest(_)
-    )
-}
