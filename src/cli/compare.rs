@@ -73,8 +73,6 @@ pub fn session_values(dir: &Path, dark_y: f64) -> Result<Vec<SessionValue>> {
     Ok(out)
 }
 
-pub const DEFAULT_MAX_REFERENCE_SPREAD: f64 = 0.05;
-
 /// The probes' gain curve: (t in hours, Y of the probe / Y of the first capture of its entry),
 /// starting at (t of that first capture, 1).
 pub fn probe_gain_curve(dir: &Path, dark_y: f64) -> Result<Vec<(f64, f64)>> {
