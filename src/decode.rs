@@ -5,12 +5,21 @@
 //! - the format is sniffed from the magic bytes, not trusted from the name;
 //! - image dimensions are checked against [`DecodeLimits`] before any pixel buffer is allocated
 //!   (EXR: from the header; Radiance: `image::Limits` on a `BufReader`);
+//! - memory is bounded by [`DecodeLimits::max_bytes`]: before any pixel buffer is allocated, an
+//!   upper bound of everything the decode will allocate is computed from the header (channels,
+//!   pixels, stored sample sizes, block size, file length) and a file that needs more is refused
+//!   with [`DecodeError::OverBudget`]. [`required_bytes`] gives that figure;
+//! - OpenEXR: only the R, G and B channels of the first layer that has all three are
+//!   materialised. The other channels and layers are never kept: their samples exist only inside
+//!   one decompressed block at a time (which is why the block size, over all channels of the
+//!   layer, is part of the budget);
 //! - `exr`'s own parallel decoder (whose thread pool can abort the process on a malformed file)
 //!   is never used. With one thread (`DecodeLimits::threads`, the default, for a worker pool
-//!   that decodes several captures at once) `exr` reads `.non_parallel()`; with more, the chunks
-//!   are decompressed on our own scoped threads, each under `catch_unwind`. The whole decoder
-//!   call runs under `catch_unwind` too, so a decoder panic becomes [`DecodeError::Panicked`].
-//!   A file with missing chunks is an error, not a half-black image.
+//!   that decodes several captures at once) the chunks are read and decompressed one at a time
+//!   on the calling thread; with more, they are decompressed on our own scoped threads, each
+//!   under `catch_unwind`. The whole decoder call runs under `catch_unwind` too, so a decoder
+//!   panic becomes [`DecodeError::Panicked`].
+//!   A file with missing, duplicated or overlapping chunks is an error, not a half-black image.
 
 use crate::measure::averaging::{Layout, RgbView};
 use std::io::{BufReader, Cursor};
@@ -46,6 +55,32 @@ pub enum DecodeError {
     },
     #[error("decoder panicked (malformed file): {0}")]
     Panicked(String),
+    /// The header implies a decode that needs more memory than [`DecodeLimits::max_bytes`].
+    #[error(
+        "decoding needs {needed} bytes, over the budget of {budget} bytes \
+         (DecodeLimits::max_bytes): {pixels} pixels, {channels} channels \
+         ({bytes_per_pixel} stored bytes per pixel), {block_bytes} bytes per decompressed block, \
+         {header_bytes} header bytes"
+    )]
+    OverBudget {
+        /// Upper bound of what the decode would allocate, in bytes.
+        needed: u64,
+        /// [`DecodeLimits::max_bytes`].
+        budget: u64,
+        /// Channels in the decoded layer (all of them: each block is decompressed whole).
+        channels: usize,
+        /// Pixels of the decoded layer.
+        pixels: u64,
+        /// Stored bytes per pixel over all channels of the layer (EXR: 2 per half, 4 per float
+        /// or uint; Radiance: 4 for RGBE).
+        bytes_per_pixel: u64,
+        /// Bytes of the largest decompressed block (EXR: a chunk's lines or tile over all
+        /// channels; Radiance: one scanline).
+        block_bytes: u64,
+        /// Length of the file's header(s). A header too large to parse within the budget is
+        /// refused before it is parsed; the figures above are then 0 (not yet known).
+        header_bytes: u64,
+    },
 }
 
 /// Bounds on what a decoder may allocate.
@@ -56,6 +91,16 @@ pub struct DecodeLimits {
     /// Threads for OpenEXR block decompression (our own scoped threads, not exr's pool).
     /// 1 inside a worker pool that already decodes several captures at once.
     pub threads: usize,
+    /// Memory budget of one `decode` call, in bytes: an upper bound of everything the decoder
+    /// allocates (output planes, decompressed blocks and decompressor scratch, copies of the
+    /// compressed chunks, parsed headers), not counting the input bytes the caller holds.
+    /// The bound is computed from the header before any pixel buffer is allocated (see
+    /// [`required_bytes`]); a file that needs more is refused with [`DecodeError::OverBudget`].
+    /// Each worker that decodes at the same time needs its own budget.
+    /// Default 1 GiB: on one thread, a capture of up to `max_pixels` (64 MP: 768 MiB of f32
+    /// planes) with any of the usual compressions; with several threads the compressed chunks
+    /// and the decoded lines are held as well (16 bytes a pixel plus the file), about 35 MP.
+    pub max_bytes: u64,
 }
 
 impl Default for DecodeLimits {
@@ -65,6 +110,7 @@ impl Default for DecodeLimits {
             max_pixels: 64 << 20,
             max_dimension: 32768,
             threads: 1,
+            max_bytes: 1 << 30,
         }
     }
 }
@@ -147,7 +193,9 @@ fn panic_message(p: Box<dyn std::any::Any + Send>) -> String {
     }
 }
 
-/// Decode a capture from its bytes. Never panics.
+/// Decode a capture from its bytes. Never panics. Allocates at most what [`required_bytes`]
+/// reports for the same input and limits, and refuses input for which that exceeds
+/// [`DecodeLimits::max_bytes`] before allocating any pixel buffer.
 pub fn decode(bytes: &[u8], limits: &DecodeLimits) -> Result<DecodedImage, DecodeError> {
     let format = detect_format(bytes)?;
     let result = catch_unwind(AssertUnwindSafe(|| match format {
@@ -159,6 +207,126 @@ pub fn decode(bytes: &[u8], limits: &DecodeLimits) -> Result<DecodedImage, Decod
         Err(p) => Err(DecodeError::Panicked(panic_message(p))),
     }
 }
+
+/// The upper bound of what [`decode`] allocates for this input under these limits (the figure
+/// checked against [`DecodeLimits::max_bytes`]), computed from the header alone. When the
+/// header itself is too large to parse within the budget, the cost of parsing it (what
+/// `decode` refuses before parsing). The same errors as `decode` for a header that is
+/// unreadable, too large or has no RGB layer; never [`DecodeError::OverBudget`]. Never panics.
+pub fn required_bytes(bytes: &[u8], limits: &DecodeLimits) -> Result<u64, DecodeError> {
+    let format = detect_format(bytes)?;
+    let result = catch_unwind(AssertUnwindSafe(|| match format {
+        CaptureFormat::Hdr => {
+            let header = hdr_header_size(bytes);
+            let cost = Cost::of_header(header);
+            if cost.check(limits).is_err() {
+                return Ok(cost.needed);
+            }
+            let dec = hdr_decoder(bytes)?;
+            hdr_cost(&dec, header, limits).map(|c| c.needed)
+        }
+        CaptureFormat::Exr => {
+            let header = exr_header_size(bytes);
+            let cost = Cost::of_header(header);
+            if cost.check(limits).is_err() {
+                return Ok(cost.needed);
+            }
+            let reader = exr_reader(bytes)?;
+            exr_plan(reader.meta_data(), header, bytes.len(), limits).map(|(_, c)| c.needed)
+        }
+    }));
+    match result {
+        Ok(r) => r,
+        Err(p) => Err(DecodeError::Panicked(panic_message(p))),
+    }
+}
+
+/// An upper bound of a decode's allocations, with the header figures it was computed from.
+#[derive(Debug, Clone, Copy)]
+struct Cost {
+    needed: u64,
+    channels: usize,
+    pixels: u64,
+    bytes_per_pixel: u64,
+    block_bytes: u64,
+    header_bytes: u64,
+}
+
+impl Cost {
+    fn check(self, limits: &DecodeLimits) -> Result<(), DecodeError> {
+        if self.needed <= limits.max_bytes {
+            return Ok(());
+        }
+        Err(DecodeError::OverBudget {
+            needed: self.needed,
+            budget: limits.max_bytes,
+            channels: self.channels,
+            pixels: self.pixels,
+            bytes_per_pixel: self.bytes_per_pixel,
+            block_bytes: self.block_bytes,
+            header_bytes: self.header_bytes,
+        })
+    }
+
+    /// What parsing a header costs, before anything else is known about it.
+    fn of_header(header: HeaderSize) -> Cost {
+        let header_bytes = header.bytes as u64;
+        Cost {
+            needed: FIXED_OVERHEAD
+                .saturating_add(header_bytes.saturating_mul(PER_HEADER_BYTE))
+                .saturating_add((header.items as u64).saturating_mul(header.per_item)),
+            channels: 0,
+            pixels: 0,
+            bytes_per_pixel: 0,
+            block_bytes: 0,
+            header_bytes,
+        }
+    }
+}
+
+/// Allocations that do not scale with the image: decoder tables (PIZ Huffman and bitmap, DWA
+/// and B44 lookup tables), buffered readers, small per-call vectors.
+const FIXED_OVERHEAD: u64 = 4 << 20;
+
+/// The size of a file's header(s) on disk, found by scanning their framing without parsing.
+#[derive(Debug, Clone, Copy)]
+struct HeaderSize {
+    /// Bytes of the header(s).
+    bytes: usize,
+    /// Attributes and headers (OpenEXR) or lines (Radiance).
+    items: usize,
+    /// What the parser keeps per item, in bytes.
+    per_item: u64,
+}
+
+/// Parsed headers per header byte on disk: attribute values and channel lists (an 18-byte
+/// channel entry becomes a 56-byte description), in vectors that grow by doubling.
+const PER_HEADER_BYTE: u64 = 8;
+
+/// Parsed OpenEXR header per attribute, whatever its length: an attribute of 10 bytes becomes
+/// an entry of about 400 bytes in a hash map, which holds its old and new tables while it
+/// grows (up to 3.4 entries' worth per attribute).
+const PER_EXR_ATTRIBUTE: u64 = 2048;
+
+/// Parsed Radiance header per line, whatever its length: a line of 2 bytes becomes a pair of
+/// strings (48 bytes) in a vector that grows by doubling.
+const PER_HDR_LINE: u64 = 128;
+
+/// OpenEXR bookkeeping per chunk: the offset table entry (read into a vector that grows by
+/// doubling), the filtered offset, the set of blocks seen, and in the threaded path the chunk's
+/// descriptor, twice while the chunks are split among the threads.
+const PER_CHUNK: u64 = 256;
+
+/// Blocks alive at once while one chunk is decompressed: the compressed copy (which `exr` caps
+/// at one block's uncompressed size), the decompressed block, and the decompressor's scratch
+/// (B44 and PIZ build one more block-sized buffer; ZIP's byte interleaving keeps a block-sized
+/// thread-local buffer).
+const BLOCK_COPIES: u64 = 4;
+
+/// The same for DWA, counted in blocks padded to whole 8×8 DCT tiles: besides the compressed
+/// copy and the output, the inflated sections (the RLE one up to twice its unpacked size, see
+/// [`check_dwa_counters`]), the unpacked RLE planes, and the decoded DCT coefficients.
+const DWA_BLOCK_COPIES: u64 = 8;
 
 fn check_size(width: usize, height: usize, limits: &DecodeLimits) -> Result<(), DecodeError> {
     let too_large = || DecodeError::TooLarge {
@@ -175,19 +343,83 @@ fn check_size(width: usize, height: usize, limits: &DecodeLimits) -> Result<(), 
     }
 }
 
-fn decode_hdr(bytes: &[u8], limits: &DecodeLimits) -> Result<DecodedImage, DecodeError> {
-    use image::codecs::hdr::HdrDecoder;
+/// A Radiance file's header: up to and including the resolution line that follows the first
+/// empty line, or the whole file when there is no empty line (the decoder then reads all of it
+/// looking for one), and its lines.
+fn hdr_header_size(bytes: &[u8]) -> HeaderSize {
+    let end = match bytes.windows(2).position(|w| w == b"\n\n") {
+        None => bytes.len(),
+        Some(blank) => {
+            let resolution = blank + 2;
+            match bytes
+                .get(resolution..)
+                .and_then(|r| r.iter().position(|&b| b == b'\n'))
+            {
+                Some(n) => resolution + n + 1,
+                None => bytes.len(),
+            }
+        }
+    };
+    let header = bytes.get(..end).unwrap_or(bytes);
+    HeaderSize {
+        bytes: end,
+        items: header.iter().filter(|&&b| b == b'\n').count() + 1,
+        per_item: PER_HDR_LINE,
+    }
+}
+
+type HdrDecoder<'a> = image::codecs::hdr::HdrDecoder<BufReader<Cursor<&'a [u8]>>>;
+
+fn hdr_decoder(bytes: &[u8]) -> Result<HdrDecoder<'_>, DecodeError> {
+    HdrDecoder::new(BufReader::new(Cursor::new(bytes))).map_err(|e| DecodeError::Hdr(e.to_string()))
+}
+
+/// The parsed header (kept by the decoder), the f32 RGB output (12 bytes a pixel) and one RGBE
+/// scanline.
+fn hdr_cost(
+    dec: &HdrDecoder<'_>,
+    header: HeaderSize,
+    limits: &DecodeLimits,
+) -> Result<Cost, DecodeError> {
     use image::ImageDecoder;
-    let reader = BufReader::new(Cursor::new(bytes));
-    let mut dec = HdrDecoder::new(reader).map_err(|e| DecodeError::Hdr(e.to_string()))?;
     let (w, h) = dec.dimensions();
     check_size(w as usize, h as usize, limits)?;
+    let pixels = u64::from(w).saturating_mul(u64::from(h));
+    let scanline = u64::from(w).saturating_mul(4);
+    let header = Cost::of_header(header);
+    Ok(Cost {
+        needed: header
+            .needed
+            .saturating_add(pixels.saturating_mul(12))
+            .saturating_add(scanline),
+        channels: 3,
+        pixels,
+        bytes_per_pixel: 4,
+        block_bytes: scanline,
+        header_bytes: header.header_bytes,
+    })
+}
+
+fn decode_hdr(bytes: &[u8], limits: &DecodeLimits) -> Result<DecodedImage, DecodeError> {
+    use image::ImageDecoder;
+    // the header parser keeps every line: bound it before it runs
+    let header = hdr_header_size(bytes);
+    Cost::of_header(header).check(limits)?;
+    let mut dec = hdr_decoder(bytes)?;
+    let (w, h) = dec.dimensions();
+    hdr_cost(&dec, header, limits)?.check(limits)?;
     let mut lim = image::Limits::default();
     lim.max_image_width = Some(limits.max_dimension);
     lim.max_image_height = Some(limits.max_dimension);
-    lim.max_alloc = Some((limits.max_pixels as u64) * 12 + (1 << 20));
+    lim.max_alloc = Some(
+        (limits.max_pixels as u64)
+            .saturating_mul(12)
+            .saturating_add(1 << 20)
+            .min(limits.max_bytes),
+    );
     dec.set_limits(lim)
         .map_err(|e| DecodeError::Hdr(e.to_string()))?;
+    // w × h ≤ max_pixels (checked above), so this cannot overflow
     let n = (w as usize) * (h as usize) * 3;
     let mut data = vec![0f32; n];
     dec.read_image(bytemuck::cast_slice_mut(&mut data))
@@ -200,52 +432,162 @@ fn decode_hdr(bytes: &[u8], limits: &DecodeLimits) -> Result<DecodedImage, Decod
     })
 }
 
-/// Convert one line of little-endian samples to f32. f16 goes through `half`'s slice
-/// conversion, which uses the CPU's F16C instructions when it has them.
-fn line_to_f32(
-    bytes: &[u8],
-    n: usize,
+/// Convert one line of native-endian samples (as `exr` leaves them in a decompressed block)
+/// into `dst`. f16 goes through `half`'s slice conversion, which uses the CPU's F16C
+/// instructions when it has them; f32 is a plain copy when the line is aligned.
+fn convert_line(
+    src: &[u8],
+    dst: &mut [f32],
     sample_type: exr::meta::attribute::SampleType,
-) -> Result<Vec<f32>, DecodeError> {
+) -> Result<(), DecodeError> {
     use exr::meta::attribute::SampleType;
+    use half::slice::{HalfBitsSliceExt, HalfFloatSliceExt};
     let size = match sample_type {
         SampleType::F16 => 2,
         SampleType::F32 | SampleType::U32 => 4,
     };
-    if bytes.len() != n * size {
+    if Some(src.len()) != dst.len().checked_mul(size) {
         return Err(DecodeError::Exr(format!(
-            "line has {} bytes, expected {}",
-            bytes.len(),
-            n * size
+            "line has {} bytes, expected {} samples of {size} bytes",
+            src.len(),
+            dst.len()
         )));
     }
-    Ok(match sample_type {
-        SampleType::F32 => bytes
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect(),
-        SampleType::U32 => bytes
-            .chunks_exact(4)
-            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f32)
-            .collect(),
-        SampleType::F16 => {
-            let halves: Vec<half::f16> = bytes
-                .chunks_exact(2)
-                .map(|c| half::f16::from_bits(u16::from_le_bytes([c[0], c[1]])))
-                .collect();
-            let mut v = vec![0f32; n];
-            half::slice::HalfFloatSliceExt::convert_to_f32_slice(halves.as_slice(), &mut v);
-            v
+    match sample_type {
+        SampleType::F16 => match bytemuck::try_cast_slice::<u8, u16>(src) {
+            Ok(bits) => bits
+                .reinterpret_cast::<half::f16>()
+                .convert_to_f32_slice(dst),
+            Err(_) => {
+                for (d, c) in dst.iter_mut().zip(src.chunks_exact(2)) {
+                    *d = half::f16::from_bits(u16::from_ne_bytes([c[0], c[1]])).to_f32();
+                }
+            }
+        },
+        SampleType::F32 => match bytemuck::try_cast_slice::<u8, f32>(src) {
+            Ok(v) => dst.copy_from_slice(v),
+            Err(_) => {
+                for (d, c) in dst.iter_mut().zip(src.chunks_exact(4)) {
+                    *d = f32::from_ne_bytes([c[0], c[1], c[2], c[3]]);
+                }
+            }
+        },
+        SampleType::U32 => {
+            for (d, c) in dst.iter_mut().zip(src.chunks_exact(4)) {
+                *d = u32::from_ne_bytes([c[0], c[1], c[2], c[3]]) as f32;
+            }
         }
-    })
+    }
+    Ok(())
 }
 
-/// One decoded row segment of one channel: (channel slot 0..3, first sample index, samples).
-type Segment = (usize, usize, Vec<f32>);
+fn exr_err(e: exr::error::Error) -> DecodeError {
+    DecodeError::Exr(e.to_string())
+}
 
-fn decode_exr(bytes: &[u8], limits: &DecodeLimits) -> Result<DecodedImage, DecodeError> {
-    let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false)
-        .map_err(|e| DecodeError::Exr(e.to_string()))?;
+type ExrReader<'a> = exr::block::reader::Reader<Cursor<&'a [u8]>>;
+
+fn exr_reader(bytes: &[u8]) -> Result<ExrReader<'_>, DecodeError> {
+    exr::block::reader::Reader::read_from_buffered(Cursor::new(bytes), false).map_err(exr_err)
+}
+
+/// An OpenEXR file's magic number, version and header(s) on disk, from the attribute framing
+/// alone (name and type as NUL-terminated strings, an i32 size, the value), without reading
+/// any value: what the header parser will read. Where the framing breaks (the parser fails
+/// there), the whole file and the attributes seen so far.
+fn exr_header_size(bytes: &[u8]) -> HeaderSize {
+    let multipart = bytes
+        .get(4..8)
+        .and_then(|v| v.try_into().ok())
+        .is_some_and(|v| u32::from_le_bytes(v) & 0x1000 != 0);
+    let mut items = 1usize;
+    let broken = |items| HeaderSize {
+        bytes: bytes.len(),
+        items,
+        per_item: PER_EXR_ATTRIBUTE,
+    };
+    let nul_terminated = |pos: usize| -> Option<usize> {
+        let len = bytes.get(pos..)?.iter().position(|&b| b == 0)?;
+        Some(pos + len + 1)
+    };
+    let mut pos = 8usize;
+    loop {
+        // one header: attributes up to an empty name
+        loop {
+            let Some(after_name) = nul_terminated(pos) else {
+                return broken(items);
+            };
+            if after_name == pos + 1 {
+                pos = after_name;
+                break;
+            }
+            items += 1;
+            let Some(after_type) = nul_terminated(after_name) else {
+                return broken(items);
+            };
+            let size = bytes
+                .get(after_type..after_type + 4)
+                .and_then(|v| v.try_into().ok())
+                .map(i32::from_le_bytes)
+                .and_then(|v| usize::try_from(v).ok());
+            match size.and_then(|n| (after_type + 4).checked_add(n)) {
+                Some(end) if end <= bytes.len() => pos = end,
+                _ => return broken(items),
+            }
+        }
+        if !multipart {
+            return HeaderSize {
+                bytes: pos,
+                items,
+                per_item: PER_EXR_ATTRIBUTE,
+            };
+        }
+        // the list of headers of a multi-part file ends with an empty header
+        match bytes.get(pos) {
+            Some(0) => {
+                return HeaderSize {
+                    bytes: pos + 1,
+                    items,
+                    per_item: PER_EXR_ATTRIBUTE,
+                }
+            }
+            Some(_) => items += 1,
+            None => return broken(items),
+        }
+    }
+}
+
+/// Threads the block path uses at most (`DecodeLimits::threads` is clamped to this).
+const MAX_THREADS: usize = 16;
+
+/// Bookkeeping per R, G or B line in the threaded path: the segment's entry in the workers'
+/// vectors (which grow by doubling) and in the merged, sorted vector.
+const PER_SEGMENT: u64 = 128;
+
+fn sample_bytes(sample_type: exr::meta::attribute::SampleType) -> u64 {
+    use exr::meta::attribute::SampleType;
+    match sample_type {
+        SampleType::F16 => 2,
+        SampleType::F32 | SampleType::U32 => 4,
+    }
+}
+
+/// Find the layer to decode (the first with R, G and B), check every header's size, and bound
+/// what decoding that layer allocates (see [`Cost`] and the constants above it):
+/// - one thread: the parsed headers, per-chunk bookkeeping, the three f32 planes (12 bytes a
+///   pixel), and [`BLOCK_COPIES`] blocks of the layer (all its channels) while one chunk is
+///   decompressed; in a multi-part file also the largest block of any part, once;
+/// - several threads: the same, plus the compressed chunks of the layer (at most the file, as
+///   `decode_exr_blocks` checks), the decoded R, G, B lines before they are placed (12 bytes a
+///   pixel, merged one plane at a time, so 16 bytes a pixel in all) and their bookkeeping, and
+///   one set of block copies per thread.
+fn exr_plan(
+    meta: &exr::meta::MetaData,
+    header_size: HeaderSize,
+    file_len: usize,
+    limits: &DecodeLimits,
+) -> Result<(usize, Cost), DecodeError> {
+    use exr::meta::BlockDescription;
     let has =
         |hd: &exr::meta::header::Header, n: &str| hd.channels.list.iter().any(|c| c.name.eq(n));
     let Some(layer) = meta
@@ -266,69 +608,301 @@ fn decode_exr(bytes: &[u8], limits: &DecodeLimits) -> Result<DecodedImage, Decod
         }
         check_size(hd.layer_size.0, hd.layer_size.1, limits)?;
     }
-    if limits.threads <= 1 {
-        decode_exr_sequential(bytes, layer)
+    let header = &meta.headers[layer];
+    let (w, h) = (header.layer_size.0 as u64, header.layer_size.1 as u64);
+    let pixels = w.saturating_mul(h);
+    let bytes_per_pixel = header.channels.list.iter().fold(0u64, |sum, c| {
+        sum.saturating_add(sample_bytes(c.sample_type))
+    });
+    // `exr` sizes the compressed buffer of a chunk by the declared block size (a tile may be
+    // declared larger than the layer) and the decompressed block by the same or less
+    let (block_w, block_h) = match header.blocks {
+        BlockDescription::ScanLines => (w, header.compression.scan_lines_per_block() as u64),
+        BlockDescription::Tiles(t) => (t.tile_size.0 as u64, t.tile_size.1 as u64),
+    };
+    let dwa = is_dwa(header.compression);
+    let (pad_w, pad_h) = if dwa {
+        (padded_to_dct(block_w), padded_to_dct(block_h))
     } else {
-        decode_exr_blocks(bytes, limits, layer)
+        (block_w, block_h)
+    };
+    let block_bytes = bytes_per_pixel.saturating_mul(pad_w).saturating_mul(pad_h);
+    let copies = if dwa { DWA_BLOCK_COPIES } else { BLOCK_COPIES };
+    // In a multi-part file a chunk names its own part, and `exr` allocates its compressed data
+    // (up to that part's declared block size) before the part is checked: the largest block of
+    // any part can be allocated once while the chunks are read.
+    let any_part_block = if meta.headers.len() > 1 {
+        meta.headers
+            .iter()
+            .map(|hd| {
+                let area = match hd.blocks {
+                    BlockDescription::ScanLines => (hd.layer_size.0 as u64)
+                        .saturating_mul(hd.compression.scan_lines_per_block() as u64),
+                    BlockDescription::Tiles(t) => {
+                        (t.tile_size.0 as u64).saturating_mul(t.tile_size.1 as u64)
+                    }
+                };
+                (hd.channels.bytes_per_pixel as u64).saturating_mul(area)
+            })
+            .max()
+            .unwrap_or(0)
+    } else {
+        0
+    };
+    let chunks = meta
+        .headers
+        .iter()
+        .fold(0u64, |sum, hd| sum.saturating_add(hd.chunk_count as u64))
+        .min(file_len as u64 / 8 + 1);
+    let threads = limits.threads.clamp(1, MAX_THREADS) as u64;
+    let header_cost = Cost::of_header(header_size);
+    let mut needed = header_cost
+        .needed
+        .saturating_add(any_part_block)
+        .saturating_add(chunks.saturating_mul(PER_CHUNK))
+        .saturating_add(pixels.saturating_mul(12))
+        .saturating_add(block_bytes.saturating_mul(copies).saturating_mul(threads));
+    if threads > 1 {
+        let lines = h
+            .saturating_mul(w.div_ceil(block_w.max(1)))
+            .saturating_mul(3);
+        needed = needed
+            .saturating_add(file_len as u64)
+            .saturating_add(pixels.saturating_mul(4))
+            .saturating_add(lines.saturating_mul(PER_SEGMENT));
+    }
+    Ok((
+        layer,
+        Cost {
+            needed,
+            channels: header.channels.list.len(),
+            pixels,
+            bytes_per_pixel,
+            block_bytes,
+            header_bytes: header_cost.header_bytes,
+        },
+    ))
+}
+
+fn decode_exr(bytes: &[u8], limits: &DecodeLimits) -> Result<DecodedImage, DecodeError> {
+    // the header parser keeps every attribute: bound it before it runs
+    let header = exr_header_size(bytes);
+    Cost::of_header(header).check(limits)?;
+    let reader = exr_reader(bytes)?;
+    let (layer, cost) = exr_plan(reader.meta_data(), header, bytes.len(), limits)?;
+    cost.check(limits)?;
+    if limits.threads <= 1 {
+        decode_exr_sequential(reader, layer)
+    } else {
+        decode_exr_blocks(reader, limits, layer, bytes.len())
     }
 }
 
-/// One thread: `exr`'s own flat reader with `.non_parallel()`, whole channels at once.
-fn decode_exr_sequential(bytes: &[u8], layer_index: usize) -> Result<DecodedImage, DecodeError> {
-    use exr::prelude::*;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .all_layers()
-        .all_attributes()
-        .non_parallel()
-        .from_buffered(Cursor::new(bytes))
-        .map_err(|e| DecodeError::Exr(e.to_string()))?;
-    let layer = image
-        .layer_data
-        .into_iter()
-        .nth(layer_index)
-        .ok_or_else(|| DecodeError::Exr("RGB layer missing after decoding".into()))?;
-    let (w, h) = (layer.size.0, layer.size.1);
-    let mut planes: [Option<Vec<f32>>; 3] = [None, None, None];
-    for ch in layer.channel_data.list {
-        let slot = match ch.name.to_string().as_str() {
-            "R" => 0,
-            "G" => 1,
-            "B" => 2,
-            _ => continue,
-        };
-        if ch.sampling != Vec2(1, 1) {
-            return Err(DecodeError::Exr(format!(
-                "channel {} is subsampled {:?}",
-                ch.name, ch.sampling
-            )));
-        }
-        let v = match ch.sample_data {
-            FlatSamples::F32(v) => v,
-            FlatSamples::F16(v) => {
-                let mut out = vec![0f32; v.len()];
-                half::slice::HalfFloatSliceExt::convert_to_f32_slice(v.as_slice(), &mut out);
-                out
+/// For each channel of the header, its R/G/B slot (None for any other channel) and sample
+/// type. R, G and B must not be subsampled.
+fn rgb_slots(
+    header: &exr::meta::header::Header,
+) -> Result<Vec<(Option<usize>, exr::meta::attribute::SampleType)>, DecodeError> {
+    header
+        .channels
+        .list
+        .iter()
+        .map(|ch| {
+            let slot = match ch.name.to_string().as_str() {
+                "R" => Some(0),
+                "G" => Some(1),
+                "B" => Some(2),
+                _ => None,
+            };
+            if slot.is_some() && ch.sampling != exr::math::Vec2(1, 1) {
+                return Err(DecodeError::Exr(format!(
+                    "channel {} is subsampled {:?}",
+                    ch.name, ch.sampling
+                )));
             }
-            FlatSamples::U32(v) => v.into_iter().map(|u| u as f32).collect(),
-        };
-        if v.len() != w * h {
+            Ok((slot, ch.sample_type))
+        })
+        .collect()
+}
+
+fn is_dwa(compression: exr::compression::Compression) -> bool {
+    use exr::compression::Compression;
+    matches!(compression, Compression::DWAA(_) | Compression::DWAB(_))
+}
+
+/// `n` rounded up to whole 8-pixel DCT tiles.
+fn padded_to_dct(n: u64) -> u64 {
+    n.div_ceil(8).saturating_mul(8)
+}
+
+/// Check a chunk before `exr` decompresses it: it must belong to the layer being decoded (the
+/// chunk's own part number picks the header `exr` decompresses it with), and a DWA chunk's
+/// counters must fit its block.
+fn check_chunk(
+    chunk: &exr::block::chunk::Chunk,
+    layer: usize,
+    header: &exr::meta::header::Header,
+) -> Result<(), DecodeError> {
+    use exr::block::chunk::CompressedBlock;
+    if chunk.layer_index != layer {
+        return Err(DecodeError::Exr(format!(
+            "chunk of layer {} among the chunks of layer {layer}",
+            chunk.layer_index
+        )));
+    }
+    if !is_dwa(header.compression) {
+        return Ok(());
+    }
+    let data = match &chunk.compressed_block {
+        CompressedBlock::ScanLine(b) => &b.compressed_pixels_le,
+        CompressedBlock::Tile(b) => &b.compressed_pixels_le,
+        CompressedBlock::DeepScanLine(_) | CompressedBlock::DeepTile(_) => {
+            return Err(DecodeError::DeepData)
+        }
+    };
+    let tile = header
+        .get_block_data_indices(&chunk.compressed_block)
+        .map_err(exr_err)?;
+    let rect = header
+        .get_absolute_block_pixel_coordinates(tile)
+        .map_err(exr_err)?;
+    check_dwa_counters(
+        data,
+        header.channels.bytes_per_pixel as u64,
+        rect.size.0 as u64,
+        rect.size.1 as u64,
+    )
+}
+
+/// A DWA chunk starts with eleven u64 counters, and `exr` sizes five buffers from them before
+/// it reads any data: the raw ("unknown") section, the AC and DC coefficient arrays, and the
+/// RLE section before and after unpacking. For a `w`×`h` block of `bytes_per_pixel`, the
+/// unknown and RLE channels hold their samples and each lossy channel at most one 2-byte
+/// coefficient per pixel of the block padded to 8×8 tiles, so together they fit the padded
+/// block; the packed RLE section is at most twice its unpacked size (OpenEXR's encoder adds
+/// one byte per 127). An empty chunk or one of exactly the block's size is stored raw and has
+/// no counters.
+fn check_dwa_counters(
+    data: &[u8],
+    bytes_per_pixel: u64,
+    w: u64,
+    h: u64,
+) -> Result<(), DecodeError> {
+    let block = bytes_per_pixel.saturating_mul(w).saturating_mul(h);
+    if data.is_empty() || data.len() as u64 == block {
+        return Ok(());
+    }
+    // shorter than the counters: `exr` reports the truncation
+    let Some(leader) = data.get(..88) else {
+        return Ok(());
+    };
+    let mut c = [0u64; 11];
+    for (v, b) in c.iter_mut().zip(leader.chunks_exact(8)) {
+        *v = u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
+    }
+    let [_, unknown, _, _, _, _, rle_packed, rle, ac, dc, _] = c;
+    let padded = bytes_per_pixel
+        .saturating_mul(padded_to_dct(w))
+        .saturating_mul(padded_to_dct(h));
+    let claimed = unknown
+        .saturating_add(rle)
+        .saturating_add(ac.saturating_mul(2))
+        .saturating_add(dc.saturating_mul(2));
+    if claimed > padded || rle_packed > rle.saturating_mul(2).saturating_add(64) {
+        return Err(DecodeError::Exr(format!(
+            "DWA chunk claims sections of {claimed} bytes (RLE {rle_packed} packed, {rle} \
+             unpacked) for a {w}×{h} block of {padded} bytes"
+        )));
+    }
+    Ok(())
+}
+
+/// A decompressed block must belong to the layer being decoded and to its full-resolution
+/// level: the chunk's own part number and level can disagree with the offset table that led
+/// to it.
+fn check_block(block: &exr::block::UncompressedBlock, layer: usize) -> Result<(), DecodeError> {
+    if block.index.layer != layer || block.index.level != exr::math::Vec2(0, 0) {
+        return Err(DecodeError::Exr(format!(
+            "chunk of layer {} level {:?} where layer {layer} level (0, 0) was expected",
+            block.index.layer, block.index.level
+        )));
+    }
+    Ok(())
+}
+
+/// Index of a line's first sample in a `w`×`h` plane, checked to lie inside it.
+fn line_start(
+    loc: &exr::block::lines::LineIndex,
+    w: usize,
+    h: usize,
+) -> Result<usize, DecodeError> {
+    let (x, y, n) = (loc.position.0, loc.position.1, loc.sample_count);
+    match x.checked_add(n) {
+        Some(end) if end <= w && y < h => Ok(y * w + x),
+        _ => Err(DecodeError::Exr(format!(
+            "block line at ({x}, {y}) + {n} outside {w}×{h}"
+        ))),
+    }
+}
+
+fn incomplete(filled: [usize; 3], n: usize) -> DecodeError {
+    DecodeError::Exr(format!(
+        "incomplete image: R/G/B samples {filled:?} of {n} (missing chunks)"
+    ))
+}
+
+/// One thread: stream the layer's full-resolution chunks, decompress each, and convert its R,
+/// G and B lines straight into the planes. Only one chunk and one decompressed block are alive
+/// at a time. Every block may arrive once; with the lines checked to lie inside the image,
+/// three full sample counts then mean every sample was written exactly once.
+fn decode_exr_sequential(reader: ExrReader<'_>, layer: usize) -> Result<DecodedImage, DecodeError> {
+    use exr::block::reader::ChunksReader;
+    let header = reader
+        .headers()
+        .get(layer)
+        .ok_or_else(|| DecodeError::Exr("RGB layer missing".into()))?;
+    let (w, h) = (header.layer_size.0, header.layer_size.1);
+    let slots = rgb_slots(header)?;
+    // w × h ≤ max_pixels (checked in `exr_plan`), so this cannot overflow
+    let n = w * h;
+    let mut planes = [vec![0f32; n], vec![0f32; n], vec![0f32; n]];
+    let mut filled = [0usize; 3];
+    let mut seen = std::collections::HashSet::new();
+    let mut chunks = reader
+        .filter_chunks(false, |_, _, block| {
+            block.layer == layer && block.level == exr::math::Vec2(0, 0)
+        })
+        .map_err(exr_err)?;
+    while let Some(chunk) = chunks.next() {
+        let chunk = chunk.map_err(exr_err)?;
+        let meta = chunks.meta_data();
+        check_chunk(&chunk, layer, &meta.headers[layer])?;
+        let block =
+            exr::block::UncompressedBlock::decompress_chunk(chunk, meta, false).map_err(exr_err)?;
+        check_block(&block, layer)?;
+        let position = (block.index.pixel_position.0, block.index.pixel_position.1);
+        if !seen.insert(position) {
             return Err(DecodeError::Exr(format!(
-                "channel {} has {} samples, expected {}",
-                ch.name,
-                v.len(),
-                w * h
+                "two chunks hold the block at {position:?}"
             )));
         }
-        planes[slot] = Some(v);
+        let channels = &meta.headers[layer].channels;
+        for line in block.lines(channels) {
+            let Some(&(Some(slot), sample_type)) = slots.get(line.location.channel) else {
+                continue;
+            };
+            let start = line_start(&line.location, w, h)?;
+            let count = line.location.sample_count;
+            // in bounds: `line_start` checked x + count ≤ w and y < h
+            let dst = &mut planes[slot][start..start + count];
+            convert_line(line.value, dst, sample_type)?;
+            filled[slot] += count;
+        }
     }
-    let [Some(r), Some(g), Some(b)] = planes else {
-        return Err(DecodeError::NoRgbLayer(
-            "R, G or B missing after decoding".into(),
-        ));
-    };
+    if filled != [n; 3] {
+        return Err(incomplete(filled, n));
+    }
+    let [r, g, b] = planes;
     Ok(DecodedImage {
         format: CaptureFormat::Exr,
         width: w,
@@ -337,75 +911,84 @@ fn decode_exr_sequential(bytes: &[u8], layer_index: usize) -> Result<DecodedImag
     })
 }
 
-/// Several threads: read the chunks, decompress them on our own scoped threads.
+/// One decoded row segment of one channel: (channel slot 0..3, first sample index, samples).
+type Segment = (usize, usize, Vec<f32>);
+
+/// Several threads: read the layer's chunks (their total checked against the file length, so
+/// chunks that overlap in the file cannot multiply it), decompress them on our own scoped
+/// threads, then place the segments in order.
 fn decode_exr_blocks(
-    bytes: &[u8],
+    reader: ExrReader<'_>,
     limits: &DecodeLimits,
     layer: usize,
+    file_len: usize,
 ) -> Result<DecodedImage, DecodeError> {
-    use exr::block::reader::Reader;
-    let exr_err = |e: exr::error::Error| DecodeError::Exr(e.to_string());
-    let reader = Reader::read_from_buffered(Cursor::new(bytes), false).map_err(exr_err)?;
-    let meta = reader.meta_data().clone();
-    let header = meta
-        .headers
+    use exr::block::chunk::{Chunk, CompressedBlock};
+    use exr::block::reader::ChunksReader;
+    let header = reader
+        .headers()
         .get(layer)
         .ok_or_else(|| DecodeError::Exr("RGB layer missing".into()))?;
     let (w, h) = (header.layer_size.0, header.layer_size.1);
-    // channel index in the header → R/G/B slot
-    let mut slot_of = Vec::with_capacity(header.channels.list.len());
-    for ch in &header.channels.list {
-        let slot = match ch.name.to_string().as_str() {
-            "R" => Some(0),
-            "G" => Some(1),
-            "B" => Some(2),
-            _ => None,
-        };
-        if slot.is_some() && ch.sampling != exr::math::Vec2(1, 1) {
-            return Err(DecodeError::Exr(format!(
-                "channel {} is subsampled {:?}",
-                ch.name, ch.sampling
-            )));
-        }
-        slot_of.push((slot, ch.sample_type));
-    }
+    let slots = rgb_slots(header)?;
+    // w × h ≤ max_pixels (checked in `exr_plan`), so this cannot overflow
+    let n = w * h;
 
     // Read the compressed chunks of the RGB layer's full-resolution level (cheap, sequential).
-    let chunks: Vec<exr::block::chunk::Chunk> = reader
+    let mut reader = reader
         .filter_chunks(false, |_, _, block| {
             block.layer == layer && block.level == exr::math::Vec2(0, 0)
         })
-        .map_err(exr_err)?
-        .collect::<Result<_, _>>()
         .map_err(exr_err)?;
+    let mut chunks: Vec<Chunk> = Vec::with_capacity(reader.len());
+    let mut compressed = 0usize;
+    while let Some(chunk) = reader.next() {
+        let chunk = chunk.map_err(exr_err)?;
+        compressed = compressed.saturating_add(match &chunk.compressed_block {
+            CompressedBlock::ScanLine(b) => b.compressed_pixels_le.len(),
+            CompressedBlock::Tile(b) => b.compressed_pixels_le.len(),
+            CompressedBlock::DeepScanLine(_) | CompressedBlock::DeepTile(_) => {
+                return Err(DecodeError::DeepData)
+            }
+        });
+        if compressed > file_len {
+            return Err(DecodeError::Exr(format!(
+                "chunks overlap: {compressed} bytes of chunks in a {file_len}-byte file"
+            )));
+        }
+        check_chunk(&chunk, layer, &reader.meta_data().headers[layer])?;
+        chunks.push(chunk);
+    }
+    let meta = reader.meta_data();
+    let header = &meta.headers[layer];
 
     // Decompress and convert on `threads` scoped threads of our own (never exr's thread pool),
     // each under catch_unwind, so a malformed chunk is an error, not an abort.
-    let threads = limits.threads.clamp(1, 16).min(chunks.len().max(1));
+    let threads = limits
+        .threads
+        .clamp(1, MAX_THREADS)
+        .min(chunks.len().max(1));
     let per = chunks.len().div_ceil(threads);
-    let mut groups: Vec<Vec<exr::block::chunk::Chunk>> = Vec::with_capacity(threads);
+    let mut groups: Vec<Vec<Chunk>> = Vec::with_capacity(threads);
     let mut it = chunks.into_iter();
     for _ in 0..threads {
         groups.push(it.by_ref().take(per).collect());
     }
-    let work = |group: Vec<exr::block::chunk::Chunk>| -> Result<Vec<Segment>, DecodeError> {
+    drop(it);
+    let work = |group: Vec<Chunk>| -> Result<Vec<Segment>, DecodeError> {
         let mut out = Vec::new();
         for chunk in group {
-            let block = exr::block::UncompressedBlock::decompress_chunk(chunk, &meta, false)
+            let block = exr::block::UncompressedBlock::decompress_chunk(chunk, meta, false)
                 .map_err(exr_err)?;
+            check_block(&block, layer)?;
             for line in block.lines(&header.channels) {
-                let loc = line.location;
-                let Some(&(Some(slot), sample_type)) = slot_of.get(loc.channel) else {
+                let Some(&(Some(slot), sample_type)) = slots.get(line.location.channel) else {
                     continue;
                 };
-                let (x, y, n) = (loc.position.0, loc.position.1, loc.sample_count);
-                if x + n > w || y >= h {
-                    return Err(DecodeError::Exr(format!(
-                        "block line at ({x}, {y}) + {n} outside {w}×{h}"
-                    )));
-                }
-                let v = line_to_f32(line.value, n, sample_type)?;
-                out.push((slot, y * w + x, v));
+                let start = line_start(&line.location, w, h)?;
+                let mut v = vec![0f32; line.location.sample_count];
+                convert_line(line.value, &mut v, sample_type)?;
+                out.push((slot, start, v));
             }
         }
         Ok(out)
@@ -428,19 +1011,24 @@ fn decode_exr_blocks(
             })
             .collect()
     });
-    // Place the segments in memory order: every sample exactly once, no gap, no overlap.
-    let mut segments: Vec<Segment> = Vec::new();
+    // Place the segments in memory order: every sample exactly once, no gap, no overlap. Each
+    // plane is allocated when its first segment comes and each segment freed once copied, so
+    // the segments and the planes together never exceed 16 bytes a pixel.
+    let mut parts = Vec::with_capacity(results.len());
     for r in results {
-        segments.extend(r?);
+        parts.push(r?);
+    }
+    let mut segments: Vec<Segment> = Vec::with_capacity(parts.iter().map(Vec::len).sum());
+    for p in parts {
+        segments.extend(p);
     }
     segments.sort_unstable_by_key(|(slot, start, _)| (*slot, *start));
-    let mut planes: [Vec<f32>; 3] = [
-        Vec::with_capacity(w * h),
-        Vec::with_capacity(w * h),
-        Vec::with_capacity(w * h),
-    ];
+    let mut planes: [Vec<f32>; 3] = [Vec::new(), Vec::new(), Vec::new()];
     for (slot, start, v) in segments {
         let plane = &mut planes[slot];
+        if plane.capacity() == 0 {
+            plane.reserve_exact(n);
+        }
         if start != plane.len() {
             return Err(DecodeError::Exr(format!(
                 "chunks overlap or leave a gap in channel {} at sample {start}",
@@ -449,12 +1037,9 @@ fn decode_exr_blocks(
         }
         plane.extend_from_slice(&v);
     }
-    if planes.iter().any(|p| p.len() != w * h) {
-        return Err(DecodeError::Exr(format!(
-            "incomplete image: R/G/B samples {:?} of {} (missing chunks)",
-            planes.iter().map(Vec::len).collect::<Vec<_>>(),
-            w * h
-        )));
+    let filled = [planes[0].len(), planes[1].len(), planes[2].len()];
+    if filled != [n; 3] {
+        return Err(incomplete(filled, n));
     }
     let [r, g, b] = planes;
     Ok(DecodedImage {
@@ -463,4 +1048,142 @@ fn decode_exr_blocks(
         height: h,
         pixels: Pixels::Planar([r, g, b]),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn attribute(out: &mut Vec<u8>, name: &str, kind: &str, value: &[u8]) {
+        out.extend_from_slice(name.as_bytes());
+        out.push(0);
+        out.extend_from_slice(kind.as_bytes());
+        out.push(0);
+        out.extend_from_slice(&(value.len() as i32).to_le_bytes());
+        out.extend_from_slice(value);
+    }
+
+    #[test]
+    fn exr_header_size_follows_the_framing() {
+        let mut b = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+        attribute(&mut b, "compression", "compression", &[3]);
+        attribute(&mut b, "note", "string", b"hello");
+        b.push(0);
+        let end = b.len();
+        b.extend_from_slice(&[9; 40]); // offset table and chunks
+        let h = exr_header_size(&b);
+        assert_eq!((h.bytes, h.items), (end, 3));
+        // two parts, then the empty header that ends the list
+        let mut m = vec![0x76, 0x2f, 0x31, 0x01, 2, 0x10, 0, 0];
+        for _ in 0..2 {
+            attribute(&mut m, "name", "string", b"p");
+            m.push(0);
+        }
+        m.push(0);
+        let end = m.len();
+        m.extend_from_slice(&[9; 16]);
+        let h = exr_header_size(&m);
+        assert_eq!((h.bytes, h.items), (end, 4));
+        // a size past the end of the file: all of it, and the attributes seen
+        let mut t = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+        attribute(&mut t, "a", "x", &[]);
+        t.extend_from_slice(b"b\0x\0");
+        t.extend_from_slice(&i32::MAX.to_le_bytes());
+        let h = exr_header_size(&t);
+        assert_eq!((h.bytes, h.items), (t.len(), 3));
+        // a negative size, a missing NUL, an empty file
+        let mut n = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+        n.extend_from_slice(b"a\0x\0");
+        n.extend_from_slice(&(-4i32).to_le_bytes());
+        assert_eq!(exr_header_size(&n).bytes, n.len());
+        assert_eq!(exr_header_size(b"v/1\x01\x02\0\0\0abc").bytes, 11);
+        assert_eq!(exr_header_size(&[]).bytes, 0);
+    }
+
+    #[test]
+    fn hdr_header_size_ends_after_the_resolution_line() {
+        let b = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 2\n\x01\x02\x03";
+        let h = hdr_header_size(b);
+        assert_eq!((h.bytes, h.items), (b.len() - 3, 5));
+        let no_blank = b"#?RADIANCE\nA=1\nB=2\n";
+        assert_eq!(hdr_header_size(no_blank).bytes, no_blank.len());
+        let no_resolution_end = b"#?RADIANCE\n\n-Y 2";
+        assert_eq!(
+            hdr_header_size(no_resolution_end).bytes,
+            no_resolution_end.len()
+        );
+    }
+
+    fn dwa_leader(c: [u64; 11]) -> Vec<u8> {
+        let mut v: Vec<u8> = c.iter().flat_map(|x| x.to_le_bytes()).collect();
+        v.extend_from_slice(&[0; 20]);
+        v
+    }
+
+    #[test]
+    fn dwa_counters_must_fit_the_block() {
+        // a 100×32 block of RGB half: 19,200 bytes, 104×32 padded: 19,968
+        let (bpp, w, h) = (6, 100, 32);
+        // lossy RGB: 63 AC and 1 DC coefficient per 8×8 tile of each channel
+        let tiles = 13 * 4 * 3;
+        let ok = dwa_leader([2, 0, 0, 500, 40, 0, 0, 0, 63 * tiles, tiles, 0]);
+        assert_eq!(check_dwa_counters(&ok, bpp, w, h), Ok(()));
+        // RLE channels: packed may exceed unpacked a little
+        let rle = dwa_leader([2, 0, 0, 0, 0, 600, 19_400, 19_200, 0, 0, 0]);
+        assert_eq!(check_dwa_counters(&rle, bpp, w, h), Ok(()));
+        for bad in [
+            [2, 1 << 40, 0, 0, 0, 0, 0, 0, 0, 0, 0],
+            [2, 0, 0, 0, 0, 0, 0, 0, i64::MAX as u64, 0, 0],
+            [2, 0, 0, 0, 0, 0, 0, 0, 0, u64::MAX, 0],
+            [2, 0, 0, 0, 0, 0, 1 << 31, 100, 0, 0, 0],
+            [2, 10_000, 0, 0, 0, 0, 0, 10_000, 0, 0, 0],
+        ] {
+            assert!(
+                matches!(
+                    check_dwa_counters(&dwa_leader(bad), bpp, w, h),
+                    Err(DecodeError::Exr(_))
+                ),
+                "{bad:?}"
+            );
+        }
+        // stored raw (exactly the block's size) or empty: no counters to check
+        let raw = vec![0xff; 19_200];
+        assert_eq!(check_dwa_counters(&raw, bpp, w, h), Ok(()));
+        assert_eq!(check_dwa_counters(&[], bpp, w, h), Ok(()));
+        // too short for the counters: left to `exr`
+        assert_eq!(check_dwa_counters(&[0xff; 40], bpp, w, h), Ok(()));
+    }
+
+    #[test]
+    fn lines_convert_aligned_or_not() {
+        use exr::meta::attribute::SampleType;
+        let halves: Vec<u8> = [1.0f32, -2.5, 65504.0]
+            .iter()
+            .flat_map(|&v| half::f16::from_f32(v).to_bits().to_ne_bytes())
+            .collect();
+        let floats: Vec<u8> = [1.0f32, -2.5, 1e30]
+            .iter()
+            .flat_map(|v| v.to_ne_bytes())
+            .collect();
+        let uints: Vec<u8> = [0u32, 7, u32::MAX]
+            .iter()
+            .flat_map(|v| v.to_ne_bytes())
+            .collect();
+        for (bytes, st, want) in [
+            (&halves, SampleType::F16, [1.0, -2.5, 65504.0]),
+            (&floats, SampleType::F32, [1.0, -2.5, 1e30]),
+            (&uints, SampleType::U32, [0.0, 7.0, u32::MAX as f32]),
+        ] {
+            // the same bytes at an odd address take the unaligned path
+            let mut shifted = vec![0u8];
+            shifted.extend_from_slice(bytes);
+            for src in [&bytes[..], &shifted[1..]] {
+                let mut dst = [0f32; 3];
+                assert_eq!(convert_line(src, &mut dst, st), Ok(()));
+                assert_eq!(dst, want);
+            }
+            let mut short = [0f32; 2];
+            assert!(convert_line(bytes, &mut short, st).is_err());
+        }
+    }
 }

@@ -193,3 +193,30 @@ fn average_refuses_a_fifo_at_once() {
     assert!(text.contains("FIFO"), "{text}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn the_configured_decode_budget_refuses_a_hostile_header() {
+    let dir = std::env::temp_dir().join(format!("gw-cli-budget-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cfg = dir.join("small.toml");
+    std::fs::write(&cfg, "[ingest]\nmax_decode_mib = 16\n").unwrap();
+    let crafted = reference("images/crafted/channels200_half_zip.exr");
+    let out = bin()
+        .args(["average", "--json", "--config"])
+        .arg(&cfg)
+        .arg(&crafted)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(text.contains("over the budget"), "{text}");
+    // the 5,003-channel header is refused even under the default budget
+    let out = bin()
+        .args(["average", "--json"])
+        .arg(reference("images/crafted/channels5000_half_piz.exr"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("over the budget"), "{text}");
+    std::fs::remove_dir_all(&dir).ok();
+}

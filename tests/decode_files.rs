@@ -299,6 +299,7 @@ fn oversized_headers_are_refused_before_allocation() {
         max_pixels: 1000,
         max_dimension: 100,
         threads: 1,
+        ..DecodeLimits::default()
     };
     assert!(matches!(
         decode(&read("valid/Desk.exr"), &small),

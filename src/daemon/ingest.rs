@@ -59,6 +59,7 @@ pub fn resolve(root: &Path, name: &str) -> Result<PathBuf, PathError> {
 pub fn decode_limits(spec: &IngestSpec) -> DecodeLimits {
     DecodeLimits {
         threads: spec.decode_threads.max(1),
+        max_bytes: spec.max_decode_mib.saturating_mul(1 << 20),
         ..DecodeLimits::default()
     }
 }

@@ -331,7 +331,6 @@ impl Resampler {
         Ok(Resampled { value, spread })
     }
 
-
     /// The value at a direction pair (a slice ignores `omega_i`).
     pub fn at(&self, omega_i: &Vec3, omega_o: &Vec3) -> Result<Resampled, ResampleError> {
         if !finite_up(omega_o) || !finite_up(omega_i) {

@@ -237,4 +237,3 @@ pub fn inputs(entries: &[JournalEntry]) -> impl Iterator<Item = (u64, &Input)> {
         JournalItem::Out(_) => None,
     })
 }
-
