@@ -1,6 +1,6 @@
 //! The tabulated reference-BRDF format (docs/reference-format.md): an independent measurement of
 //! the same sample, spectral (e.g. 30 bands 400–690 nm, as the Integra data) or RGB/XYZ, for the
-//! cross-validation of issue 6. Pure parsing; every error names its line and column (both from
+//! cross-validation (`compare`, the paper's Section 6.2). Pure parsing; every error names its line and column (both from
 //! 1, columns counted in characters), and the time is linear in the length of the text.
 
 use crate::measure::colour::{RgbPrimaries, RgbToXyz, SpectralToXyz, Xyz};

@@ -1,6 +1,6 @@
 //! Renka's modified Shepard interpolation, written from the algorithms' descriptions
 //! (ACM TOMS 660 QSHEP2D, 661 QSHEP3D, 790 CSHEP2D), with a uniform cell grid for the
-//! neighbour and radius searches: groundwork for issue 6 (the resampling built on it is open).
+//! neighbour and radius searches; `measure::resample` builds the BRDF resamplers on it.
 //!
 //! The interpolant is Q(p) = Σ W_k(p) Q_k(p) / Σ W_k(p) with
 //! - nodal polynomials Q_k (quadratic in 2-D or 3-D, or cubic in 2-D) interpolating f_k, fitted
