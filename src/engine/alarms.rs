@@ -3,7 +3,7 @@
 //! engine inputs; the rest are counted and reported as one alarm when the window ends. Windows
 //! are counted in inputs, not wall time, so a replay aggregates exactly as the live run did.
 
-use crate::measure::alarm::Alarm;
+use crate::measure::alarm::{Alarm, Severity};
 use serde_json::json;
 use std::collections::BTreeMap;
 
@@ -20,6 +20,8 @@ struct Storm {
     held: u64,
     captures: Vec<u64>,
     latest: Option<Alarm>,
+    /// The highest severity emitted in full in this window.
+    worst: Option<Severity>,
 }
 
 /// Counts per alarm kind, and the storms of the current windows.
@@ -39,15 +41,18 @@ impl AlarmBook {
         *self.counts.entry(key).or_default() += 1;
     }
 
-    /// The alarm to emit now (its code is within its burst), or None (held for the aggregate).
-    /// `inputs` is the engine's input count.
+    /// The alarm to emit now, or None (held for the aggregate). An alarm is emitted while its
+    /// code is within its burst, and always when it is more severe than any emitted in full in
+    /// the window (a warning that turns critical is never held back). `inputs` is the engine's
+    /// input count.
     pub(super) fn admit(&mut self, a: Alarm, inputs: u64) -> Option<Alarm> {
         let storm = self.storms.entry(a.code.clone()).or_insert_with(|| Storm {
             window_start: inputs,
             ..Storm::default()
         });
-        if storm.emitted < ALARM_BURST {
+        if storm.emitted < ALARM_BURST || storm.worst.is_none_or(|w| a.severity > w) {
             storm.emitted += 1;
+            storm.worst = storm.worst.max(Some(a.severity));
             return Some(a);
         }
         storm.held += 1;
@@ -130,4 +135,46 @@ fn aggregate(code: &str, storm: &Storm, latest: Alarm, now: u64) -> Alarm {
     }));
     a.idx = None;
     a
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measure::alarm::AlarmKind;
+
+    fn alarm(severity: Severity, idx: u64) -> Alarm {
+        Alarm::new(
+            AlarmKind::CaptureQuality,
+            severity,
+            "capture-failed",
+            "x".into(),
+        )
+        .at(Some(idx), None)
+    }
+
+    #[test]
+    fn a_storm_is_held_back_but_an_escalation_never_is() {
+        let mut book = AlarmBook::default();
+        let mut emitted = Vec::new();
+        for i in 0..20 {
+            let sev = if i < 12 {
+                Severity::Warning
+            } else {
+                Severity::Critical
+            };
+            let a = alarm(sev, i);
+            book.count(&a);
+            emitted.extend(book.admit(a, i));
+        }
+        // five warnings in full, then the first critical at once, then held back again
+        let sev: Vec<Severity> = emitted.iter().map(|a| a.severity).collect();
+        assert_eq!(sev.len(), 6, "{sev:?}");
+        assert_eq!(sev[5], Severity::Critical);
+        assert_eq!(emitted[5].idx, Some(12));
+        let agg = book.flush(20, true);
+        assert_eq!(agg.len(), 1);
+        assert_eq!(agg[0].evidence["aggregated"], 14);
+        assert_eq!(agg[0].severity, Severity::Critical);
+        assert_eq!(book.total(), 20);
+    }
 }
