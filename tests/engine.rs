@@ -817,3 +817,23 @@ fn absurd_controller_times_are_refused() {
         );
     }
 }
+
+#[test]
+fn a_critical_raised_before_a_resume_still_counts_for_the_exit_status() {
+    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    connected(&mut e, &mut c);
+    assert!(!e.critical_raised());
+    let fault = c.line("STATUS", &[("state", "fault".into()), ("t", "1".into())]);
+    let out = e.handle(&fault);
+    assert_eq!(alarms(&out), ["controller-fault"]);
+    assert!(e.critical_raised());
+    // a resumed daemon rebuilds the engine from the journal without carrying out its alarms
+    // again; the exit status comes from the rebuilt engine, not from the alarms it emits now
+    let mut resumed = engine();
+    let mut c2 = Ctl { seq: 0 };
+    connected(&mut resumed, &mut c2);
+    resumed.handle(&fault);
+    let out = resumed.handle(&Input::Restart);
+    assert!(!alarms(&out).contains(&"controller-fault".to_string()));
+    assert!(resumed.critical_raised());
+}

@@ -340,3 +340,94 @@ fn the_report_counts_every_alarm_the_summary_counts() {
     assert!(html.contains(&format!("<h2>Alarms ({total})</h2>")));
     std::fs::remove_dir_all(&base).ok();
 }
+
+#[test]
+fn a_journal_that_is_only_a_torn_line_never_costs_the_results() {
+    let base = scratch("tornonly");
+    let dir = make_session(&base);
+    let journal = dir.join("journal.jsonl");
+    // a journal that lost every line end: one unterminated "line"
+    std::fs::write(&journal, b"{\"wall_ms\":1,\"in\":\"connected\"").unwrap();
+    let before = snapshot(&dir);
+    let r = run_on(&dir);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(3), "{err}");
+    assert!(err.contains("records no input"), "{err}");
+    assert_eq!(snapshot(&dir), before, "nothing was changed");
+    // a tail far longer than any journal line is damage, not a torn write
+    let base2 = scratch("torntail");
+    let dir2 = make_session(&base2);
+    let mut j = std::fs::read(dir2.join("journal.jsonl")).unwrap();
+    j.extend(std::iter::repeat_n(b'x', 2 << 20));
+    std::fs::write(dir2.join("journal.jsonl"), &j).unwrap();
+    let before = snapshot(&dir2);
+    let r = run_on(&dir2);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(3), "{err}");
+    assert!(err.contains("without a line end"), "{err}");
+    assert_eq!(snapshot(&dir2), before, "nothing was changed");
+    std::fs::remove_dir_all(&base).ok();
+    std::fs::remove_dir_all(&base2).ok();
+}
+
+#[test]
+fn a_session_from_before_checksums_stays_resumable() {
+    let base = scratch("legacy");
+    let dir = make_session(&base);
+    let journal = dir.join("journal.jsonl");
+    // the journal as an older goniowatch wrote it: no checksums, and session.json says so
+    let plain: String = std::fs::read_to_string(&journal)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let cut = l.rfind(",\"sum\":\"").unwrap();
+            format!("{}}}\n", &l[..cut])
+        })
+        .collect();
+    std::fs::write(&journal, plain).unwrap();
+    let info_path = dir.join("session.json");
+    let mut info: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&info_path).unwrap()).unwrap();
+    info["journal_checksums"] = false.into();
+    std::fs::write(&info_path, serde_json::to_vec_pretty(&info).unwrap()).unwrap();
+    let captures = std::fs::read(dir.join("captures.jsonl")).unwrap();
+    // resumed once: the run loop appends checksummed lines after the plain ones
+    let session = Session::open_or_create(&dir, None, None, None).unwrap();
+    recover(&session).unwrap();
+    let mut j = JsonlFile::append(&journal).unwrap();
+    j.write_entry(&JournalEntry {
+        wall_ms: 9_999,
+        item: JournalItem::In(Input::Idle),
+    })
+    .unwrap();
+    j.sync().unwrap();
+    drop(j);
+    // and resumed again: still readable, and the results are the same
+    let session = Session::open_or_create(&dir, None, None, None).unwrap();
+    let (_, inputs) = recover(&session).unwrap();
+    assert!(inputs > CAPTURES as usize);
+    assert_eq!(std::fs::read(dir.join("captures.jsonl")).unwrap(), captures);
+    std::fs::remove_dir_all(&base).ok();
+}
+
+#[test]
+fn replay_never_writes_over_another_session_or_into_the_captures() {
+    let base = scratch("replayout");
+    let dir = make_session(&base);
+    let other = base.join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::write(other.join("journal.jsonl"), b"precious\n").unwrap();
+    let before = snapshot(&other);
+    let r = replay_of(&dir, &other);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_ne!(r.status.code(), Some(0), "{err}");
+    assert!(err.contains("holds a session"), "{err}");
+    assert_eq!(snapshot(&other), before);
+    let inside = base.join("captures/s/replayed");
+    let r = replay_of(&dir, &inside);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_ne!(r.status.code(), Some(0), "{err}");
+    assert!(err.contains("inside the capture folder"), "{err}");
+    assert!(!inside.exists());
+    std::fs::remove_dir_all(&base).ok();
+}

@@ -102,13 +102,37 @@ pub fn replay(session_dir: &Path, options: &ReplayOptions) -> Result<ReplayRepor
     if out_dir.canonicalize().ok() == session_dir.canonicalize().ok() {
         bail!("--out must not be the session folder itself");
     }
+    if let Some(held) = ["journal.jsonl", "session.json"]
+        .into_iter()
+        .find(|f| out_dir.join(f).exists())
+    {
+        bail!(
+            "--out {} holds a session ({held}); replay writes result files there and will not overwrite another session's. Give an empty or new folder",
+            out_dir.display()
+        );
+    }
+    let inside_captures = std::path::absolute(&out_dir)
+        .ok()
+        .zip(session.info.capture_root.canonicalize().ok())
+        .is_some_and(|(o, root)| {
+            o.ancestors()
+                .any(|a| a.canonicalize().is_ok_and(|a| a == root))
+        });
+    if inside_captures {
+        bail!(
+            "--out {} is inside the capture folder {}; goniowatch never writes there. Give a folder elsewhere",
+            out_dir.display(),
+            session.info.capture_root.display()
+        );
+    }
+    // verify the journal before anything is written
+    let all = journaled_inputs(session_dir, &session)?;
     std::fs::create_dir_all(&out_dir)
         .with_context(|| format!("cannot create {}", out_dir.display()))?;
     // the config beside the results, so that the replayed folder stands on its own (`report`)
     let config_text = std::fs::read(session_dir.join("config.toml"))
         .with_context(|| format!("cannot read {}", session_dir.join("config.toml").display()))?;
     write_atomic(&out_dir.join("config.toml"), &config_text)?;
-    let all = journaled_inputs(session_dir, &session)?;
     let jobs = if options.recorded_outcomes {
         Vec::new()
     } else {

@@ -9,7 +9,6 @@ use super::ingest::{Job, Pool};
 use super::sinks::{log_alarm, run_hook};
 use super::status::{Published, StatusModel};
 use crate::engine::{Engine, Input, Output, Summary};
-use crate::measure::alarm::Severity;
 use crate::session::folder::{Results, SessionLock};
 use crate::session::journal::{now_ms, JournalEntry, JournalItem, JsonlFile};
 use crate::session::recovery::{recover, Session};
@@ -36,6 +35,9 @@ pub struct RunOptions {
     pub http: Option<std::net::SocketAddr>,
 }
 
+/// The most unannounced file names recorded at the end of a run.
+const MAX_UNANNOUNCED: usize = 1000;
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RunEnd {
     Finished { critical: bool },
@@ -53,7 +55,6 @@ struct Live {
     bar: Option<indicatif::ProgressBar>,
     capture_root: PathBuf,
     finished: bool,
-    critical: bool,
     last_plain_report: Instant,
     hooks: Vec<tokio::task::JoinHandle<()>>,
     status: Option<StatusFeed>,
@@ -135,9 +136,6 @@ impl Live {
                 }
                 Output::Finished => self.finished = true,
                 Output::Alarm(a) => {
-                    if a.severity == Severity::Critical {
-                        self.critical = true;
-                    }
                     log_alarm(a, self.bar.as_ref(), false);
                     self.hooks.retain(|h| !h.is_finished());
                     self.hooks.extend(run_hook(&self.hook, a, false));
@@ -182,7 +180,8 @@ impl Live {
         }
     }
 
-    /// Files in the folders of announced captures that were never announced.
+    /// Files in the capture folders of announced captures that no CAPTURE line named, at most
+    /// `MAX_UNANNOUNCED` of them (the list is one journal line).
     fn unannounced(&self) -> Vec<String> {
         let announced: BTreeSet<&str> = self.engine.announced_files().collect();
         let mut dirs = BTreeSet::new();
@@ -210,6 +209,13 @@ impl Live {
                 .collect();
             names.sort();
             out.extend(names);
+        }
+        if out.len() > MAX_UNANNOUNCED {
+            tracing::warn!(
+                "{} unannounced files in the capture folder; the first {MAX_UNANNOUNCED} are recorded",
+                out.len()
+            );
+            out.truncate(MAX_UNANNOUNCED);
         }
         out
     }
@@ -329,7 +335,6 @@ async fn start(
         bar,
         capture_root: session.info.capture_root.clone(),
         finished: false,
-        critical: false,
         last_plain_report: Instant::now(),
         hooks: Vec::new(),
         status: None,
@@ -389,14 +394,14 @@ async fn steps(live: &mut Live, ch: &mut Channels, keep_running: bool) -> Result
     loop {
         if ch.already_finished && !keep_running {
             return Ok(RunEnd::Finished {
-                critical: live.critical,
+                critical: live.engine.critical_raised(),
             });
         }
         if live.finished && !keep_running {
             let files = live.unannounced();
             live.process(Input::Unannounced { files })?;
             return Ok(RunEnd::Finished {
-                critical: live.critical,
+                critical: live.engine.critical_raised(),
             });
         }
         tokio::select! {

@@ -20,6 +20,8 @@ struct Storm {
     held: u64,
     captures: Vec<u64>,
     latest: Option<Alarm>,
+    /// The highest severity held back in this window.
+    held_worst: Option<Severity>,
     /// The highest severity emitted in full in this window.
     worst: Option<Severity>,
 }
@@ -28,6 +30,8 @@ struct Storm {
 #[derive(Debug, Clone, Default)]
 pub(super) struct AlarmBook {
     counts: BTreeMap<String, u64>,
+    /// Critical occurrences, emitted in full or held back.
+    criticals: u64,
     storms: BTreeMap<String, Storm>,
 }
 
@@ -39,6 +43,9 @@ impl AlarmBook {
             .and_then(|v| v.as_str().map(str::to_string))
             .unwrap_or_default();
         *self.counts.entry(key).or_default() += 1;
+        if a.severity == Severity::Critical {
+            self.criticals += 1;
+        }
     }
 
     /// The alarm to emit now, or None (held for the aggregate). An alarm is emitted while its
@@ -56,6 +63,7 @@ impl AlarmBook {
             return Some(a);
         }
         storm.held += 1;
+        storm.held_worst = storm.held_worst.max(Some(a.severity));
         if let Some(i) = a.idx {
             if storm.captures.len() < ALARM_LIST_MAX {
                 storm.captures.push(i);
@@ -91,6 +99,11 @@ impl AlarmBook {
         &self.counts
     }
 
+    /// Critical occurrences since the session began (the run's exit status).
+    pub(super) fn criticals(&self) -> u64 {
+        self.criticals
+    }
+
     pub(super) fn total(&self) -> u64 {
         self.counts.values().sum()
     }
@@ -119,7 +132,7 @@ fn aggregate(code: &str, storm: &Storm, latest: Alarm, now: u64) -> Alarm {
     };
     let mut a = Alarm::new(
         latest.kind,
-        latest.severity,
+        storm.held_worst.unwrap_or(latest.severity).max(latest.severity),
         code,
         format!(
             "{} more '{code}' alarm(s) were held back (more than {ALARM_BURST} in {ALARM_WINDOW} inputs){captures}; the latest: {}",
@@ -176,5 +189,26 @@ mod tests {
         assert_eq!(agg[0].evidence["aggregated"], 14);
         assert_eq!(agg[0].severity, Severity::Critical);
         assert_eq!(book.total(), 20);
+        assert_eq!(book.criticals(), 8);
+    }
+
+    #[test]
+    fn an_aggregate_carries_the_worst_severity_it_holds() {
+        let mut book = AlarmBook::default();
+        // a critical in full, then criticals and warnings held back, the latest a warning
+        for i in 0..12 {
+            let sev = if i < 8 {
+                Severity::Critical
+            } else {
+                Severity::Warning
+            };
+            let a = alarm(sev, i);
+            book.count(&a);
+            book.admit(a, i);
+        }
+        let agg = book.flush(12, true);
+        assert_eq!(agg.len(), 1);
+        assert_eq!(agg[0].severity, Severity::Critical);
+        assert_eq!(book.criticals(), 8);
     }
 }

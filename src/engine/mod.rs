@@ -199,6 +199,11 @@ impl Engine {
     pub fn alarm_count(&self) -> u64 {
         self.alarm_book.total()
     }
+    /// Whether any critical alarm was raised in this session, including before a resume and
+    /// those held back by aggregation (the run's exit status).
+    pub fn critical_raised(&self) -> bool {
+        self.alarm_book.criticals() > 0
+    }
     pub fn table2(&self) -> &Table2 {
         self.checker.table2()
     }

@@ -90,25 +90,32 @@ pub struct JournalRead {
     pub entries: Vec<JournalEntry>,
     /// An unterminated last line (a write cut short by a crash); not an entry.
     pub torn_tail: bool,
-    /// The journal has no checksums at all (written before journal lines carried them): read,
-    /// but not verified.
-    pub unverified: bool,
+    /// The length of that line.
+    pub torn_bytes: usize,
+    /// Lines at the start of the journal without checksums (written by a goniowatch before
+    /// journal lines carried them): read, but not verified.
+    pub unverified: usize,
+}
+
+/// Whether a journal line ends in a checksum field.
+fn has_sum(text: &str) -> bool {
+    let n = text.len();
+    n > SUM_SUFFIX_LEN
+        && text.is_char_boundary(n - SUM_SUFFIX_LEN)
+        && text[n - SUM_SUFFIX_LEN..].starts_with(SUM_PREFIX)
+        && text.ends_with("\"}")
 }
 
 /// Check one complete journal line and parse it. A line with a checksum must match it; a line
-/// without one is accepted only when `legacy` (no line of the journal has one).
-fn parse_line(text: &str, legacy: bool) -> std::result::Result<JournalEntry, String> {
-    let body = if legacy {
+/// without one is accepted only when `plain` (a legacy line, read unverified).
+fn parse_line(text: &str, plain: bool) -> std::result::Result<JournalEntry, String> {
+    let body = if plain {
         text.to_string()
     } else {
-        let n = text.len();
-        let has_sum = n > SUM_SUFFIX_LEN
-            && text.is_char_boundary(n - SUM_SUFFIX_LEN)
-            && text[n - SUM_SUFFIX_LEN..].starts_with(SUM_PREFIX)
-            && text.ends_with("\"}");
-        if !has_sum {
+        if !has_sum(text) {
             return Err("no checksum, although the journal's other lines have one".into());
         }
+        let n = text.len();
         let want = &text[n - SUM_HEX - 2..n - 2];
         let body = format!("{}}}", &text[..n - SUM_SUFFIX_LEN]);
         let got = line_sum(body.as_bytes());
@@ -123,8 +130,9 @@ fn parse_line(text: &str, legacy: bool) -> std::result::Result<JournalEntry, Str
 }
 
 /// Read and verify a journal. A missing file reads as empty. Every complete line must verify;
-/// an unterminated last line is left out and reported (`torn_tail`). A journal with no checksum
-/// at all is read unverified unless `require_sums` (the session was created with them).
+/// an unterminated last line is left out and reported (`torn_tail`). Unless `require_sums` (the
+/// session was created with them), lines without a checksum are read unverified while no line
+/// before them had one.
 pub fn read_journal(
     path: &Path,
     require_sums: bool,
@@ -151,23 +159,26 @@ pub fn read_journal(
         .unwrap_or(0);
     let mut out = JournalRead {
         torn_tail: complete < data.len(),
+        torn_bytes: data.len() - complete,
         ..JournalRead::default()
     };
     let lines: Vec<&[u8]> = data[..complete].split(|b| *b == b'\n').collect();
     let lines = &lines[..lines.len().saturating_sub(1)]; // the split after the last LF is empty
-    out.unverified = !require_sums
-        && !lines.is_empty()
-        && !lines.iter().any(|l| {
-            l.windows(SUM_PREFIX.len())
-                .any(|w| w == SUM_PREFIX.as_bytes())
-        });
+                                                         // A session created before journal lines carried checksums (`!require_sums`) has plain
+                                                         // lines first, then checksummed ones once a newer goniowatch resumed it. Plain lines are
+                                                         // accepted only as that prefix: after the first checksummed line every line must verify.
+    let mut plain_prefix = !require_sums;
     for (n, raw) in lines.iter().enumerate() {
         let text = std::str::from_utf8(raw).map_err(|_| damaged(n + 1, "not UTF-8".into()))?;
         if text.trim().is_empty() {
             return Err(damaged(n + 1, "empty line".into()));
         }
+        plain_prefix = plain_prefix && !has_sum(text);
+        if plain_prefix {
+            out.unverified += 1;
+        }
         out.entries
-            .push(parse_line(text, out.unverified).map_err(|r| damaged(n + 1, r))?);
+            .push(parse_line(text, plain_prefix).map_err(|r| damaged(n + 1, r))?);
     }
     Ok(out)
 }
@@ -319,7 +330,7 @@ mod tests {
         }
         let r = read_journal(&p, true).unwrap();
         assert_eq!(r.entries, entries());
-        assert!(!r.torn_tail && !r.unverified);
+        assert!(!r.torn_tail && r.unverified == 0);
     }
 
     #[test]
@@ -363,7 +374,7 @@ mod tests {
     }
 
     #[test]
-    fn a_journal_without_checksums_is_read_unverified_and_a_mixed_one_refused() {
+    fn a_legacy_journal_is_read_unverified_and_then_checksummed_lines_verify() {
         let p = temp("legacy");
         let legacy: Vec<u8> = entries()
             .iter()
@@ -380,15 +391,37 @@ mod tests {
             Err(JournalError::Damaged { line: 1, .. })
         ));
         let r = read_journal(&p, false).unwrap();
-        assert!(r.unverified);
+        assert_eq!(r.unverified, entries().len());
         assert_eq!(r.entries, entries());
-        // one checksummed line among plain ones: the plain ones are damaged
-        let mut mixed = legacy.clone();
-        mixed.extend_from_slice(&encode_entry(&entries()[0]).unwrap());
-        std::fs::write(&p, &mixed).unwrap();
+        // a legacy session resumed by this goniowatch: plain lines, then checksummed ones
+        let mut resumed = legacy.clone();
+        for e in entries() {
+            resumed.extend_from_slice(&encode_entry(&e).unwrap());
+        }
+        std::fs::write(&p, &resumed).unwrap();
+        let r = read_journal(&p, false).unwrap();
+        assert_eq!(r.unverified, entries().len());
+        assert_eq!(r.entries.len(), 2 * entries().len());
         assert!(matches!(
             read_journal(&p, true),
             Err(JournalError::Damaged { line: 1, .. })
+        ));
+        // the checksummed part still verifies: a changed byte there is found
+        let mut flipped = resumed.clone();
+        let at = legacy.len() + 12;
+        flipped[at] ^= 0x01;
+        std::fs::write(&p, &flipped).unwrap();
+        assert!(matches!(
+            read_journal(&p, false),
+            Err(JournalError::Damaged { line, .. }) if line == entries().len() + 1
+        ));
+        // a plain line after a checksummed one is damage, even in a legacy session
+        let mut mixed = encode_entry(&entries()[0]).unwrap();
+        mixed.extend_from_slice(&legacy);
+        std::fs::write(&p, &mixed).unwrap();
+        assert!(matches!(
+            read_journal(&p, false),
+            Err(JournalError::Damaged { line: 2, .. })
         ));
         // an empty line in the middle is damage, not a gap to skip
         let mut gap = write(&p, &entries());

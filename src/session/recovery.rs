@@ -189,12 +189,37 @@ impl Session {
     }
 }
 
+/// The longest unterminated tail cut as a torn write; a journal line is far shorter (the serial
+/// link bounds its lines, and a capture outcome is a few hundred bytes).
+const MAX_TORN_TAIL: usize = 1 << 20;
+
 /// Rebuild the results of a session from its journal: repair torn lines, feed every recorded
 /// input to a fresh engine, and rewrite the result files from scratch. Returns the engine.
 pub fn recover(session: &Session) -> Result<(Engine, usize)> {
     let journal_path = session.dir.join("journal.jsonl");
     // verify first: a damaged journal leaves every file as it was
     let read = verified_journal(&journal_path, session.info.journal_checksums)?;
+    let results = results_present(&session.dir);
+    if !results.is_empty()
+        && !read
+            .entries
+            .iter()
+            .any(|e| matches!(e.item, JournalItem::In(_)))
+    {
+        bail!(
+            "{} holds results ({}) but its journal.jsonl records no input{}; the results cannot be rebuilt from it, and goniowatch will not overwrite them. Nothing was changed. Restore journal.jsonl from a backup to resume, or give a new --session folder to start over",
+            session.dir.display(),
+            results.join(", "),
+            if read.torn_tail { " (only an unterminated line)" } else { "" }
+        );
+    }
+    if read.torn_bytes > MAX_TORN_TAIL {
+        bail!(
+            "{} ends in {} bytes without a line end; a write cut short leaves at most one line, so this is damage, not a torn write. Nothing was changed. Restore journal.jsonl from a backup, or give a new --session folder to start over",
+            journal_path.display(),
+            read.torn_bytes
+        );
+    }
     if read.torn_tail {
         repair_jsonl(&journal_path)?;
         tracing::warn!(
@@ -221,10 +246,11 @@ pub fn recover(session: &Session) -> Result<(Engine, usize)> {
 /// Read and verify a session's journal, warning when it predates checksums.
 pub fn verified_journal(path: &Path, require_sums: bool) -> Result<JournalRead> {
     let read = read_journal(path, require_sums)?;
-    if read.unverified {
+    if read.unverified > 0 {
         tracing::warn!(
-            "{} has no checksums (written by an older goniowatch); it is read but cannot be verified",
-            path.display()
+            "{}: its first {} lines have no checksums (written by an older goniowatch); they are read but cannot be verified",
+            path.display(),
+            read.unverified
         );
     }
     Ok(read)
