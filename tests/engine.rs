@@ -837,3 +837,52 @@ fn a_critical_raised_before_a_resume_still_counts_for_the_exit_status() {
     assert!(!alarms(&out).contains(&"controller-fault".to_string()));
     assert!(resumed.critical_raised());
 }
+
+#[test]
+fn a_malformed_line_inside_a_resync_answer_is_asked_again_not_taken_as_lost() {
+    for second_copy_readable in [false, true] {
+        let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+        let out = connected(&mut e, &mut c);
+        let mut all = hostile_replay(&mut e, &mut c, &out, u64::MAX, 0);
+        all.extend(e.handle(&c.capture(0)));
+        // the live line for capture 1 is lost; capture 2 arrives after the gap
+        c.seq += 1;
+        let out = e.handle(&c.capture(2));
+        assert_eq!(resyncs(&out), 1);
+        all.extend(out.clone());
+        // the controller's answer carries capture 1 malformed
+        let out = hostile_replay(&mut e, &mut c, &out, 1, 3);
+        all.extend(out.clone());
+        let codes = alarms(&all);
+        assert!(
+            !codes.iter().any(|c| c == "capture-never-announced"),
+            "capture 1 is in the controller's log: {codes:?}"
+        );
+        assert_eq!(resyncs(&out), 1, "capture 1 is asked for again");
+        // the second answer: malformed again, or readable this time
+        let bad = if second_copy_readable { u64::MAX } else { 1 };
+        all.extend(hostile_replay(&mut e, &mut c, &out, bad, 3));
+        let codes = alarms(&all);
+        assert!(
+            !codes.iter().any(|c| c == "capture-never-announced"),
+            "{codes:?}"
+        );
+        let refused = codes
+            .iter()
+            .filter(|c| *c == "announcement-refused")
+            .count();
+        assert_eq!(refused, usize::from(!second_copy_readable), "{codes:?}");
+        for i in 0..3u64 {
+            e.handle(&Input::Outcome {
+                idx: i,
+                outcome: ok_outcome(),
+            });
+        }
+        assert_eq!(e.checked_through(), 3);
+        assert_eq!(
+            e.summary().checked.ok,
+            3 - refused as u64,
+            "{second_copy_readable}"
+        );
+    }
+}

@@ -288,13 +288,17 @@ pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions)
                 error: e.to_string(),
             };
         }
+        let elapsed = start.elapsed();
         let wait = match measure_file_stamped(root, &path, opts, &limits) {
             Ok((o, stamp)) => {
                 let earlier = first_seen.map(|(s, at)| (s, at.elapsed()));
                 if settled(&stamp, settle, std::time::SystemTime::now(), earlier) {
                     return o;
                 }
-                if start.elapsed() >= give_up {
+                // past give-up, a file that decodes is refused only when it changed between two
+                // looks; one that has stopped changing gets its settle interval
+                let changed = first_seen.is_some_and(|(s, _)| s != stamp);
+                if elapsed >= give_up && changed {
                     return Outcome::Failed {
                         error: format!(
                             "file kept changing for {:.1} s (last {} bytes); not accepted as a finished capture (after {attempts} attempts)",
@@ -305,7 +309,13 @@ pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions)
                 if first_seen.is_none_or(|(s, _)| s != stamp) {
                     first_seen = Some((stamp, Instant::now()));
                 }
-                settle
+                let seen_ago = first_seen.map(|(_, at)| at.elapsed()).unwrap_or_default();
+                let until_settled = settle.saturating_sub(seen_ago);
+                if elapsed < give_up {
+                    until_settled.min(give_up - elapsed)
+                } else {
+                    until_settled
+                }
             }
             Err(e) => {
                 if e.permanent {
@@ -321,7 +331,7 @@ pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions)
                 let stable_bad = exists
                     && same_size_failures >= spec.stable_failures.max(1)
                     && !e.reason.contains("growing");
-                if stable_bad || start.elapsed() >= give_up {
+                if stable_bad || elapsed >= give_up {
                     return if exists {
                         Outcome::Failed {
                             error: format!("{} (after {attempts} attempts)", e.reason),
@@ -337,13 +347,10 @@ pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions)
                 }
                 let d = delay;
                 delay = (delay * 2).min(Duration::from_millis(spec.retry_max_ms.max(1)));
-                d
+                d.min(give_up.saturating_sub(elapsed))
             }
         };
-        std::thread::sleep(
-            wait.min(give_up.saturating_sub(start.elapsed()))
-                .max(Duration::from_millis(1)),
-        );
+        std::thread::sleep(wait.max(Duration::from_millis(1)));
     }
 }
 
@@ -546,6 +553,21 @@ mod tests {
             matches!(&o, Outcome::Ok { size: s, .. } if *s == size),
             "{o:?}"
         );
+        std::fs::remove_dir_all(&root).ok();
+    }
+
+    #[test]
+    fn a_finished_file_is_accepted_even_when_its_settle_interval_outlasts_give_up() {
+        let root = scratch("settle-late");
+        std::fs::write(root.join("cap.hdr"), valid_hdr()).unwrap();
+        // just written, a settle interval longer than give-up: it waits out the interval
+        let spec = IngestSpec {
+            settle_ms: 300,
+            give_up_s: 0.05,
+            ..IngestSpec::default()
+        };
+        let o = ingest(&root, "cap.hdr", &spec, &AverageOptions::default());
+        assert!(matches!(&o, Outcome::Ok { .. }), "{o:?}");
         std::fs::remove_dir_all(&root).ok();
     }
 

@@ -16,6 +16,8 @@ pub(super) struct Ledger {
     pub(super) missing: BTreeSet<u64>,
     /// Indices whose CAPTURE line could not be accepted, and how many times.
     pub(super) refused: BTreeMap<u64, u32>,
+    /// Refused indices a clean resync passed over without a readable line: asked once more.
+    pub(super) resend_asked: BTreeSet<u64>,
     /// The next index to check.
     pub(super) next_check: u64,
     /// The controller's next index, as far as it has told.

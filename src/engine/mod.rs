@@ -402,8 +402,7 @@ impl Engine {
                 .at(Some(i), None),
             );
             self.request_resync(out);
-        } else if *n == 2 {
-            self.ledger.missing.insert(i);
+        } else if self.ledger.missing.insert(i) {
             self.alarm(
                 out,
                 Alarm::new(
@@ -657,10 +656,30 @@ impl Engine {
 
     /// After a clean resync: the controller's log has nothing below `next` that is not yet
     /// announced, so those captures are missing for good.
+    /// A capture whose line was refused is not lost: the controller has it. The first clean
+    /// resync that passes it without a readable line asks once more; the second skips it.
     fn note_never_announced(&mut self, out: &mut Vec<Output>, next: u64) {
-        let lost: Vec<u64> = (self.ledger.next_check..next)
+        let (refused, lost): (Vec<u64>, Vec<u64>) = (self.ledger.next_check..next)
             .filter(|i| !self.ledger.announced.contains_key(i) && !self.ledger.missing.contains(i))
-            .collect();
+            .partition(|i| self.ledger.refused.contains_key(i));
+        for i in refused {
+            if self.ledger.resend_asked.insert(i) {
+                self.link.resync.needed = true;
+                continue;
+            }
+            self.ledger.missing.insert(i);
+            self.alarm(
+                out,
+                Alarm::new(
+                    AlarmKind::CaptureQuality,
+                    Severity::Warning,
+                    "announcement-refused",
+                    format!("the controller did not send a readable CAPTURE line for capture {i} when asked again; capture {i} is skipped and checking goes on"),
+                )
+                .at(Some(i), None)
+                .with(json!({"idx": i, "reason": "no readable line after a resend was asked"})),
+            );
+        }
         self.ledger.missing.extend(lost.iter().copied());
         if lost.len() <= 20 {
             for i in lost {
