@@ -397,7 +397,7 @@ pub const KEY_RANGES: &[KeyRange] = &[
     closed("probes.step_pct", 0.0, 100.0),
     closed("alarms.crc_errors_alarm", 1.0, 1e6),
     closed("alarms.crc_window", 1.0, 1e6),
-    closed("link.baud", 50.0, 4_000_000.0),
+    closed("link.baud", 50.0, 12_000_000.0),
     closed("link.reconnect_min_ms", 1.0, 60_000.0),
     closed("link.reconnect_max_ms", 1.0, 3_600_000.0),
     closed("ingest.workers", 1.0, 64.0),
@@ -415,6 +415,50 @@ pub const KEY_RANGES: &[KeyRange] = &[
     closed("rig.wagon.offset_deg", -360.0, 360.0),
 ];
 
+/// The keys that set how the daemon runs but never what it computes.
+pub const RUNTIME_KEYS: &[&str] = &[
+    "link.baud",
+    "link.reconnect_min_ms",
+    "link.reconnect_max_ms",
+    "ingest.workers",
+    "ingest.queue",
+    "ingest.retry_first_ms",
+    "ingest.retry_max_ms",
+    "ingest.give_up_s",
+    "ingest.stable_failures",
+    "ingest.decode_threads",
+    "ingest.settle_ms",
+    "ingest.max_decode_mib",
+];
+
+/// A numeric config value of any width, as f64.
+enum RuntimeSlot<'a> {
+    U32(&'a mut u32),
+    U64(&'a mut u64),
+    Usize(&'a mut usize),
+    F64(&'a mut f64),
+}
+
+impl RuntimeSlot<'_> {
+    fn get(&self) -> f64 {
+        match self {
+            RuntimeSlot::U32(v) => **v as f64,
+            RuntimeSlot::U64(v) => **v as f64,
+            RuntimeSlot::Usize(v) => **v as f64,
+            RuntimeSlot::F64(v) => **v,
+        }
+    }
+    /// Set from a value already within the key's range (so the casts are exact).
+    fn set(self, x: f64) {
+        match self {
+            RuntimeSlot::U32(v) => *v = x as u32,
+            RuntimeSlot::U64(v) => *v = x as u64,
+            RuntimeSlot::Usize(v) => *v = x as usize,
+            RuntimeSlot::F64(v) => *v = x,
+        }
+    }
+}
+
 impl Config {
     /// Read, parse and validate a config file; also returns its text.
     pub fn load(path: &std::path::Path) -> Result<(Config, String), ConfigError> {
@@ -430,6 +474,66 @@ impl Config {
         let cfg: Config = toml::from_str(text).map_err(|e| ConfigError::Parse(e.to_string()))?;
         cfg.validate()?;
         Ok(cfg)
+    }
+
+    /// Parse and validate a session's stored config. The keys that only set how the daemon
+    /// runs (link timing, worker and retry counts, decode budget), never what it computes, are
+    /// brought into their current ranges with a warning each, so that a session created under
+    /// older, wider ranges can still be resumed, replayed and reported; every other key must be
+    /// valid as it stands, since the results were computed with it.
+    pub fn from_stored_toml_str(text: &str) -> Result<(Config, Vec<String>), ConfigError> {
+        let mut cfg: Config =
+            toml::from_str(text).map_err(|e| ConfigError::Parse(e.to_string()))?;
+        let mut notes = Vec::new();
+        for field in RUNTIME_KEYS {
+            let Some(r) = KEY_RANGES.iter().find(|r| r.field == *field) else {
+                continue;
+            };
+            let Some(slot) = cfg.runtime_value(field) else {
+                continue;
+            };
+            let v = slot.get();
+            if r.check(v).is_err() {
+                let fixed = if v.is_nan() {
+                    r.min
+                } else {
+                    v.clamp(r.min, r.max)
+                };
+                slot.set(fixed);
+                notes.push(format!(
+                    "stored config: {field} = {v} is outside {}; {fixed} is used",
+                    r.interval()
+                ));
+            }
+        }
+        if cfg.ingest.retry_max_ms < cfg.ingest.retry_first_ms {
+            cfg.ingest.retry_max_ms = cfg.ingest.retry_first_ms;
+        }
+        if cfg.link.reconnect_max_ms < cfg.link.reconnect_min_ms {
+            cfg.link.reconnect_max_ms = cfg.link.reconnect_min_ms;
+        }
+        cfg.validate()?;
+        Ok((cfg, notes))
+    }
+
+    /// A runtime key's value, to read and overwrite.
+    fn runtime_value(&mut self, field: &str) -> Option<RuntimeSlot<'_>> {
+        let (l, i) = (&mut self.link, &mut self.ingest);
+        Some(match field {
+            "link.baud" => RuntimeSlot::U32(&mut l.baud),
+            "link.reconnect_min_ms" => RuntimeSlot::U64(&mut l.reconnect_min_ms),
+            "link.reconnect_max_ms" => RuntimeSlot::U64(&mut l.reconnect_max_ms),
+            "ingest.workers" => RuntimeSlot::Usize(&mut i.workers),
+            "ingest.queue" => RuntimeSlot::Usize(&mut i.queue),
+            "ingest.retry_first_ms" => RuntimeSlot::U64(&mut i.retry_first_ms),
+            "ingest.retry_max_ms" => RuntimeSlot::U64(&mut i.retry_max_ms),
+            "ingest.give_up_s" => RuntimeSlot::F64(&mut i.give_up_s),
+            "ingest.stable_failures" => RuntimeSlot::U32(&mut i.stable_failures),
+            "ingest.decode_threads" => RuntimeSlot::Usize(&mut i.decode_threads),
+            "ingest.settle_ms" => RuntimeSlot::U64(&mut i.settle_ms),
+            "ingest.max_decode_mib" => RuntimeSlot::U64(&mut i.max_decode_mib),
+            _ => return None,
+        })
     }
 
     pub fn validate(&self) -> Result<(), ConfigError> {
@@ -483,6 +587,14 @@ impl Config {
                     field: "colour.white",
                     source,
                 })?;
+        }
+        if let crate::measure::averaging::Roi::Rect { width, height, .. } = self.capture.roi {
+            if width == 0 || height == 0 {
+                return Err(ConfigError::Invalid {
+                    field: "capture.roi",
+                    message: format!("a rect of {width}×{height} pixels holds no pixel"),
+                });
+            }
         }
         if let crate::measure::averaging::Roi::MarginFraction { fraction } = self.capture.roi {
             if !(0.0..0.5).contains(&fraction) {
@@ -771,6 +883,42 @@ mod tests {
             let e = Config::from_toml_str(text).unwrap_err().to_string();
             assert!(e.contains(field), "{text}: {e}");
         }
+    }
+
+    #[test]
+    fn a_stored_config_from_wider_ranges_still_loads_its_runtime_keys_clamped() {
+        let text = "[ingest]\ndecode_threads = 0\nworkers = 100000000\ngive_up_s = 1e308\nsettle_ms = 0\n[link]\nbaud = 0\n";
+        assert!(
+            Config::from_toml_str(text).is_err(),
+            "a new config is refused"
+        );
+        let (c, notes) = Config::from_stored_toml_str(text).unwrap();
+        assert_eq!(c.ingest.decode_threads, 1);
+        assert_eq!(c.ingest.workers, 64);
+        assert_eq!(c.ingest.give_up_s, MAX_GIVE_UP_S);
+        assert_eq!(c.link.baud, 50);
+        assert_eq!(notes.len(), 4, "{notes:?}");
+        assert!(notes.iter().any(|n| n.contains("ingest.decode_threads")));
+        // a key that shapes the results is never changed: the session is refused, named
+        let e = Config::from_stored_toml_str("[checks]\noutlier_k = -1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("checks.outlier_k"), "{e}");
+        for k in RUNTIME_KEYS {
+            assert!(KEY_RANGES.iter().any(|r| r.field == *k), "{k}");
+            assert!(Config::default().runtime_value(k).is_some(), "{k}");
+        }
+    }
+
+    #[test]
+    fn a_rect_roi_without_pixels_is_refused_and_fast_links_are_accepted() {
+        let e = Config::from_toml_str(
+            "[capture]\nroi = { kind = \"rect\", x = 0, y = 0, width = 0, height = 8 }\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("capture.roi"), "{e}");
+        assert!(Config::from_toml_str("[link]\nbaud = 12000000\n").is_ok());
     }
 
     #[test]

@@ -59,9 +59,19 @@ pub fn load_config(dir: &Path) -> Result<(Config, String)> {
             path.display()
         )
     })?;
-    let config = Config::from_toml_str(&text)
-        .with_context(|| format!("invalid stored config {}", path.display()))?;
+    let config = parse_stored_config(&path, &text)?;
     Ok((config, text))
+}
+
+/// Parse a session's stored config (`Config::from_stored_toml_str`), warning about each runtime
+/// key brought into its current range.
+pub fn parse_stored_config(path: &Path, text: &str) -> Result<Config> {
+    let (config, notes) = Config::from_stored_toml_str(text)
+        .with_context(|| format!("invalid stored config {}", path.display()))?;
+    for n in notes {
+        tracing::warn!("{}: {n}", path.display());
+    }
+    Ok(config)
 }
 
 /// A session's `summary.json`.

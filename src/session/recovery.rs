@@ -91,8 +91,7 @@ impl Session {
             }
             let text = std::fs::read_to_string(&stored)
                 .with_context(|| format!("cannot read {}", stored.display()))?;
-            let config = Config::from_toml_str(&text)
-                .with_context(|| format!("invalid stored config {}", stored.display()))?;
+            let config = super::folder::parse_stored_config(&stored, &text)?;
             let mut info: SessionInfo = serde_json::from_slice(
                 &std::fs::read(&info_path)
                     .with_context(|| format!("cannot read {}", info_path.display()))?,
