@@ -69,7 +69,7 @@ impl Default for WhiteSpec {
 
 impl WhiteSpec {
     /// The white, given the reference capture's XYZ when the spec asks for one.
-    pub fn resolve(&self, reference: Option<Xyz>) -> Result<White, ColourError> {
+    pub(crate) fn resolve(&self, reference: Option<Xyz>) -> Result<White, ColourError> {
         match *self {
             WhiteSpec::D65 { y } => White::d65_scaled(y),
             WhiteSpec::Xyz { xyz } => White::new(xyz),
@@ -272,7 +272,7 @@ impl Default for IngestSpec {
 }
 
 /// The largest accepted `ingest.give_up_s` (a day).
-pub const MAX_GIVE_UP_S: f64 = 86_400.0;
+pub(crate) const MAX_GIVE_UP_S: f64 = 86_400.0;
 
 /// `[http]`: the status page of `run --http ADDR`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
@@ -285,7 +285,7 @@ pub struct HttpSpec {
 /// A numeric key's valid range, checked at load (`Config::validate`) and listed in
 /// docs/configuration.md. Integers are compared as f64 (exact below 2⁵³).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct KeyRange {
+pub(crate) struct KeyRange {
     pub field: &'static str,
     pub min: f64,
     pub max: f64,
@@ -317,7 +317,7 @@ const fn above(field: &'static str, min: f64, max: f64) -> KeyRange {
 
 impl KeyRange {
     /// The range as documented, e.g. `(0, 1e12]`.
-    pub fn interval(&self) -> String {
+    pub(crate) fn interval(&self) -> String {
         let num = |v: f64| {
             if v.abs() >= 1e7 {
                 format!("{v:e}")
@@ -358,7 +358,7 @@ impl KeyRange {
 
 /// Every numeric key's valid range. The bounds keep a 13-hour run safe: durations fit a
 /// `Duration`, thread and queue counts fit the machine, counts fit memory.
-pub const KEY_RANGES: &[KeyRange] = &[
+pub(crate) const KEY_RANGES: &[KeyRange] = &[
     above("colour.rgb_scale", 0.0, 1e12),
     above("capture.clip_level", 0.0, f32::MAX as f64),
     closed("capture.dark_level", 0.0, f32::MAX as f64),
@@ -416,7 +416,7 @@ pub const KEY_RANGES: &[KeyRange] = &[
 ];
 
 /// The keys that set how the daemon runs but never what it computes.
-pub const RUNTIME_KEYS: &[&str] = &[
+pub(crate) const RUNTIME_KEYS: &[&str] = &[
     "link.baud",
     "link.reconnect_min_ms",
     "link.reconnect_max_ms",
@@ -481,7 +481,7 @@ impl Config {
     /// brought into their current ranges with a warning each, so that a session created under
     /// older, wider ranges can still be resumed, replayed and reported; every other key must be
     /// valid as it stands, since the results were computed with it.
-    pub fn from_stored_toml_str(text: &str) -> Result<(Config, Vec<String>), ConfigError> {
+    pub(crate) fn from_stored_toml_str(text: &str) -> Result<(Config, Vec<String>), ConfigError> {
         let mut cfg: Config =
             toml::from_str(text).map_err(|e| ConfigError::Parse(e.to_string()))?;
         let mut notes = Vec::new();
@@ -689,7 +689,7 @@ impl Config {
     }
 
     /// The white for L*a*b* in the live checks (a reference-capture white is for offline use).
-    pub fn live_white(&self) -> Result<White, ConfigError> {
+    pub(crate) fn live_white(&self) -> Result<White, ConfigError> {
         match self.colour.white {
             WhiteSpec::ReferenceCapture { .. } => Err(ConfigError::Invalid {
                 field: "colour.white",
@@ -703,7 +703,7 @@ impl Config {
     }
 
     /// The colour settings of the live checks.
-    pub fn colour_settings(&self) -> Result<crate::checks::ColourSettings, ConfigError> {
+    pub(crate) fn colour_settings(&self) -> Result<crate::checks::ColourSettings, ConfigError> {
         Ok(crate::checks::ColourSettings {
             to_xyz: self.rgb_to_xyz(),
             rgb_scale: self.colour.rgb_scale,
@@ -748,11 +748,11 @@ impl Config {
     pub fn rig(&self) -> Result<Rig, ConfigError> {
         Ok(Rig::new(self.rig.clone())?)
     }
-    pub fn rgb_to_xyz(&self) -> RgbToXyz {
+    pub(crate) fn rgb_to_xyz(&self) -> RgbToXyz {
         RgbToXyz::new(self.colour.primaries)
     }
     /// Mean RGB of a capture → XYZ on the configured scale.
-    pub fn xyz_of(&self, mean_rgb: [f64; 3]) -> Xyz {
+    pub(crate) fn xyz_of(&self, mean_rgb: [f64; 3]) -> Xyz {
         let s = self.colour.rgb_scale;
         self.rgb_to_xyz()
             .convert([mean_rgb[0] * s, mean_rgb[1] * s, mean_rgb[2] * s])

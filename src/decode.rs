@@ -168,7 +168,7 @@ impl DecodedImage {
 }
 
 /// Sniff the format from the first bytes.
-pub fn detect_format(bytes: &[u8]) -> Result<CaptureFormat, DecodeError> {
+pub(crate) fn detect_format(bytes: &[u8]) -> Result<CaptureFormat, DecodeError> {
     if bytes.is_empty() {
         return Err(DecodeError::Empty);
     }

@@ -1,18 +1,24 @@
 //! goniowatch: a live checker that runs beside a BTF gonioreflectometer.
 //!
-//! Layers (see ARCHITECTURE.md):
+//! Layers, lowest first (see ARCHITECTURE.md); each imports only from those above it here:
 //! - [`measure`]: the sans-IO measurement core (colour, geometry, kinematics, plan, averaging,
-//!   reciprocity). Pure and deterministic.
-//! - [`config`]: the TOML configuration (pure parsing and validation).
-//! - [`decode`]: shell side, HDR/EXR bytes → RGB buffer, hardened against malformed files.
-//! - [`protocol`]: the line framing of docs/protocol.md (pure).
+//!   reciprocity, resampling, drift statistics). Pure and deterministic.
+//! - [`config`]: the TOML configuration as plain data (parsing and validation).
+//! - [`reference`]: the reference-BRDF file format (pure parsing).
+//! - [`protocol`]: the line framing of docs/protocol.md and its typed messages (pure).
+//! - [`checks`]: the checker: a router over one stage per concern, and the result records (pure).
 //! - [`engine`]: the deterministic session engine: inputs (serial lines, link events, capture
 //!   outcomes) in, lines to send, captures to ingest and result records out (pure).
-//! - [`daemon`]: shell side, `run` and `replay`: serial link, ingestion pool, journal, sinks.
-//! - [`commands`]: shell side, the CLI's commands as functions returning serialisable records.
-//! - [`compare`]: shell side, `goniowatch compare`: a session against a reference measurement.
-//! - [`reference`]: the reference-BRDF file format (pure parsing).
-//! - [`report`]: shell side, `goniowatch report`: the end-of-run HTML report and CSV tables.
+//! - [`decode`]: shell side, HDR/EXR bytes → RGB buffer, hardened against malformed files.
+//! - [`session`]: shell side, the session folder: its files, the journal, crash recovery.
+//! - [`daemon`]: shell side, `run` and `replay`: serial link, ingestion pool, sinks, status page.
+//! - [`cli`]: shell side, the other commands (`average`, `plan`, `compare`, `report`) and the
+//!   printed summary.
+//!
+//! Items used only inside the crate are `pub(crate)`, and `unreachable_pub` is on, so the compiler
+//! reports dead code.
+
+#![warn(unreachable_pub)]
 
 pub mod checks;
 pub mod cli;

@@ -459,12 +459,12 @@ impl Checker {
     }
 
     /// The gain drift estimate from the probes, once there are enough.
-    pub fn probe_drift(&self) -> Option<DriftEstimate> {
+    pub(crate) fn probe_drift(&self) -> Option<DriftEstimate> {
         self.probes.estimate()
     }
 
     /// Gain steps in the isotropy drift model (found by the light sweeps).
-    pub fn isotropy_steps(&self) -> Vec<StepEffect> {
+    pub(crate) fn isotropy_steps(&self) -> Vec<StepEffect> {
         self.drift
             .as_ref()
             .map(|d| d.steps().to_vec())
@@ -487,14 +487,14 @@ impl Checker {
     pub fn table2(&self) -> &Table2 {
         &self.pairs.table2
     }
-    pub fn isotropy_table(&self) -> Table2 {
+    pub(crate) fn isotropy_table(&self) -> Table2 {
         self.isotropy
             .as_ref()
             .map(|i| i.table.clone())
             .unwrap_or_default()
     }
     /// Table 2 over the substitutes' interpolated pairs.
-    pub fn interpolated_table(&self) -> &Table2 {
+    pub(crate) fn interpolated_table(&self) -> &Table2 {
         &self.pairs.interpolated_table
     }
 

@@ -278,7 +278,7 @@ impl ProbeGainCurve {
     }
 
     /// Take the next capture record; a probe gives its point (hours, gain).
-    pub fn add(&mut self, c: &CaptureRecord) -> Option<(f64, f64)> {
+    pub(crate) fn add(&mut self, c: &CaptureRecord) -> Option<(f64, f64)> {
         let xyz = c.xyz.filter(|_| c.status == CaptureStatus::Ok)?;
         if !c.probe {
             self.first.entry(c.entry).or_insert((c.t, xyz[1]));
@@ -289,7 +289,7 @@ impl ProbeGainCurve {
     }
 
     /// The time (s) of the first usable capture of an entry, the curve's origin for its probes.
-    pub fn origin_s(&self, entry: usize) -> Option<f64> {
+    pub(crate) fn origin_s(&self, entry: usize) -> Option<f64> {
         self.first.get(&entry).map(|(t, _)| *t)
     }
 }

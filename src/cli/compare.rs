@@ -38,7 +38,7 @@ pub enum GainChoice {
 
 /// The session's captures as comparison inputs: first good capture of each plan entry, no probes,
 /// nothing at or below the dark level (`[checks] dark_y`: a lamp off is not a colour).
-pub fn session_values(dir: &Path, dark_y: f64) -> Result<Vec<SessionValue>> {
+pub(crate) fn session_values(dir: &Path, dark_y: f64) -> Result<Vec<SessionValue>> {
     let path = dir.join("captures.jsonl");
     if !path.exists() {
         bail!(
@@ -75,7 +75,7 @@ pub fn session_values(dir: &Path, dark_y: f64) -> Result<Vec<SessionValue>> {
 
 /// The probes' gain curve: (t in hours, Y of the probe / Y of the first capture of its entry),
 /// starting at (t of that first capture, 1).
-pub fn probe_gain_curve(dir: &Path, dark_y: f64) -> Result<Vec<(f64, f64)>> {
+pub(crate) fn probe_gain_curve(dir: &Path, dark_y: f64) -> Result<Vec<(f64, f64)>> {
     let records: Vec<CaptureRecord> =
         crate::session::folder::read_records(&dir.join("captures.jsonl"))?;
     let mut curve = crate::checks::ProbeGainCurve::new(dark_y);

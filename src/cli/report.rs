@@ -596,7 +596,7 @@ fn table3_html(c: &CompareReport) -> String {
 }
 
 /// The report's HTML.
-pub fn render_html(inp: &ReportInputs) -> Result<String> {
+pub(crate) fn render_html(inp: &ReportInputs) -> Result<String> {
     let plan = inp.config.plan().context("the session's plan")?;
     let s = &inp.summary;
     let c = &s.checked;
@@ -909,7 +909,7 @@ impl CsvRow for SweepRecord {
     }
 }
 
-pub fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
+pub(crate) fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
     let plan = inp.config.plan().context("the session's plan")?;
     let s = &inp.summary;
     let mut t2 = String::from("set,pairs,abs_dX,abs_dY,abs_dZ,dE76,dC,dH,dE00\n");

@@ -22,7 +22,7 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::{watch, Semaphore};
 
-pub type SnapshotRx = watch::Receiver<Option<Arc<Published>>>;
+pub(crate) type SnapshotRx = watch::Receiver<Option<Arc<Published>>>;
 
 const PAGE: &str = include_str!("status.html");
 const MAX_STREAMS: usize = 32;
@@ -34,7 +34,7 @@ struct AppState {
 }
 
 /// Refuse a non-loopback address unless the operator allowed it explicitly.
-pub fn check_address(addr: &SocketAddr, allow_remote: bool) -> Result<()> {
+pub(crate) fn check_address(addr: &SocketAddr, allow_remote: bool) -> Result<()> {
     if !addr.ip().to_canonical().is_loopback() && !allow_remote {
         return Err(crate::config::ConfigError::Invalid {
             field: "http.allow_remote",
@@ -50,7 +50,7 @@ pub fn check_address(addr: &SocketAddr, allow_remote: bool) -> Result<()> {
 }
 
 /// Bind (before the session is opened, so that a bad or busy address leaves nothing behind).
-pub async fn bind(addr: SocketAddr) -> Result<tokio::net::TcpListener> {
+pub(crate) async fn bind(addr: SocketAddr) -> Result<tokio::net::TcpListener> {
     tokio::net::TcpListener::bind(addr)
         .await
         .with_context(|| format!("cannot listen on {addr} for --http"))
@@ -91,7 +91,7 @@ async fn host_guard(
 }
 
 /// Serve in the background on a bound listener.
-pub async fn serve(
+pub(crate) async fn serve(
     listener: tokio::net::TcpListener,
     rx: SnapshotRx,
 ) -> Result<(SocketAddr, tokio::task::JoinHandle<()>)> {

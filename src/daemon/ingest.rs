@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 use thiserror::Error;
 
 #[derive(Debug, Error, PartialEq)]
-pub enum PathError {
+pub(crate) enum PathError {
     #[error("file name is empty")]
     Empty,
     #[error("absolute file name '{0}' refused (names are relative to the capture root)")]
@@ -32,7 +32,7 @@ pub enum PathError {
 
 /// Resolve an announced name under `root`. Lexical checks first; then, if the file exists, its
 /// canonical path must stay under the canonical root (so a symlink cannot leave it).
-pub fn resolve(root: &Path, name: &str) -> Result<PathBuf, PathError> {
+pub(crate) fn resolve(root: &Path, name: &str) -> Result<PathBuf, PathError> {
     if name.is_empty() {
         return Err(PathError::Empty);
     }
@@ -56,7 +56,7 @@ pub fn resolve(root: &Path, name: &str) -> Result<PathBuf, PathError> {
 }
 
 /// The decoder's limits for an `[ingest]` spec.
-pub fn decode_limits(spec: &IngestSpec) -> DecodeLimits {
+pub(crate) fn decode_limits(spec: &IngestSpec) -> DecodeLimits {
     DecodeLimits {
         threads: spec.decode_threads.max(1),
         max_bytes: spec.max_decode_mib.saturating_mul(1 << 20),
@@ -93,7 +93,7 @@ impl AttemptError {
 
 /// Size and modification time of a file as read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct FileStamp {
+pub(crate) struct FileStamp {
     pub size: u64,
     pub modified: Option<std::time::SystemTime>,
 }
@@ -110,7 +110,7 @@ fn max_file_bytes(limits: &DecodeLimits) -> u64 {
 /// the reader), checked with `fstat` to be a regular file no larger than any capture within the
 /// limits, and read through the same descriptor the checks used. When `root` is given, the
 /// opened file must lie under it (a link swapped in after name resolution cannot leave it).
-pub fn read_capture(
+pub(crate) fn read_capture(
     root: Option<&Path>,
     path: &Path,
     limits: &DecodeLimits,
@@ -356,61 +356,51 @@ pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions)
 
 /// A job for the pool.
 #[derive(Debug, Clone)]
-pub struct Job {
+pub(crate) struct Job {
     pub idx: u64,
     pub file: String,
 }
 
-/// The bounded worker pool. Results go to `on_result` (called on the worker thread).
-pub struct Pool {
-    tx: Option<crossbeam_channel::Sender<Job>>,
-    workers: Vec<std::thread::JoinHandle<()>>,
+/// The bounded worker pool. Results go to `on_result` (called on the worker thread). Dropping
+/// the pool closes its queue; workers finish the job they hold and end (they are not joined:
+/// a decode in progress never holds up the daemon's exit).
+pub(crate) struct Pool {
+    tx: crossbeam_channel::Sender<Job>,
 }
 
 impl Pool {
-    pub fn start<F>(root: PathBuf, spec: IngestSpec, opts: AverageOptions, on_result: F) -> Pool
+    pub(crate) fn start<F>(
+        root: PathBuf,
+        spec: IngestSpec,
+        opts: AverageOptions,
+        on_result: F,
+    ) -> Pool
     where
         F: Fn(u64, Outcome) + Send + Sync + 'static,
     {
         let (tx, rx) = crossbeam_channel::bounded::<Job>(spec.queue.max(1));
         let on_result = std::sync::Arc::new(on_result);
-        let workers = (0..spec.workers.max(1))
-            .map(|i| {
-                let rx = rx.clone();
-                let (root, spec, on_result) = (root.clone(), spec.clone(), on_result.clone());
-                std::thread::Builder::new()
-                    .name(format!("ingest-{i}"))
-                    .spawn(move || {
-                        while let Ok(job) = rx.recv() {
-                            let outcome = ingest(&root, &job.file, &spec, &opts);
-                            on_result(job.idx, outcome);
-                        }
-                    })
-                    .map_err(|e| tracing::error!("cannot start ingest worker: {e}"))
-                    .ok()
-            })
-            .collect::<Option<Vec<_>>>()
-            .unwrap_or_default();
-        Pool {
-            tx: Some(tx),
-            workers,
+        for i in 0..spec.workers.max(1) {
+            let rx = rx.clone();
+            let (root, spec, on_result) = (root.clone(), spec.clone(), on_result.clone());
+            let started = std::thread::Builder::new()
+                .name(format!("ingest-{i}"))
+                .spawn(move || {
+                    while let Ok(job) = rx.recv() {
+                        let outcome = ingest(&root, &job.file, &spec, &opts);
+                        on_result(job.idx, outcome);
+                    }
+                });
+            if let Err(e) = started {
+                tracing::error!("cannot start ingest worker {i}: {e}");
+            }
         }
+        Pool { tx }
     }
 
     /// Queue a job; gives it back when the queue is full (backpressure).
-    pub fn try_submit(&self, job: Job) -> Result<(), Job> {
-        match &self.tx {
-            Some(tx) => tx.try_send(job).map_err(|e| e.into_inner()),
-            None => Err(job),
-        }
-    }
-
-    /// Stop taking jobs and wait for the workers to finish what they hold.
-    pub fn shutdown(mut self) {
-        self.tx = None;
-        for w in self.workers.drain(..) {
-            let _ = w.join();
-        }
+    pub(crate) fn try_submit(&self, job: Job) -> Result<(), Job> {
+        self.tx.try_send(job).map_err(|e| e.into_inner())
     }
 }
 

@@ -14,7 +14,7 @@ use tokio_util::bytes::BytesMut;
 use tokio_util::codec::{Decoder, Encoder, Framed, LinesCodec, LinesCodecError};
 
 /// `LinesCodec` with a length limit, whose framing errors are items rather than stream errors.
-pub struct RigCodec {
+pub(crate) struct RigCodec {
     inner: LinesCodec,
 }
 

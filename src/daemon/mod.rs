@@ -6,5 +6,5 @@ pub mod ingest;
 pub mod link;
 pub mod replay;
 pub mod run;
-pub mod sinks;
+pub(crate) mod sinks;
 pub mod status;

@@ -6,7 +6,7 @@ use std::process::Stdio;
 use std::time::Duration;
 use tokio::io::AsyncWriteExt;
 
-pub fn format_alarm(a: &Alarm) -> String {
+pub(crate) fn format_alarm(a: &Alarm) -> String {
     let sev = match a.severity {
         Severity::Info => "info",
         Severity::Warning => "WARNING",
@@ -20,7 +20,7 @@ pub fn format_alarm(a: &Alarm) -> String {
 }
 
 /// Log one alarm (or print it above the progress bar).
-pub fn log_alarm(a: &Alarm, bar: Option<&indicatif::ProgressBar>, still_active: bool) {
+pub(crate) fn log_alarm(a: &Alarm, bar: Option<&indicatif::ProgressBar>, still_active: bool) {
     let mut line = format_alarm(a);
     if still_active {
         line = format!("still active: {line}");
@@ -37,7 +37,7 @@ pub fn log_alarm(a: &Alarm, bar: Option<&indicatif::ProgressBar>, still_active: 
 
 /// Run the hook command for one alarm, in the background, with a time limit. The caller keeps
 /// the handle and waits for it before exiting, so the last alarm's hook is not cut short.
-pub fn run_hook(
+pub(crate) fn run_hook(
     hook: &[String],
     a: &Alarm,
     still_active: bool,

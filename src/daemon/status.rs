@@ -70,7 +70,7 @@ pub struct Snapshot {
 }
 
 /// The aggregator.
-pub struct StatusModel {
+pub(crate) struct StatusModel {
     directions: Vec<Direction>,
     done_per_light: Vec<u32>,
     current_light: Option<usize>,
@@ -87,7 +87,7 @@ pub struct StatusModel {
 
 impl StatusModel {
     /// The model of a session with this plan; probes at or below `dark_y` are no gain points.
-    pub fn new(plan: &SamplingPlan, dark_y: f64) -> Self {
+    pub(crate) fn new(plan: &SamplingPlan, dark_y: f64) -> Self {
         let n = plan.direction_count();
         StatusModel {
             directions: plan
@@ -112,7 +112,7 @@ impl StatusModel {
     }
 
     /// Rebuild from a session folder's result files (on resume).
-    pub fn load(&mut self, dir: &Path) {
+    pub(crate) fn load(&mut self, dir: &Path) {
         // the files were just rebuilt from the journal; one that cannot be read leaves its
         // part of the page empty, with a warning, rather than the run without a page
         fn each<T: serde::de::DeserializeOwned>(path: &Path, f: impl FnMut(T)) {
@@ -163,7 +163,7 @@ impl StatusModel {
     }
 
     /// Take in one engine output.
-    pub fn record(&mut self, o: &Output) {
+    pub(crate) fn record(&mut self, o: &Output) {
         match o {
             Output::Capture(c) => self.capture(c),
             Output::Pair(p) => self.pair(p),
@@ -173,7 +173,7 @@ impl StatusModel {
     }
 
     /// The snapshot for the page; `wall_s` is the shell's clock (seconds, any origin).
-    pub fn snapshot(&mut self, summary: &Summary, wall_s: f64) -> Snapshot {
+    pub(crate) fn snapshot(&mut self, summary: &Summary, wall_s: f64) -> Snapshot {
         let checked = summary.checked.captures;
         // a new drift point when the probe estimate changed
         if let Some(d) = summary
@@ -233,13 +233,13 @@ impl StatusModel {
 
 /// A published snapshot: the value (for `/metrics`) and its JSON, serialised once per version
 /// rather than once per reader.
-pub struct Published {
+pub(crate) struct Published {
     pub snapshot: Snapshot,
     pub json: String,
 }
 
 impl Published {
-    pub fn new(snapshot: Snapshot) -> Self {
+    pub(crate) fn new(snapshot: Snapshot) -> Self {
         let json = serde_json::to_string(&snapshot).unwrap_or_else(|_| "{}".into());
         Published { snapshot, json }
     }

@@ -180,7 +180,7 @@ impl Engine {
     }
 
     /// Enable drift probes (operator action): a `PROBE entry=…` every `every` regular captures.
-    pub fn set_probes(&mut self, every: u64, entry: usize) {
+    pub(crate) fn set_probes(&mut self, every: u64, entry: usize) {
         self.probe_every = every;
         self.probe_entry = entry;
     }
@@ -190,13 +190,13 @@ impl Engine {
         self.ledger.next_check
     }
     /// Captures expected in this session (the controller's count once known).
-    pub fn captures_planned(&self) -> u64 {
+    pub(crate) fn captures_planned(&self) -> u64 {
         self.captures_planned
     }
     pub fn is_finished(&self) -> bool {
         self.finished
     }
-    pub fn alarm_count(&self) -> u64 {
+    pub(crate) fn alarm_count(&self) -> u64 {
         self.alarm_book.total()
     }
     /// Whether any critical alarm was raised in this session, including before a resume and
@@ -209,12 +209,12 @@ impl Engine {
     }
 
     /// Announced captures still waiting for an outcome (to re-ingest after a restart).
-    pub fn pending_ingest(&self) -> Vec<(u64, String)> {
+    pub(crate) fn pending_ingest(&self) -> Vec<(u64, String)> {
         self.ledger.pending_ingest()
     }
 
     /// Every file name the controller announced in this session.
-    pub fn announced_files(&self) -> impl Iterator<Item = &str> {
+    pub(crate) fn announced_files(&self) -> impl Iterator<Item = &str> {
         self.ledger.announced.values().map(|a| a.file.as_str())
     }
 

@@ -204,8 +204,10 @@ impl<'a> RgbView<'a> {
         })
     }
 
-    /// Three planes of exactly `width × height` floats each.
-    pub fn planar(
+    /// Three planes of exactly `width × height` floats each (the decoder's layout, built directly
+    /// by `decode`; the tests build it here).
+    #[cfg(test)]
+    fn planar(
         width: usize,
         height: usize,
         r: &'a [f32],

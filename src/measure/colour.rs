@@ -85,18 +85,18 @@ pub enum RgbPrimaries {
 }
 
 /// The IEC 61966-2-1 matrix (the paper's Eq. 5, first entry corrected to 0.4124).
-pub const SRGB_IEC: [[f64; 3]; 3] = [
+pub(crate) const SRGB_IEC: [[f64; 3]; 3] = [
     [0.4124, 0.3576, 0.1805],
     [0.2126, 0.7152, 0.0722],
     [0.0193, 0.1192, 0.9505],
 ];
 
 /// BT.709 primaries and D65 white as CIE xy chromaticities.
-pub const BT709_XY: [[f64; 2]; 3] = [[0.64, 0.33], [0.30, 0.60], [0.15, 0.06]];
-pub const D65_XY: [f64; 2] = [0.3127, 0.3290];
+pub(crate) const BT709_XY: [[f64; 2]; 3] = [[0.64, 0.33], [0.30, 0.60], [0.15, 0.06]];
+pub(crate) const D65_XY: [f64; 2] = [0.3127, 0.3290];
 
 /// Derive the RGB → XYZ matrix from primaries and a white chromaticity (white maps to Y = 1).
-pub fn rgb_to_xyz_matrix_from_primaries(
+pub(crate) fn rgb_to_xyz_matrix_from_primaries(
     primaries: [[f64; 2]; 3],
     white: [f64; 2],
 ) -> Result<Matrix3<f64>, ColourError> {
@@ -203,7 +203,7 @@ pub fn parse_observer_table(text: &str) -> Result<Vec<ObserverRow>, String> {
 }
 
 /// The embedded CIE 1931 2° / D65 table at 5 nm.
-pub fn cie1931_d65_5nm() -> Vec<ObserverRow> {
+pub(crate) fn cie1931_d65_5nm() -> Vec<ObserverRow> {
     // The embedded table is part of the build and is tested; an empty table can only follow
     // from a broken build, and then every spectral conversion reports `NoBands`.
     parse_observer_table(CMF_D65_5NM).unwrap_or_default()
@@ -318,10 +318,6 @@ impl SpectralToXyz {
         })
     }
 
-    pub fn wavelengths(&self) -> &[f64] {
-        &self.wavelengths
-    }
-
     /// XYZ of the perfect reflector under the same bands (Y = 100): the white for L*a*b*.
     pub fn white(&self) -> Xyz {
         self.white
@@ -387,7 +383,7 @@ fn lab_f(t: f64) -> f64 {
     }
 }
 
-#[inline]
+#[cfg(test)]
 fn lab_f_inv(f: f64) -> f64 {
     if f > DELTA {
         f * f * f
@@ -410,8 +406,10 @@ pub fn xyz_to_lab(xyz: Xyz, white: White) -> Lab {
     }
 }
 
-/// CIE 1976 L*a*b* → XYZ relative to `white` (the exact inverse of [`xyz_to_lab`]).
-pub fn lab_to_xyz(lab: Lab, white: White) -> Xyz {
+/// CIE 1976 L*a*b* → XYZ relative to `white` (the exact inverse of [`xyz_to_lab`]; the tests'
+/// round trip).
+#[cfg(test)]
+fn lab_to_xyz(lab: Lab, white: White) -> Xyz {
     let w = white.0;
     let fy = (lab.l + 16.0) / 116.0;
     let fx = fy + lab.a / 500.0;

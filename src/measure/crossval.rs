@@ -36,9 +36,9 @@ pub enum CrossValError {
 
 /// Above this condition number of the column-scaled V the fit is flagged as ill-conditioned
 /// (near-grey data).
-pub const ILL_CONDITIONED: f64 = 1e3;
+pub(crate) const ILL_CONDITIONED: f64 = 1e3;
 /// At or above this condition number of the column-scaled V the fit is refused as singular.
-pub const SINGULAR: f64 = 1e12;
+pub(crate) const SINGULAR: f64 = 1e12;
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(from = "ColourTransformFields")]
@@ -122,7 +122,7 @@ pub fn fit_transform(v: &[Xyz], w: &[Xyz]) -> Result<ColourTransform, CrossValEr
 }
 
 /// Fit T minimising Σᵢ Σₖ aₖ ((T·vᵢ)ₖ − wᵢₖ)²; the paper shows the result does not depend on aₖ.
-pub fn fit_transform_weighted(
+pub(crate) fn fit_transform_weighted(
     v: &[Xyz],
     w: &[Xyz],
     weights: [f64; 3],
@@ -209,7 +209,7 @@ fn stats(mut v: Vec<f64>) -> Table3Row {
 }
 
 /// Table 3: ΔE*ab and CIEDE2000 between T·vᵢ and wᵢ; also the indices of the largest ΔE00.
-pub fn table3(
+pub(crate) fn table3(
     tr: &ColourTransform,
     v: &[Xyz],
     w: &[Xyz],
@@ -234,7 +234,7 @@ pub fn table3(
 /// One session capture for the cross-validation: the measured directions, the XYZ as captured
 /// (it carries cos θi and the session's gain), and the controller time.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SessionValue {
+pub(crate) struct SessionValue {
     pub idx: u64,
     pub entry: usize,
     pub t_s: f64,
@@ -364,7 +364,7 @@ fn table3_of(
 /// Resample the reference at every session capture, fit T (session → reference) and give
 /// Table 3; with a gain model, the same again on the gain-corrected session values. Session
 /// values are divided by cos θi first (the reference holds reflectance factors, BRDF·π).
-pub fn cross_validate(
+pub(crate) fn cross_validate(
     session: &[SessionValue],
     reference: &LayeredResampler,
     white: White,

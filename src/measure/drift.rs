@@ -40,7 +40,7 @@ use std::collections::BTreeMap;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct DriftSpec {
+pub(crate) struct DriftSpec {
     /// Alarm when the drift rate is significant and its size exceeds this (%/h).
     pub rate_tolerance_pct_per_h: f64,
     /// Two-sided confidence for "significant" (z of the normal distribution).
@@ -87,7 +87,7 @@ const MIN_BUCKET_PAIRS: usize = 8;
 
 /// One observation: a pair's log luminance ratio between its two capture times.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct PairObservation {
+pub(crate) struct PairObservation {
     pub t_a_h: f64,
     pub t_b_h: f64,
     pub d: f64,
@@ -161,7 +161,7 @@ pub struct StepEffect {
 
 /// What the detector says after one pair.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub enum DriftEvent {
+pub(crate) enum DriftEvent {
     /// The rate became significant and larger than the tolerance.
     RateSignificant(DriftEstimate),
     /// The rate is back within the tolerance (hysteresis re-arm).
@@ -176,7 +176,7 @@ pub enum DriftEvent {
 }
 
 #[derive(Debug, Clone)]
-pub struct DriftDetector {
+pub(crate) struct DriftDetector {
     spec: DriftSpec,
     obs: Vec<PairObservation>,
     estimate: Option<DriftEstimate>,
@@ -196,7 +196,7 @@ pub struct DriftDetector {
 }
 
 impl DriftDetector {
-    pub fn new(spec: DriftSpec) -> Self {
+    pub(crate) fn new(spec: DriftSpec) -> Self {
         let h = cusum_threshold(spec.cusum_k, spec.false_alarm_runs * spec.run_pairs);
         DriftDetector {
             spec,
@@ -217,7 +217,7 @@ impl DriftDetector {
     /// A gain step at `t_h` (hours), found by another source: from now on the model is
     /// ln g(t) = r·t + Σ s_k·[t ≥ τ_k], so the step neither bends the rate nor stays in the
     /// corrected output. Refits at once when there are enough pairs.
-    pub fn add_step(&mut self, t_h: f64) {
+    pub(crate) fn add_step(&mut self, t_h: f64) {
         if !t_h.is_finite() || self.step_times.iter().any(|&t| (t - t_h).abs() < 1e-9) {
             return;
         }
@@ -231,13 +231,13 @@ impl DriftDetector {
     }
 
     /// The fitted steps (empty without known step times).
-    pub fn steps(&self) -> &[StepEffect] {
+    pub(crate) fn steps(&self) -> &[StepEffect] {
         &self.step_effects
     }
 
     /// ln g(t) relative to t = 0 and its standard error (rate and steps, covariances left
     /// out), once there is an estimate.
-    pub fn ln_gain_at(&self, t_h: f64) -> Option<(f64, f64)> {
+    pub(crate) fn ln_gain_at(&self, t_h: f64) -> Option<(f64, f64)> {
         let e = self.estimate?;
         let mut v = e.rate_pct_per_h / 100.0 * t_h;
         let mut var = (t_h * e.se_pct_per_h / 100.0).powi(2);
@@ -248,15 +248,11 @@ impl DriftDetector {
         Some((v, var.sqrt()))
     }
 
-    pub fn estimate(&self) -> Option<DriftEstimate> {
+    pub(crate) fn estimate(&self) -> Option<DriftEstimate> {
         self.estimate
     }
-    pub fn cusum_threshold(&self) -> f64 {
-        self.h
-    }
-
     /// Add one pair; returns the events it caused.
-    pub fn add(&mut self, o: PairObservation) -> Vec<DriftEvent> {
+    pub(crate) fn add(&mut self, o: PairObservation) -> Vec<DriftEvent> {
         let mut ev = Vec::new();
         if !(o.d.is_finite()
             && o.t_a_h.is_finite()

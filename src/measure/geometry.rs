@@ -12,7 +12,7 @@ use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 pub type Vec3 = Vector3<f64>;
 
 /// Below this sin θ a direction is treated as the pole and its azimuth as undefined (φ = 0).
-pub const POLE_EPS: f64 = 1e-12;
+pub(crate) const POLE_EPS: f64 = 1e-12;
 
 /// A vector of any length prepared for angle computations.
 enum Scaled {
@@ -124,7 +124,7 @@ pub fn wrap_2pi(a: f64) -> f64 {
 }
 
 /// Wrap an angle in degrees into [0, 360).
-pub fn wrap_360(a: f64) -> f64 {
+pub(crate) fn wrap_360(a: f64) -> f64 {
     let r = a.rem_euclid(360.0);
     if r >= 360.0 {
         0.0

@@ -245,10 +245,10 @@ pub struct Rig {
     spec: RigSpec,
 }
 
-pub const LAMP: [f64; 3] = [1.0, 0.0, 0.0];
+pub(crate) const LAMP: [f64; 3] = [1.0, 0.0, 0.0];
 
 /// cos θ at or below which a direction counts as on or below the horizon.
-pub const HORIZON_EPS: f64 = 1e-9;
+pub(crate) const HORIZON_EPS: f64 = 1e-9;
 
 impl Rig {
     pub fn new(spec: RigSpec) -> Result<Self, KinematicsError> {
@@ -384,7 +384,7 @@ impl Rig {
     /// The θᵢ nearest to the planned one (same φᵢ) whose separation from ωₒ is exactly the
     /// rig's minimum. cos γ(θ) = cos θ cos θₒ + sin θ sin θₒ cos Δφ = R cos(θ − δ), so the two
     /// solutions are δ ± acos(cos γ_min / R).
-    pub fn substitute_theta_i(
+    pub(crate) fn substitute_theta_i(
         &self,
         planned_i: Spherical,
         planned_o: Spherical,

@@ -26,7 +26,7 @@ pub enum PlanError {
 
 /// The most directions a plan may have: 1,000 directions are 1,000,000 captures, far beyond any
 /// gonioreflectometer run, and bound the memory the checks allocate per capture.
-pub const MAX_DIRECTIONS: usize = 1000;
+pub(crate) const MAX_DIRECTIONS: usize = 1000;
 
 /// In which order the rig visits the (light, camera) combinations.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -181,7 +181,7 @@ impl SamplingPlan {
     pub fn order(&self) -> AcquisitionOrder {
         self.order
     }
-    pub fn direction_count(&self) -> usize {
+    pub(crate) fn direction_count(&self) -> usize {
         self.directions.len()
     }
     pub fn capture_count(&self) -> usize {
@@ -218,7 +218,7 @@ impl SamplingPlan {
     }
 
     /// The capture index of the (light, camera) combination.
-    pub fn index_of(&self, light: usize, camera: usize) -> Option<usize> {
+    pub(crate) fn index_of(&self, light: usize, camera: usize) -> Option<usize> {
         let n = self.directions.len();
         if light >= n || camera >= n {
             return None;
@@ -270,7 +270,7 @@ impl SamplingPlan {
     }
 
     /// The isotropy class of a capture: same θᵢ, θₒ (unordered) and wrapped |φᵢ − φₒ|.
-    pub fn isotropy_key(&self, entry: &PlanEntry) -> IsotropyKey {
+    pub(crate) fn isotropy_key(&self, entry: &PlanEntry) -> IsotropyKey {
         let li = &self.directions[entry.light];
         let ca = &self.directions[entry.camera];
         let dphi = if li.theta_deg == 0.0 || ca.theta_deg == 0.0 {

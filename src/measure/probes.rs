@@ -45,7 +45,7 @@ impl Default for ProbeSpec {
 }
 
 #[derive(Debug, Clone)]
-pub struct ProbeDrift {
+pub(crate) struct ProbeDrift {
     spec: ProbeSpec,
     /// (t in hours, ln ratio) of the current segment.
     segment: Vec<(f64, f64)>,
@@ -92,7 +92,7 @@ fn fit(points: &[(f64, f64)]) -> Option<Fit> {
 }
 
 impl ProbeDrift {
-    pub fn new(spec: ProbeSpec) -> Self {
+    pub(crate) fn new(spec: ProbeSpec) -> Self {
         ProbeDrift {
             spec,
             segment: Vec::new(),
@@ -101,14 +101,14 @@ impl ProbeDrift {
         }
     }
 
-    pub fn estimate(&self) -> Option<DriftEstimate> {
+    pub(crate) fn estimate(&self) -> Option<DriftEstimate> {
         self.estimate
     }
 
     /// The gain at `t_h` relative to the original capture of the probe pose, from the current
     /// segment's line (its level includes any step since the start), and its relative standard
     /// uncertainty (intercept and slope). None until the segment has three points.
-    pub fn gain_at(&self, t_h: f64) -> Option<(f64, f64)> {
+    pub(crate) fn gain_at(&self, t_h: f64) -> Option<(f64, f64)> {
         let f = fit(&self.segment)?;
         let n = self.segment.len() as f64;
         let tm = self.segment.iter().map(|p| p.0).sum::<f64>() / n;
@@ -118,7 +118,7 @@ impl ProbeDrift {
     }
 
     /// One probe: its time and luminance, and the original capture's time and luminance.
-    pub fn add(&mut self, t_orig_h: f64, y_orig: f64, t_h: f64, y: f64) -> Vec<DriftEvent> {
+    pub(crate) fn add(&mut self, t_orig_h: f64, y_orig: f64, t_h: f64, y: f64) -> Vec<DriftEvent> {
         let mut ev = Vec::new();
         if !(y_orig > 0.0 && y > 0.0 && t_h.is_finite() && t_orig_h.is_finite()) {
             return ev;

@@ -105,7 +105,7 @@ pub struct Resampler {
 
 /// How far beyond the node values' range a result may go: a fraction of the span for linear
 /// values, a ratio (1 + this) for ln values.
-pub const RANGE_MARGIN: f64 = 0.25;
+pub(crate) const RANGE_MARGIN: f64 = 0.25;
 
 /// Points closer than this (in the layout's coordinates) are one node.
 const MERGE_TOL: f64 = 1e-7;
@@ -121,7 +121,7 @@ fn usable(s: &Sample) -> bool {
 
 /// The isotropic layout's coordinates of a direction pair: rotate both about the normal so that
 /// φi = 0, then (θi·s, x, y) with (x, y) the mirror-aligned square of the rotated ωo.
-pub fn isotropic_coords(omega_i: &Vec3, omega_o: &Vec3, theta_per_deg: f64) -> [f64; 3] {
+pub(crate) fn isotropic_coords(omega_i: &Vec3, omega_o: &Vec3, theta_per_deg: f64) -> [f64; 3] {
     let (theta_i, wo) = rotate_to_phi_zero(omega_i, omega_o);
     let (x, y) = MirrorAlignedMap::new(&Spherical::from_deg(theta_i, 0.0).to_vector()).square(&wo);
     [theta_i * theta_per_deg, x, y]
@@ -286,7 +286,7 @@ impl Resampler {
     }
 
     /// `cshep2d`, `qshep2d` or `qshep3d`.
-    pub fn method_name(&self) -> &'static str {
+    pub(crate) fn method_name(&self) -> &'static str {
         match self.method {
             Method::Cubic2 => "cshep2d",
             Method::Quadratic2 => "qshep2d",
@@ -359,11 +359,10 @@ impl Resampler {
 pub struct LayeredResampler {
     /// (θi of the layer in degrees, its slice, cos of the largest θo it holds), ascending θi.
     layers: Vec<(f64, Resampler, f64)>,
-    dropped_layers: usize,
 }
 
 /// Samples within this of a layer's θi belong to it (degrees).
-pub const LAYER_TOL_DEG: f64 = 0.25;
+pub(crate) const LAYER_TOL_DEG: f64 = 0.25;
 
 fn rotate_to_phi_zero(omega_i: &Vec3, omega_o: &Vec3) -> (f64, Vec3) {
     let si = Spherical::from_vector(omega_i);
@@ -394,7 +393,6 @@ impl LayeredResampler {
             .collect();
         rotated.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut layers = Vec::new();
-        let mut dropped_layers = 0;
         let mut start = 0;
         while start < rotated.len() {
             let mut end = start + 1;
@@ -408,29 +406,23 @@ impl LayeredResampler {
                 .iter()
                 .map(|m| m.omega_o.normalize().z)
                 .fold(1.0, f64::min);
-            match Resampler::slice(&members, &Spherical::from_deg(theta, 0.0).to_vector(), spec) {
-                Ok(r) => layers.push((theta, r, min_cos_o)),
-                Err(_) => dropped_layers += 1,
+            // a layer with too few usable samples is left out; the others interpolate across it
+            if let Ok(r) =
+                Resampler::slice(&members, &Spherical::from_deg(theta, 0.0).to_vector(), spec)
+            {
+                layers.push((theta, r, min_cos_o));
             }
             start = end;
         }
         if layers.is_empty() {
             return Err(ResampleError::TooFewSamples(rotated.len(), 7));
         }
-        Ok(LayeredResampler {
-            layers,
-            dropped_layers,
-        })
+        Ok(LayeredResampler { layers })
     }
 
     /// θi of the layers (degrees).
-    pub fn layer_thetas(&self) -> Vec<f64> {
+    pub(crate) fn layer_thetas(&self) -> Vec<f64> {
         self.layers.iter().map(|l| l.0).collect()
-    }
-
-    /// Layers left out for having too few usable samples.
-    pub fn dropped_layers(&self) -> usize {
-        self.dropped_layers
     }
 
     /// The value at a direction pair. The spread combines the slices' nodal spreads (through
@@ -631,7 +623,6 @@ mod tests {
         let samples = ubo_isotropic_samples();
         let r = LayeredResampler::new(&samples, &ResampleSpec::default()).unwrap();
         assert_eq!(r.layer_thetas().len(), 6);
-        assert_eq!(r.dropped_layers(), 0);
         let mut worst: f64 = 0.0;
         for (ti, to, po) in [
             (37.0, 25.0, 290.0),

@@ -39,7 +39,7 @@ const RTOL: f64 = 1e-5;
 const DTOL: f64 = 0.01f32 as f64;
 const WIDEN: f64 = 1.1f32 as f64;
 /// Nodes closer than this fraction of the data's extent are duplicates.
-pub const DUPLICATE_TOL: f64 = 1e-9;
+pub(crate) const DUPLICATE_TOL: f64 = 1e-9;
 
 /// Which modified Shepard method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -493,11 +493,6 @@ impl Shepard {
             rmax: rsmx.sqrt(),
             grid,
         })
-    }
-
-    /// The largest radius of influence.
-    pub fn rmax(&self) -> f64 {
-        self.rmax
     }
 
     /// The interpolant at `q` (2 or 3 coordinates as the method has).

@@ -3,10 +3,10 @@
 //! (Hand-written: a few lines each, and their exact arithmetic is part of byte-identical replay.)
 
 /// The factor that makes the median absolute deviation a consistent estimate of a normal σ.
-pub const MAD_TO_SIGMA: f64 = 1.4826;
+pub(crate) const MAD_TO_SIGMA: f64 = 1.4826;
 
 /// Median of a sorted slice (the mean of the middle two for an even length); 0 when empty.
-pub fn median_sorted(v: &[f64]) -> f64 {
+pub(crate) fn median_sorted(v: &[f64]) -> f64 {
     if v.is_empty() {
         return 0.0;
     }
@@ -20,13 +20,13 @@ pub fn median_sorted(v: &[f64]) -> f64 {
 
 /// The upper median of a sorted, non-empty slice (`v[n / 2]`): cheaper, and what the drift
 /// fit's reweighting uses. NaN when empty.
-pub fn upper_median_sorted(v: &[f64]) -> f64 {
+pub(crate) fn upper_median_sorted(v: &[f64]) -> f64 {
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
 /// Robust scale about zero: `MAD_TO_SIGMA` · median |x| (the median as in `median_sorted`).
 /// NaN when empty.
-pub fn robust_scale_about_zero(v: &[f64]) -> f64 {
+pub(crate) fn robust_scale_about_zero(v: &[f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }
@@ -36,7 +36,7 @@ pub fn robust_scale_about_zero(v: &[f64]) -> f64 {
 }
 
 /// Robust scale about zero with the upper median: `MAD_TO_SIGMA` · |x|₍ₙ/₂₎. NaN when empty.
-pub fn robust_scale_upper(v: &[f64]) -> f64 {
+pub(crate) fn robust_scale_upper(v: &[f64]) -> f64 {
     let mut a: Vec<f64> = v.iter().map(|x| x.abs()).collect();
     a.sort_by(f64::total_cmp);
     MAD_TO_SIGMA * upper_median_sorted(&a)
@@ -44,7 +44,7 @@ pub fn robust_scale_upper(v: &[f64]) -> f64 {
 
 /// Siegmund's approximation of the in-control average run length of a one-sided CUSUM with
 /// reference k and threshold h (both in standard deviations).
-pub fn cusum_arl0(k: f64, h: f64) -> f64 {
+pub(crate) fn cusum_arl0(k: f64, h: f64) -> f64 {
     let a = 2.0 * k * (h + 1.166);
     if k.abs() < 1e-12 {
         return (h + 1.166).powi(2);
@@ -53,7 +53,7 @@ pub fn cusum_arl0(k: f64, h: f64) -> f64 {
 }
 
 /// The smallest threshold h (to 0.01) whose two-sided ARL₀ reaches `target` observations.
-pub fn cusum_threshold(k: f64, target: f64) -> f64 {
+pub(crate) fn cusum_threshold(k: f64, target: f64) -> f64 {
     let mut h = 0.5;
     while cusum_arl0(k, h) / 2.0 < target && h < 50.0 {
         h += 0.01;
@@ -64,7 +64,7 @@ pub fn cusum_threshold(k: f64, target: f64) -> f64 {
 /// What a CUSUM side has accumulated since it last left zero: the raw estimates behind it, for
 /// the alarm's size and its standard error.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct CusumRun {
+pub(crate) struct CusumRun {
     /// Sum of the raw estimates.
     pub sum: f64,
     /// Sum of their squared standard errors.
@@ -77,7 +77,7 @@ pub struct CusumRun {
 
 impl CusumRun {
     /// The run's mean estimate and its standard error (NaN when empty).
-    pub fn mean_and_se(&self) -> (f64, f64) {
+    pub(crate) fn mean_and_se(&self) -> (f64, f64) {
         let n = self.n as f64;
         (self.sum / n, self.var.sqrt() / n)
     }
@@ -86,7 +86,7 @@ impl CusumRun {
 /// A two-sided CUSUM of standardised statistics with reference value k, which also keeps the
 /// run of raw estimates behind each side.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Cusum {
+pub(crate) struct Cusum {
     pub up: f64,
     pub down: f64,
     pub up_run: CusumRun,
@@ -96,7 +96,7 @@ pub struct Cusum {
 impl Cusum {
     /// Feed a standardised statistic `z` with the raw estimate and its standard error behind
     /// it; `start` labels the observation (kept as the run's start when a side leaves zero).
-    pub fn add(&mut self, z: f64, k: f64, estimate: f64, se: f64, start: u64) {
+    pub(crate) fn add(&mut self, z: f64, k: f64, estimate: f64, se: f64, start: u64) {
         let up = (self.up + z - k).max(0.0);
         let down = (self.down - z - k).max(0.0);
         let grow = |prev: f64, now: f64, run: &mut CusumRun| {
@@ -121,11 +121,11 @@ impl Cusum {
     }
 
     /// The larger side.
-    pub fn max(&self) -> f64 {
+    pub(crate) fn max(&self) -> f64 {
         self.up.max(self.down)
     }
 
-    pub fn reset(&mut self) {
+    pub(crate) fn reset(&mut self) {
         *self = Cusum::default();
     }
 }

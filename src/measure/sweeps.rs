@@ -82,7 +82,7 @@ impl Default for SweepSpec {
 
 /// One capture as the sweep checks keep it.
 #[derive(Debug, Clone)]
-pub struct SweepCapture {
+pub(crate) struct SweepCapture {
     pub idx: u64,
     pub t: f64,
     pub light: usize,
@@ -209,7 +209,7 @@ enum Latch {
 }
 
 /// The sweep checks of one session.
-pub struct SweepMonitor {
+pub(crate) struct SweepMonitor {
     spec: SweepSpec,
     rig: Rig,
     captures: Vec<SweepCapture>,
@@ -238,7 +238,7 @@ pub struct SweepMonitor {
 
 /// What testing one completed sweep gave.
 #[derive(Debug, Clone, Default)]
-pub struct SweepOutcome {
+pub(crate) struct SweepOutcome {
     /// The sweep's record (none when it had too few comparable captures).
     pub record: Option<SweepRecord>,
     pub alarms: Vec<Alarm>,
@@ -316,7 +316,7 @@ const BACKFIT_ITERATIONS: usize = 30;
 
 impl SweepMonitor {
     /// `lights` is the plan's number of light directions (the looks per run).
-    pub fn new(spec: SweepSpec, rig: Rig, lights: usize) -> Self {
+    pub(crate) fn new(spec: SweepSpec, rig: Rig, lights: usize) -> Self {
         let looks = lights.max(1) as f64;
         SweepMonitor {
             h_level: cusum_threshold(spec.cusum_k, spec.false_alarm_runs * looks),
@@ -345,7 +345,8 @@ impl SweepMonitor {
     }
 
     /// The CUSUM thresholds (level, joints).
-    pub fn thresholds(&self) -> (f64, f64) {
+    #[cfg(test)]
+    fn thresholds(&self) -> (f64, f64) {
         (self.h_level, self.h_joint)
     }
 
@@ -358,14 +359,14 @@ impl SweepMonitor {
             .filter(|t| t.is_finite())
     }
 
-    pub fn summary(&self) -> SweepSummary {
+    pub(crate) fn summary(&self) -> SweepSummary {
         SweepSummary {
             tested: self.tested,
             last: self.last.clone(),
         }
     }
 
-    pub fn add(&mut self, c: SweepCapture) {
+    pub(crate) fn add(&mut self, c: SweepCapture) {
         if !(c.y > 0.0 && c.y.is_finite()) {
             return;
         }
@@ -468,7 +469,7 @@ impl SweepMonitor {
     }
 
     /// The light direction `light` is complete: test its sweep against the earlier ones.
-    pub fn light_complete(&mut self, light: usize, level_test: bool) -> SweepOutcome {
+    pub(crate) fn light_complete(&mut self, light: usize, level_test: bool) -> SweepOutcome {
         let nothing = SweepOutcome::default();
         let Some(done) = self.completed.get_mut(light) else {
             return nothing;

@@ -103,7 +103,7 @@ impl Message {
     pub fn get_u64(&self, key: &str) -> Option<u64> {
         self.get(key)?.parse().ok()
     }
-    pub fn get_f64(&self, key: &str) -> Option<f64> {
+    pub(crate) fn get_f64(&self, key: &str) -> Option<f64> {
         self.get(key)?.parse::<f64>().ok().filter(|v| v.is_finite())
     }
 }

@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 /// Read a JSON-lines result file of a session. A missing file reads as empty; an unterminated
 /// last line (a write cut short by a crash) is left out; any other line that does not parse is
 /// an error naming the file and the line.
-pub fn read_records<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Vec<T>> {
+pub(crate) fn read_records<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Vec<T>> {
     let text = match std::fs::read_to_string(path) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
@@ -65,7 +65,7 @@ pub fn load_config(dir: &Path) -> Result<(Config, String)> {
 
 /// Parse a session's stored config (`Config::from_stored_toml_str`), warning about each runtime
 /// key brought into its current range.
-pub fn parse_stored_config(path: &Path, text: &str) -> Result<Config> {
+pub(crate) fn parse_stored_config(path: &Path, text: &str) -> Result<Config> {
     let (config, notes) = Config::from_stored_toml_str(text)
         .with_context(|| format!("invalid stored config {}", path.display()))?;
     for n in notes {
@@ -75,7 +75,7 @@ pub fn parse_stored_config(path: &Path, text: &str) -> Result<Config> {
 }
 
 /// A session's `summary.json`.
-pub fn load_summary(dir: &Path) -> Result<Summary> {
+pub(crate) fn load_summary(dir: &Path) -> Result<Summary> {
     let path = dir.join("summary.json");
     serde_json::from_slice(
         &std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?,
@@ -84,7 +84,7 @@ pub fn load_summary(dir: &Path) -> Result<Summary> {
 }
 
 /// The result files, written from engine outputs.
-pub struct Results {
+pub(crate) struct Results {
     dir: PathBuf,
     captures: JsonlFile,
     pairs: JsonlFile,
@@ -105,7 +105,7 @@ pub const RESULT_FILES: [&str; 6] = [
 
 impl Results {
     /// Open for appending (`fresh = false`) or create empty (`fresh = true`).
-    pub fn open(dir: &Path, fresh: bool) -> Result<Self> {
+    pub(crate) fn open(dir: &Path, fresh: bool) -> Result<Self> {
         let open = |name: &str| {
             let p = dir.join(name);
             if fresh {
@@ -126,7 +126,7 @@ impl Results {
     }
 
     /// Record one engine output (those that are results).
-    pub fn record(&mut self, o: &Output) -> Result<()> {
+    pub(crate) fn record(&mut self, o: &Output) -> Result<()> {
         match o {
             Output::Capture(c) => self.captures.write(c),
             Output::Pair(p) => self.pairs.write(p),
@@ -138,7 +138,7 @@ impl Results {
         }
     }
 
-    pub fn sync(&mut self) -> Result<()> {
+    pub(crate) fn sync(&mut self) -> Result<()> {
         for f in [
             &mut self.captures,
             &mut self.pairs,
@@ -152,7 +152,7 @@ impl Results {
         Ok(())
     }
 
-    pub fn write_summary<T: Serialize>(&self, summary: &T) -> Result<()> {
+    pub(crate) fn write_summary<T: Serialize>(&self, summary: &T) -> Result<()> {
         write_atomic(
             &self.dir.join("summary.json"),
             &serde_json::to_vec_pretty(summary)?,
@@ -161,7 +161,7 @@ impl Results {
 }
 
 /// Write a file under a temporary name, fsync, rename into place.
-pub fn write_atomic(path: &Path, data: &[u8]) -> Result<()> {
+pub(crate) fn write_atomic(path: &Path, data: &[u8]) -> Result<()> {
     let tmp = path.with_extension("tmp");
     {
         let mut f =
@@ -176,12 +176,12 @@ pub fn write_atomic(path: &Path, data: &[u8]) -> Result<()> {
 }
 
 /// An exclusive lock on the session directory.
-pub struct SessionLock {
+pub(crate) struct SessionLock {
     _file: File,
 }
 
 impl SessionLock {
-    pub fn acquire(dir: &Path) -> Result<Self> {
+    pub(crate) fn acquire(dir: &Path) -> Result<Self> {
         let path = dir.join("lock");
         let file = OpenOptions::new()
             .create(true)

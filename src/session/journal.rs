@@ -32,7 +32,7 @@ pub enum JournalItem {
     Out(String),
 }
 
-pub fn now_ms() -> u64 {
+pub(crate) fn now_ms() -> u64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_millis() as u64)
@@ -55,7 +55,7 @@ fn line_sum(body: &[u8]) -> String {
 }
 
 /// One journal entry as its line (LF included), checksum appended.
-pub fn encode_entry(entry: &JournalEntry) -> Result<Vec<u8>> {
+pub(crate) fn encode_entry(entry: &JournalEntry) -> Result<Vec<u8>> {
     let mut line = serde_json::to_vec(entry)?;
     if line.last() != Some(&b'}') {
         anyhow::bail!("a journal entry did not serialise to a JSON object");
@@ -185,7 +185,7 @@ pub fn read_journal(
 
 /// Cut an unterminated last line (a write cut short by a crash) off a JSON-lines file. Returns
 /// the lines cut (0 or 1). Complete lines are never cut: their damage is reported by the reader.
-pub fn repair_jsonl(path: &Path) -> Result<usize> {
+pub(crate) fn repair_jsonl(path: &Path) -> Result<usize> {
     let Ok(data) = std::fs::read(path) else {
         return Ok(0);
     };

@@ -36,7 +36,7 @@ pub struct Session {
 }
 
 /// Resolve `p` against `base` unless it is absolute.
-pub fn resolve_against(base: &Path, p: &Path) -> PathBuf {
+pub(crate) fn resolve_against(base: &Path, p: &Path) -> PathBuf {
     if p.is_absolute() {
         p.to_path_buf()
     } else {
@@ -171,7 +171,7 @@ impl Session {
     }
 
     /// Read a session directory without changing it (for replay).
-    pub fn open_read_only(dir: &Path) -> Result<Session> {
+    pub(crate) fn open_read_only(dir: &Path) -> Result<Session> {
         let (config, _) = super::folder::load_config(dir)?;
         let info_path = dir.join("session.json");
         let info: SessionInfo = serde_json::from_slice(
@@ -243,7 +243,7 @@ pub fn recover(session: &Session) -> Result<(Engine, usize)> {
 }
 
 /// Read and verify a session's journal, warning when it predates checksums.
-pub fn verified_journal(path: &Path, require_sums: bool) -> Result<JournalRead> {
+pub(crate) fn verified_journal(path: &Path, require_sums: bool) -> Result<JournalRead> {
     let read = read_journal(path, require_sums)?;
     if read.unverified > 0 {
         tracing::warn!(
