@@ -3,10 +3,11 @@
 //! Layers, lowest first (see ARCHITECTURE.md); each imports only from those above it here:
 //! - [`measure`]: the sans-IO measurement core (colour, geometry, kinematics, plan, averaging,
 //!   reciprocity, resampling, drift statistics). Pure and deterministic.
-//! - [`config`]: the TOML configuration as plain data (parsing and validation).
 //! - [`reference`]: the reference-BRDF file format (pure parsing).
 //! - [`protocol`]: the line framing of docs/protocol.md and its typed messages (pure).
 //! - [`checks`]: the checker: a router over one stage per concern, and the result records (pure).
+//! - [`config`]: the TOML configuration as plain data (parsing and validation; the
+//!   checks' and core's spec types are its sections).
 //! - [`engine`]: the deterministic session engine: inputs (serial lines, link events, capture
 //!   outcomes) in, lines to send, captures to ingest and result records out (pure).
 //! - [`decode`]: shell side, HDR/EXR bytes → RGB buffer, hardened against malformed files.
