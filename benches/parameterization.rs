@@ -53,13 +53,8 @@ fn main() {
         .iter()
         .map(|d| d.spherical().to_vector())
         .collect();
-    let mut seed = 7u64;
-    let mut u = || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut seed = goniowatch::fixtures::Lcg(7u64);
+    let mut u = || seed.uniform();
     // random directions, uniform on the cap θ ≤ 75°
     let cmin = 75f64.to_radians().cos();
     let tests: Vec<Vec3> = (0..20_000)

@@ -21,13 +21,8 @@ fn f10(x: f64, y: f64) -> f64 {
 }
 
 fn nodes(n: usize, seed: u64) -> Vec<[f64; 3]> {
-    let mut s = seed;
-    let mut u = || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut s = goniowatch::fixtures::Lcg(seed);
+    let mut u = || s.uniform();
     (0..n).map(|_| [u(), u(), 0.0]).collect()
 }
 

@@ -16,6 +16,9 @@
 //! - [`cli`]: shell side, the other commands (`average`, `plan`, `compare`, `report`) and the
 //!   printed summary.
 //!
+//! - `fixtures` (dev-only, feature `fixtures`): synthetic sessions and a scripted controller for
+//!   the tests and benchmarks.
+//!
 //! Items used only inside the crate are `pub(crate)`, and `unreachable_pub` is on, so the compiler
 //! reports dead code.
 
@@ -27,6 +30,8 @@ pub mod config;
 pub mod daemon;
 pub mod decode;
 pub mod engine;
+#[cfg(any(test, feature = "fixtures"))]
+pub mod fixtures;
 pub mod measure;
 pub mod protocol;
 pub mod reference;

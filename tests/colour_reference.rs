@@ -2,7 +2,8 @@
 //! and the numerically awkward cases (near-black, zero chroma, hue wrap-around).
 
 mod common;
-use common::{csv_rows, SplitMix};
+use common::csv_rows;
+use goniowatch::fixtures::Rng;
 use goniowatch::measure::colour::*;
 
 #[test]
@@ -26,7 +27,7 @@ fn ciede2000_sharma_all_34_pairs_both_orders() {
 
 #[test]
 fn ciede2000_is_symmetric_and_zero_on_identity() {
-    let mut rng = SplitMix(7);
+    let mut rng = Rng(7);
     for _ in 0..20_000 {
         let a = Lab::new(
             rng.range(0.0, 100.0),

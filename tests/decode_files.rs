@@ -3,8 +3,9 @@
 //! panic, and the right pixel statistics.
 
 mod common;
-use common::{reference, SplitMix};
+use common::reference;
 use goniowatch::decode::{decode, CaptureFormat, DecodeError, DecodeLimits};
+use goniowatch::fixtures::Rng;
 use goniowatch::measure::averaging::{average, AverageOptions, CaptureStats, Roi};
 
 fn read(name: &str) -> Vec<u8> {
@@ -234,7 +235,7 @@ fn truncated_copies_of_every_valid_file_never_panic() {
 
 #[test]
 fn corrupted_bytes_never_panic() {
-    let mut rng = SplitMix(99);
+    let mut rng = Rng(99);
     for name in VALID {
         let orig = read(name);
         for _ in 0..20 {

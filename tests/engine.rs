@@ -4,52 +4,13 @@
 use goniowatch::checks::Outcome;
 use goniowatch::config::Config;
 use goniowatch::engine::{Engine, Input, Output};
-use goniowatch::measure::averaging::CaptureStats;
-use goniowatch::protocol::{format, parse};
+use goniowatch::fixtures::{self, Controller};
+use goniowatch::protocol::parse;
 
 fn engine() -> Engine {
     let text =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
     Engine::from_config(&Config::from_toml_str(&text).unwrap()).unwrap()
-}
-
-struct Ctl {
-    seq: u32,
-}
-
-impl Ctl {
-    fn line(&mut self, verb: &str, fields: &[(&str, String)]) -> Input {
-        let l = format(self.seq, verb, fields);
-        self.seq += 1;
-        Input::Rx { line: l }
-    }
-    fn ident(&mut self, boot: u64) -> Input {
-        self.line(
-            "IDENT",
-            &[
-                ("rig", "r".into()),
-                ("fw", "1".into()),
-                ("proto", "1".into()),
-                ("session", "s".into()),
-                ("captures", "6561".into()),
-                ("boot", boot.to_string()),
-            ],
-        )
-    }
-    fn capture(&mut self, idx: u64) -> Input {
-        self.line(
-            "CAPTURE",
-            &[
-                ("idx", idx.to_string()),
-                ("entry", (idx + 1).to_string()),
-                ("file", format!("s/cap_{idx}.hdr")),
-                ("t", format!("{}", idx as f64 * 7.0)),
-                ("cmd", "0,90,-90,15".into()),
-                ("enc", "0,90,-90,15".into()),
-                ("exp", "x".into()),
-            ],
-        )
-    }
 }
 
 fn sent(out: &[Output]) -> Vec<String> {
@@ -79,24 +40,10 @@ fn alarms(out: &[Output]) -> Vec<String> {
 }
 
 fn ok_outcome() -> Outcome {
-    Outcome::Ok {
-        stats: CaptureStats {
-            mean_rgb: [0.3, 0.3, 0.3],
-            pixels: 100,
-            nonfinite: 0,
-            negative: 0,
-            clipped: 0,
-            dark: 0,
-            max_value: 1.0,
-        },
-        width: 10,
-        height: 10,
-        size: 1000,
-        sha256: "x".into(),
-    }
+    fixtures::ok_outcome([0.3, 0.3, 0.3])
 }
 
-fn connected(e: &mut Engine, c: &mut Ctl) -> Vec<Output> {
+fn connected(e: &mut Engine, c: &mut Controller) -> Vec<Output> {
     let mut out = e.handle(&Input::Connected);
     assert_eq!(sent(&out), vec!["HELLO proto=1 client=goniowatch/0.1.0"]);
     out.extend(e.handle(&c.ident(1)));
@@ -105,7 +52,7 @@ fn connected(e: &mut Engine, c: &mut Ctl) -> Vec<Output> {
 
 #[test]
 fn handshake_subscribes_and_resyncs_from_zero() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     let out = connected(&mut e, &mut c);
     assert_eq!(
         sent(&out)[1..],
@@ -118,7 +65,7 @@ fn handshake_subscribes_and_resyncs_from_zero() {
 
 #[test]
 fn unsupported_version_is_critical() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     e.handle(&Input::Connected);
     let out = e.handle(&c.line(
         "NAK",
@@ -139,7 +86,7 @@ fn unsupported_version_is_critical() {
 
 #[test]
 fn garbled_lines_are_counted_and_never_fatal() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     connected(&mut e, &mut c);
     let mut out = Vec::new();
     for bad in [
@@ -191,7 +138,7 @@ fn garbled_lines_are_counted_and_never_fatal() {
 
 #[test]
 fn sequence_gap_and_index_gap_trigger_resync_and_outcomes_go_in_order() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     connected(&mut e, &mut c);
     let ack = e.handle(&c.line(
         "ACK",
@@ -236,7 +183,7 @@ fn sequence_gap_and_index_gap_trigger_resync_and_outcomes_go_in_order() {
 
 #[test]
 fn lost_ack_is_asked_again_after_64_lines_and_on_idle() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     connected(&mut e, &mut c); // RESYNC outstanding, its ACK never comes
     let mut resent = 0;
     for _ in 0..70 {
@@ -271,10 +218,10 @@ fn lost_ack_is_asked_again_after_64_lines_and_on_idle() {
 
 #[test]
 fn reboot_resubscribes_and_duplicates_are_handled() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     connected(&mut e, &mut c);
     e.handle(&c.capture(0));
-    let mut c2 = Ctl { seq: 0 };
+    let mut c2 = Controller::default();
     let out = e.handle(&c2.ident(2));
     assert_eq!(alarms(&out), ["controller-reboot"]);
     assert_eq!(sent(&out), ["SUBSCRIBE", "RESYNC from=1"]);
@@ -298,7 +245,7 @@ fn reboot_resubscribes_and_duplicates_are_handled() {
 
 #[test]
 fn captures_missing_from_the_controller_log_are_reported_once() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     connected(&mut e, &mut c);
     e.handle(&c.capture(0));
     e.handle(&c.capture(2));
@@ -328,7 +275,7 @@ fn captures_missing_from_the_controller_log_are_reported_once() {
 
 #[test]
 fn disconnect_and_restart_are_link_events() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     connected(&mut e, &mut c);
     let out = e.handle(&Input::Disconnected {
         reason: "EIO".into(),
@@ -352,7 +299,7 @@ fn pause_on_critical_only_when_enabled() {
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
     let text = text.replace("pause_on_critical = false", "pause_on_critical = true");
     let mut e = Engine::from_config(&Config::from_toml_str(&text).unwrap()).unwrap();
-    let mut c = Ctl { seq: 0 };
+    let mut c = Controller::default();
     connected(&mut e, &mut c);
     let fault = c.line(
         "STATUS",
@@ -367,14 +314,14 @@ fn pause_on_critical_only_when_enabled() {
     assert_eq!(sent(&out), ["PAUSE"]);
     // off by default
     let mut e = engine();
-    let mut c = Ctl { seq: 0 };
+    let mut c = Controller::default();
     connected(&mut e, &mut c);
     let out = e.handle(&c.line("STATUS", &[("state", "fault".into()), ("t", "1".into())]));
     assert_eq!(alarms(&out), ["controller-fault"]);
     assert!(sent(&out).is_empty());
 }
 
-fn capture_at(c: &mut Ctl, idx: u64, entry: usize, pose: &str, replay: bool) -> Input {
+fn capture_at(c: &mut Controller, idx: u64, entry: usize, pose: &str, replay: bool) -> Input {
     let mut f = vec![
         ("idx", idx.to_string()),
         ("entry", entry.to_string()),
@@ -392,7 +339,7 @@ fn capture_at(c: &mut Ctl, idx: u64, entry: usize, pose: &str, replay: bool) -> 
 
 #[test]
 fn a_lost_hello_or_ident_is_asked_again() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     e.handle(&Input::Connected);
     // the HELLO arrived corrupted
     let out = e.handle(&c.line("NAK", &[("ref", "-1".into()), ("reason", "bad-crc".into())]));
@@ -411,7 +358,7 @@ fn a_lost_hello_or_ident_is_asked_again() {
 
 #[test]
 fn absurd_indices_from_the_wire_are_refused() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     connected(&mut e, &mut c);
     let t = std::time::Instant::now();
     let out = e.handle(&c.line(
@@ -465,7 +412,7 @@ fn absurd_indices_from_the_wire_are_refused() {
     }
     assert!(e.is_finished());
     // many captures missing from the log make one alarm, not thousands
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     connected(&mut e, &mut c);
     let out = e.handle(&c.line(
         "ACK",
@@ -482,7 +429,7 @@ fn absurd_indices_from_the_wire_are_refused() {
 fn a_long_resync_reply_is_not_asked_again_midway() {
     // a controller like goniosim: RESYNC → every logged capture (replay=1), then the ACK
     let n_log = 1000u64;
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     let mut wire: std::collections::VecDeque<Input> = Default::default();
     let mut pending = e.handle(&Input::Connected);
     let mut resyncs = 0;
@@ -544,7 +491,7 @@ fn a_retaken_entry_is_not_paired_twice() {
             p.joints_deg[0], p.joints_deg[1], p.joints_deg[2], p.wagon_deg
         )
     };
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     connected(&mut e, &mut c);
     e.handle(&c.line(
         "ACK",
@@ -586,7 +533,7 @@ fn probes_are_requested_only_when_enabled() {
         } else {
             engine()
         };
-        let mut c = Ctl { seq: 0 };
+        let mut c = Controller::default();
         connected(&mut e, &mut c);
         e.handle(&c.line(
             "ACK",
@@ -628,7 +575,13 @@ fn resyncs(out: &[Output]) -> usize {
 
 /// A controller that answers every RESYNC by resending its capture log from `from`, where
 /// capture `bad` is an intact line (valid CRC) with a bad `%` escape in `file`.
-fn hostile_replay(e: &mut Engine, c: &mut Ctl, out: &[Output], bad: u64, next: u64) -> Vec<Output> {
+fn hostile_replay(
+    e: &mut Engine,
+    c: &mut Controller,
+    out: &[Output],
+    bad: u64,
+    next: u64,
+) -> Vec<Output> {
     let mut got = Vec::new();
     for o in out {
         let Output::Send(l) = o else { continue };
@@ -669,7 +622,7 @@ fn hostile_replay(e: &mut Engine, c: &mut Ctl, out: &[Output], bad: u64, next: u
 
 #[test]
 fn an_intact_but_unacceptable_capture_line_is_skipped_after_one_resend() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     let out = connected(&mut e, &mut c);
     let mut all = hostile_replay(&mut e, &mut c, &out, 1, 0);
     // live traffic: capture 0, the bad capture 1, then captures 2..40
@@ -735,7 +688,7 @@ fn an_intact_but_unacceptable_capture_line_is_skipped_after_one_resend() {
 
 #[test]
 fn resyncs_for_the_same_capture_back_off() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     let out = connected(&mut e, &mut c);
     assert_eq!(resyncs(&out), 1);
     // every ACK is lost and every line arrives after a sequence gap: without a backoff each
@@ -756,7 +709,7 @@ fn resyncs_for_the_same_capture_back_off() {
 
 #[test]
 fn alarm_storms_are_aggregated_and_every_occurrence_is_counted() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     connected(&mut e, &mut c);
     let mut out = Vec::new();
     for _ in 0..10_000 {
@@ -797,7 +750,7 @@ fn alarm_storms_are_aggregated_and_every_occurrence_is_counted() {
 
 #[test]
 fn absurd_controller_times_are_refused() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     connected(&mut e, &mut c);
     for t in ["1e308", "-1e308", "-5"] {
         let out = e.handle(&c.line(
@@ -820,7 +773,7 @@ fn absurd_controller_times_are_refused() {
 
 #[test]
 fn a_critical_raised_before_a_resume_still_counts_for_the_exit_status() {
-    let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+    let (mut e, mut c) = (engine(), Controller::default());
     connected(&mut e, &mut c);
     assert!(!e.critical_raised());
     let fault = c.line("STATUS", &[("state", "fault".into()), ("t", "1".into())]);
@@ -830,7 +783,7 @@ fn a_critical_raised_before_a_resume_still_counts_for_the_exit_status() {
     // a resumed daemon rebuilds the engine from the journal without carrying out its alarms
     // again; the exit status comes from the rebuilt engine, not from the alarms it emits now
     let mut resumed = engine();
-    let mut c2 = Ctl { seq: 0 };
+    let mut c2 = Controller::default();
     connected(&mut resumed, &mut c2);
     resumed.handle(&fault);
     let out = resumed.handle(&Input::Restart);
@@ -841,7 +794,7 @@ fn a_critical_raised_before_a_resume_still_counts_for_the_exit_status() {
 #[test]
 fn a_malformed_line_inside_a_resync_answer_is_asked_again_not_taken_as_lost() {
     for second_copy_readable in [false, true] {
-        let (mut e, mut c) = (engine(), Ctl { seq: 0 });
+        let (mut e, mut c) = (engine(), Controller::default());
         let out = connected(&mut e, &mut c);
         let mut all = hostile_replay(&mut e, &mut c, &out, u64::MAX, 0);
         all.extend(e.handle(&c.capture(0)));

@@ -2,29 +2,11 @@
 //! differences, the cancellation-free ΔH*ab, Shepard interpolation next to a node, direction
 //! angles of tiny and huge vectors, and the column-scaled colour-transform fit.
 
+use goniowatch::fixtures::Rng;
 use goniowatch::measure::colour::*;
 use goniowatch::measure::crossval::{fit_transform, ColourTransform, CrossValError};
 use goniowatch::measure::geometry::*;
 use goniowatch::measure::shepard::Shepard;
-
-/// xorshift64*: a small deterministic generator, so the tests need no RNG crate.
-struct XorShift(u64);
-
-impl XorShift {
-    fn next_u64(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    /// Uniform in [0, 1).
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-}
 
 fn lab_at(l: f64, c: f64, h_rad: f64) -> Lab {
     Lab::new(l, c * h_rad.cos(), c * h_rad.sin())
@@ -101,7 +83,7 @@ fn ciede2000_stays_finite_and_scale_free_at_huge_chroma() {
 
 #[test]
 fn delta_h_of_identical_colours_is_exactly_zero() {
-    let mut rng = XorShift(0x9E37_79B9_7F4A_7C15);
+    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
     for _ in 0..10_000 {
         let c = Lab::new(
             rng.range(0.0, 100.0),
@@ -124,7 +106,7 @@ fn delta_h_of_identical_colours_is_exactly_zero() {
 fn delta_h_never_exceeds_delta_e() {
     // ΔE² = ΔL² + ΔC² + ΔH², so |ΔH| ≤ ΔE; pairs at every distance from 1e-12 to 10 units,
     // moved in hue only, in chroma only, or in all three coordinates.
-    let mut rng = XorShift(2_463_534_242);
+    let mut rng = Rng(2_463_534_242);
     let mut worst: f64 = 0.0;
     for i in 0..100_000 {
         let a = Lab::new(
@@ -394,7 +376,7 @@ fn rotations_and_angles_between_tiny_and_huge_vectors() {
 // ---------------------------------------------------------------------------------------------
 
 fn chromatic_colours(n: usize, seed: u64) -> Vec<Xyz> {
-    let mut rng = XorShift(seed);
+    let mut rng = Rng(seed);
     (0..n)
         .map(|_| {
             let l = rng.range(5.0, 95.0);

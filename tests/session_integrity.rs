@@ -8,7 +8,7 @@ use common::reference;
 use goniowatch::daemon::ingest::measure_file;
 use goniowatch::decode::DecodeLimits;
 use goniowatch::engine::Input;
-use goniowatch::protocol::format;
+use goniowatch::fixtures::Controller;
 use goniowatch::session::journal::{JournalEntry, JournalItem, JsonlFile};
 use goniowatch::session::recovery::{recover, Session};
 use std::path::{Path, PathBuf};
@@ -62,12 +62,8 @@ fn make_session(base: &Path) -> PathBuf {
         "the capture root is stored absolute"
     );
     let mut journal = JsonlFile::append(&dir.join("journal.jsonl")).unwrap();
-    let mut seq = 0;
-    let mut line = |verb: &str, fields: &[(&str, String)]| {
-        let l = format(seq, verb, fields);
-        seq += 1;
-        Input::Rx { line: l }
-    };
+    let mut controller = Controller::default();
+    let mut line = |verb: &str, fields: &[(&str, String)]| controller.line(verb, fields);
     let mut inputs = vec![
         Input::Connected,
         line(

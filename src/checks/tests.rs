@@ -1,86 +1,14 @@
 //! The checker on synthetic sessions: a reciprocal, smooth BRDF captured on the UBO plan.
 
 use super::*;
-use crate::measure::averaging::CaptureStats;
-use crate::measure::colour::RgbToXyz;
-use crate::measure::colour::{RgbPrimaries, White};
 use crate::measure::kinematics::RigSpec;
 use crate::measure::plan::SamplingPlan;
 
-/// A reciprocal, smooth BRDF (RGB), times cos θi: what an ideal rig would average.
-fn reading(wi: &Vec3, wo: &Vec3) -> [f64; 3] {
-    let h = (wi + wo).normalize();
-    let lobe = 0.6 * h.z.powi(40);
-    let f = [0.40 + lobe, 0.34 + lobe, 0.25 + lobe];
-    [f[0] * wi.z, f[1] * wi.z, f[2] * wi.z]
-}
-
-fn checker() -> Checker {
-    let colour = ColourSettings {
-        to_xyz: RgbToXyz::new(RgbPrimaries::SrgbIec),
-        rgb_scale: 100.0,
-        white: White::d65_scaled(100.0).unwrap(),
-        min_cos: 1e-3,
-    };
-    Checker::new(
-        SamplingPlan::ubo(),
-        Rig::new(RigSpec::default()).unwrap(),
-        colour,
-        CheckSpec::default(),
-        true,
-        ProbeSpec::default(),
-    )
-}
+use crate::fixtures::{ubo_checker as checker, ubo_session};
 
 /// The captures of the UBO plan in light-outer order, as the rig would take them.
 fn session(upto: usize) -> Vec<CaptureInput> {
-    session_with_gain(upto, |_| 1.0)
-}
-
-fn session_with_gain(upto: usize, gain: impl Fn(f64) -> f64) -> Vec<CaptureInput> {
-    let plan = SamplingPlan::ubo();
-    let rig = Rig::new(RigSpec::default()).unwrap();
-    (0..upto)
-        .map(|idx| {
-            let e = plan.entry(idx).unwrap();
-            let d = plan.directions();
-            let pp = rig
-                .plan_pose(d[e.light].spherical(), d[e.camera].spherical())
-                .unwrap();
-            let r = [
-                pp.pose.joints_deg[0],
-                pp.pose.joints_deg[1],
-                pp.pose.joints_deg[2],
-                pp.pose.wagon_deg,
-            ];
-            CaptureInput {
-                idx: idx as u64,
-                entry: idx,
-                file: format!("c{idx}.hdr"),
-                t: idx as f64 * 7.0,
-                cmd: r,
-                enc: r,
-                substitute: pp.substitute.map(|s| s.1),
-                probe: false,
-                outcome: Outcome::Ok {
-                    stats: CaptureStats {
-                        mean_rgb: reading(&pp.used.omega_i, &pp.used.omega_o)
-                            .map(|v| v * gain(idx as f64 * 7.0 / 3600.0)),
-                        pixels: 100,
-                        nonfinite: 0,
-                        negative: 0,
-                        clipped: 0,
-                        dark: 0,
-                        max_value: 1.0,
-                    },
-                    width: 10,
-                    height: 10,
-                    size: 1,
-                    sha256: String::new(),
-                },
-            }
-        })
-        .collect()
+    ubo_session(upto, |_| 1.0)
 }
 
 #[test]
@@ -199,7 +127,7 @@ fn isotropy_classes_give_the_drift_rate_and_the_corrected_colour() {
     let mut ch = checker();
     let mut alarms = Vec::new();
     let mut last = None;
-    for input in session_with_gain(3000, |t| (-0.01 * t).exp()) {
+    for input in ubo_session(3000, |t| (-0.01 * t).exp()) {
         let out = ch.check(&input);
         alarms.extend(out.alarms.into_iter().filter(|a| a.code == "gain-drift"));
         last = out.capture;
@@ -237,7 +165,7 @@ fn an_anisotropic_sample_gets_no_isotropy_terms() {
     let mut ch = checker();
     ch.isotropy = None;
     ch.drift = None;
-    for input in session_with_gain(1500, |t| (-0.05 * t).exp()) {
+    for input in ubo_session(1500, |t| (-0.05 * t).exp()) {
         let out = ch.check(&input);
         assert!(out.isotropy.is_empty());
         assert!(out.capture.unwrap().gain_corrected.is_none());
@@ -301,7 +229,7 @@ fn a_step_found_by_the_sweeps_enters_the_gain_correction() {
     let mut ch = checker();
     let mut steps = Vec::new();
     let mut last = None;
-    for input in session_with_gain(2600, |t_h| if t_h * 3600.0 >= t_step { 0.97 } else { 1.0 }) {
+    for input in ubo_session(2600, |t_h| if t_h * 3600.0 >= t_step { 0.97 } else { 1.0 }) {
         let out = ch.check(&input);
         steps.extend(out.alarms.into_iter().filter(|a| a.code == "gain-step"));
         last = out.capture;

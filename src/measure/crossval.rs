@@ -436,13 +436,8 @@ mod tests {
     use super::*;
 
     fn colours(n: usize, grey: f64, seed: u64) -> Vec<Xyz> {
-        let mut s = seed;
-        let mut u = move || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut s = crate::fixtures::Lcg(seed);
+        let mut u = || s.uniform();
         (0..n)
             .map(|_| {
                 let l = 5.0 + 90.0 * u();
@@ -479,17 +474,10 @@ mod tests {
         }
         assert!(fit.rms_residual < 1e-9);
         // with noise, channel weights still give the same T (the paper's eq. 8-9)
-        let mut s = 9u64;
+        let mut s = crate::fixtures::Lcg(9);
         let noisy: Vec<Xyz> = w
             .iter()
-            .map(|x| {
-                x.map(|c| {
-                    s = s
-                        .wrapping_mul(6364136223846793005)
-                        .wrapping_add(1442695040888963407);
-                    c + ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
-                })
-            })
+            .map(|x| x.map(|c| c + (s.uniform() - 0.5)))
             .collect();
         let a = fit_transform(&v, &noisy).unwrap();
         let b = fit_transform_weighted(&v, &noisy, [0.2, 5.0, 1.0]).unwrap();

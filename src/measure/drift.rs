@@ -492,18 +492,7 @@ impl DriftDetector {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn lcg(seed: &mut u64) -> f64 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (*seed >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn gauss(seed: &mut u64) -> f64 {
-        let (u, v) = (lcg(seed).max(1e-300), lcg(seed));
-        (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
-    }
+    use crate::fixtures::Lcg;
 
     /// Synthetic pairs with bucket effects, a rate, noise, and an optional step.
     fn run(
@@ -511,14 +500,14 @@ mod tests {
         step: Option<(f64, f64)>,
         seed: u64,
     ) -> (DriftDetector, Vec<(usize, DriftEvent)>) {
-        let mut s = seed;
+        let mut s = Lcg(seed);
         // refit less often than the default to keep the debug-build test quick
         let mut det = DriftDetector::new(DriftSpec {
             refit_every: 80,
             ..DriftSpec::default()
         });
         let mut events = Vec::new();
-        let buckets: Vec<f64> = (0..36).map(|_| 0.04 * gauss(&mut s)).collect();
+        let buckets: Vec<f64> = (0..36).map(|_| 0.04 * s.gauss()).collect();
         let ln_g = |t: f64| {
             let mut v = rate_pct / 100.0 * t;
             if let Some((t0, frac)) = step {
@@ -530,9 +519,9 @@ mod tests {
         };
         for i in 0..3240 {
             let t_b = 13.0 * (i as f64 + 1.0) / 3240.0;
-            let t_a = t_b * lcg(&mut s);
-            let b = (lcg(&mut s) * 36.0) as usize;
-            let d = ln_g(t_b) - ln_g(t_a) + buckets[b] + 0.015 * gauss(&mut s);
+            let t_a = t_b * s.uniform();
+            let b = (s.uniform() * 36.0) as usize;
+            let d = ln_g(t_b) - ln_g(t_a) + buckets[b] + 0.015 * s.gauss();
             for e in det.add(PairObservation {
                 t_a_h: t_a,
                 t_b_h: t_b,
@@ -551,7 +540,7 @@ mod tests {
         // −1 %/h and a −3 % step at 6.5 h
         let step = (0.97f64).ln();
         let fit = |known: bool| {
-            let mut s = 5;
+            let mut s = Lcg(5);
             let mut det = DriftDetector::new(DriftSpec {
                 refit_every: 3000,
                 min_pairs: 100,
@@ -563,12 +552,12 @@ mod tests {
             }
             for i in 0..3000 {
                 let t_b = 13.0 * (i as f64 + 1.0) / 3000.0;
-                let t_a = t_b * lcg(&mut s);
+                let t_a = t_b * s.uniform();
                 let lg = |t: f64| -0.01 * t + if t >= 6.5 { step } else { 0.0 };
                 det.add(PairObservation {
                     t_a_h: t_a,
                     t_b_h: t_b,
-                    d: lg(t_b) - lg(t_a) + 0.01 * gauss(&mut s),
+                    d: lg(t_b) - lg(t_a) + 0.01 * s.gauss(),
                     bucket: ((i % 5) as i64, 0),
                     sigma: 0.0,
                 });
@@ -615,7 +604,7 @@ mod tests {
         // 2,000 measured pairs with a −1 %/h drift, and 200 whose values follow +5 %/h; with
         // no stated uncertainty the latter pull the rate, with a large one they hardly do
         let fit = |sigma: f64| {
-            let mut s = 11;
+            let mut s = Lcg(11);
             let mut det = DriftDetector::new(DriftSpec {
                 refit_every: 2200,
                 min_pairs: 100,
@@ -623,10 +612,10 @@ mod tests {
             });
             for i in 0..2200 {
                 let t_b = 13.0 * (i as f64 + 1.0) / 2200.0;
-                let t_a = t_b * lcg(&mut s);
+                let t_a = t_b * s.uniform();
                 let odd = i % 11 == 0;
                 let rate = if odd { 0.05 } else { -0.01 };
-                let d = rate * (t_b - t_a) + 0.015 * gauss(&mut s);
+                let d = rate * (t_b - t_a) + 0.015 * s.gauss();
                 det.add(PairObservation {
                     t_a_h: t_a,
                     t_b_h: t_b,

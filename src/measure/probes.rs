@@ -179,13 +179,8 @@ mod tests {
         noise: f64,
         seed: u64,
     ) -> Vec<(f64, DriftEvent)> {
-        let mut s = seed;
-        let mut g = move || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * noise
-        };
+        let mut s = crate::fixtures::Lcg(seed);
+        let mut g = move || (s.uniform() - 0.5) * 2.0 * noise;
         let gain = |t: f64| {
             let mut v = (1.0 - rate_pct_h / 100.0 * t).max(1e-6);
             if let Some((t0, f)) = step {

@@ -589,13 +589,8 @@ mod tests {
 
     #[test]
     fn grid_search_equals_brute_force() {
-        let mut s = 3u64;
-        let mut u = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut s = crate::fixtures::Lcg(3u64);
+        let mut u = || s.uniform();
         let random2: Vec<[f64; 3]> = (0..500).map(|_| [u(), u() * 3.0, 0.0]).collect();
         let grid9: Vec<[f64; 3]> = (0..81)
             .map(|i| [(i % 9) as f64 / 8.0, (i / 9) as f64 / 8.0, 0.0])
