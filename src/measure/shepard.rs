@@ -375,7 +375,6 @@ impl Shepard {
         let mut order: Vec<(f64, usize)> = Vec::with_capacity(n);
         let mut terms = Vec::with_capacity(m);
         for k in 0..n {
-            let (pk, fk) = (p[k], f[k]);
             // the lmax nearest other nodes by squared distance (ties by index)
             grid.nearest(&p[..n], k, lmax, &mut order);
             if let Some(&(d0, j)) = order.first() {
@@ -383,101 +382,11 @@ impl Shepard {
                     return Err(ShepardError::DuplicateNodes(k.min(j), k.max(j)));
                 }
             }
-            let nb = |i: usize| order[i];
-            // choose the fit's nodes (neq), its radius rq, the weight radius and the scale
-            let (mut rs, mut sum, mut rws, mut rq) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
-            let (mut lnp, mut neq, mut sfs) = (0usize, 0usize, 0.0f64);
-            loop {
-                sum += rs;
-                if lnp == lmax {
-                    if rws == 0.0 {
-                        rws = WIDEN * rs;
-                    }
-                    if rq == 0.0 {
-                        neq = lmax;
-                        rq = (WIDEN * rs).sqrt();
-                        sfs = neq as f64 / sum;
-                    }
-                    break;
-                }
-                lnp += 1;
-                let rsold = rs;
-                rs = nb(lnp - 1).0;
-                if (rs - rsold) / rs < RTOL {
-                    continue;
-                }
-                if rws == 0.0 && lnp > nw {
-                    rws = rs;
-                }
-                if rq == 0.0 && lnp > nq {
-                    neq = lnp - 1;
-                    rq = rs.sqrt();
-                    sfs = neq as f64 / sum;
-                }
-                if lnp > nqw {
-                    break;
-                }
-            }
-            rw[k] = rws.sqrt();
-            rsmx = rsmx.max(rws);
-            let sf = sfs.sqrt();
-            let sol = loop {
-                let mut rows = Vec::with_capacity(neq + m);
-                let mut rhs = Vec::with_capacity(neq + m);
-                for i in 0..neq {
-                    let j = nb(i).1;
-                    let d = [p[j][0] - pk[0], p[j][1] - pk[1], p[j][2] - pk[2]];
-                    let dist = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                    if dist <= 0.0 || dist >= rq {
-                        rows.push(vec![0.0; m]);
-                        rhs.push(0.0);
-                        continue;
-                    }
-                    let w = (rq - dist) / rq / dist;
-                    method.terms_at(&d, sf, &mut terms);
-                    rows.push(terms.iter().map(|t| t * w).collect());
-                    rhs.push((f[j] - fk) * w);
-                }
-                let (sol, dmin) =
-                    qr_solve(&rows, &rhs, m, 0..m).ok_or(ShepardError::Collinear(k))?;
-                if dmin * rq >= DTOL {
-                    break sol;
-                }
-                if neq == lmax {
-                    // damp the highest-order terms: the fit tends to the next lower degree
-                    for i in 0..method.damped() {
-                        let mut e = vec![0.0; m];
-                        e[i] = method.damping(rq);
-                        rows.push(e);
-                        rhs.push(0.0);
-                    }
-                    let (sol, dmin) = qr_solve(&rows, &rhs, m, method.checked_after_damping())
-                        .ok_or(ShepardError::Collinear(k))?;
-                    if dmin * rq < DTOL {
-                        return Err(ShepardError::Collinear(k));
-                    }
-                    break sol;
-                }
-                // take one more node (all of a tie) and widen rq to just beyond it
-                loop {
-                    let rsold = rs;
-                    neq += 1;
-                    if neq == lmax {
-                        rq = (WIDEN * rs).sqrt();
-                        break;
-                    }
-                    if neq < lnp {
-                        rs = nb(neq).0;
-                    } else {
-                        lnp += 1;
-                        rs = nb(lnp - 1).0;
-                    }
-                    if (rs - rsold) / rs >= RTOL {
-                        rq = rs.sqrt();
-                        break;
-                    }
-                }
-            };
+            let r = Radii::choose(&order, lmax, nq, nw, nqw);
+            rw[k] = r.rws.sqrt();
+            rsmx = rsmx.max(r.rws);
+            let sf = r.sfs.sqrt();
+            let sol = nodal_fit(method, &p[..n], &f[..n], k, &order, lmax, r, sf, &mut terms)?;
             a[k] = sol
                 .iter()
                 .zip(method.scales(sf))
@@ -570,6 +479,150 @@ impl Shepard {
             return Err(outside());
         }
         Ok((mean, (m2 / sw).max(0.0).sqrt()))
+    }
+}
+
+/// The radii of one node's fit: how many neighbours its fit uses (`neq`, within `rq`), the
+/// squared weight radius `rws`, and the scale `sfs`; `lnp` neighbours were looked at, the last
+/// at squared distance `rs`.
+#[derive(Debug, Clone, Copy)]
+struct Radii {
+    lnp: usize,
+    neq: usize,
+    rs: f64,
+    rws: f64,
+    rq: f64,
+    sfs: f64,
+}
+
+impl Radii {
+    /// Renka's choice from the neighbours by squared distance (`order`): the fit takes at least
+    /// `nq` nodes and the weight at least `nw`, each radius widened past ties.
+    fn choose(order: &[(f64, usize)], lmax: usize, nq: usize, nw: usize, nqw: usize) -> Radii {
+        let (mut rs, mut sum, mut rws, mut rq) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let (mut lnp, mut neq, mut sfs) = (0usize, 0usize, 0.0f64);
+        loop {
+            sum += rs;
+            if lnp == lmax {
+                if rws == 0.0 {
+                    rws = WIDEN * rs;
+                }
+                if rq == 0.0 {
+                    neq = lmax;
+                    rq = (WIDEN * rs).sqrt();
+                    sfs = neq as f64 / sum;
+                }
+                break;
+            }
+            lnp += 1;
+            let rsold = rs;
+            rs = order[lnp - 1].0;
+            if (rs - rsold) / rs < RTOL {
+                continue;
+            }
+            if rws == 0.0 && lnp > nw {
+                rws = rs;
+            }
+            if rq == 0.0 && lnp > nq {
+                neq = lnp - 1;
+                rq = rs.sqrt();
+                sfs = neq as f64 / sum;
+            }
+            if lnp > nqw {
+                break;
+            }
+        }
+        Radii {
+            lnp,
+            neq,
+            rs,
+            rws,
+            rq,
+            sfs,
+        }
+    }
+}
+
+/// The nodal function's coefficients at node `k` (scaled by `sf`): a weighted least-squares fit
+/// over its `neq` nearest neighbours, taking more neighbours while the fit is ill-conditioned
+/// and damping the highest-order terms once all `lmax` are in.
+#[allow(clippy::too_many_arguments)]
+fn nodal_fit(
+    method: Method,
+    p: &[[f64; 3]],
+    f: &[f64],
+    k: usize,
+    order: &[(f64, usize)],
+    lmax: usize,
+    r: Radii,
+    sf: f64,
+    terms: &mut Vec<f64>,
+) -> Result<Vec<f64>, ShepardError> {
+    let m = method.terms();
+    let (pk, fk) = (p[k], f[k]);
+    let nb = |i: usize| order[i];
+    let Radii {
+        mut lnp,
+        mut neq,
+        mut rs,
+        mut rq,
+        ..
+    } = r;
+    loop {
+        let mut rows = Vec::with_capacity(neq + m);
+        let mut rhs = Vec::with_capacity(neq + m);
+        for i in 0..neq {
+            let j = nb(i).1;
+            let d = [p[j][0] - pk[0], p[j][1] - pk[1], p[j][2] - pk[2]];
+            let dist = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            if dist <= 0.0 || dist >= rq {
+                rows.push(vec![0.0; m]);
+                rhs.push(0.0);
+                continue;
+            }
+            let w = (rq - dist) / rq / dist;
+            method.terms_at(&d, sf, terms);
+            rows.push(terms.iter().map(|t| t * w).collect());
+            rhs.push((f[j] - fk) * w);
+        }
+        let (sol, dmin) = qr_solve(&rows, &rhs, m, 0..m).ok_or(ShepardError::Collinear(k))?;
+        if dmin * rq >= DTOL {
+            return Ok(sol.iter().copied().collect());
+        }
+        if neq == lmax {
+            // damp the highest-order terms: the fit tends to the next lower degree
+            for i in 0..method.damped() {
+                let mut e = vec![0.0; m];
+                e[i] = method.damping(rq);
+                rows.push(e);
+                rhs.push(0.0);
+            }
+            let (sol, dmin) = qr_solve(&rows, &rhs, m, method.checked_after_damping())
+                .ok_or(ShepardError::Collinear(k))?;
+            if dmin * rq < DTOL {
+                return Err(ShepardError::Collinear(k));
+            }
+            return Ok(sol.iter().copied().collect());
+        }
+        // take one more node (all of a tie) and widen rq to just beyond it
+        loop {
+            let rsold = rs;
+            neq += 1;
+            if neq == lmax {
+                rq = (WIDEN * rs).sqrt();
+                break;
+            }
+            if neq < lnp {
+                rs = nb(neq).0;
+            } else {
+                lnp += 1;
+                rs = nb(lnp - 1).0;
+            }
+            if (rs - rsold) / rs >= RTOL {
+                rq = rs.sqrt();
+                break;
+            }
+        }
     }
 }
 
