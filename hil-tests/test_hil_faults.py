@@ -131,8 +131,13 @@ def test_encoder_mismatch_and_backlash_are_positioning_alarms(hil, tmp_path):
     code, out, err = run_daemon(rig, session, daemon_config(tmp_path, "encf"), timeout=120)
     assert code == 0, err[-2000:]
     al = alarms_by_code(session)
-    assert [a["idx"] for a in al["encoder-mismatch"]] == [30, 31]
+    # one alarm when the mismatch starts, one when it clears, the captures counted
+    assert [a["idx"] for a in al["encoder-mismatch"]] == [30]
     assert "wagon encoder reads" in al["encoder-mismatch"][0]["message"]
+    assert [a["idx"] for a in al["encoder-mismatch-cleared"]] == [32]
+    assert al["encoder-mismatch-cleared"][0]["evidence"]["captures"] == 2
+    summary = json.load(open(session / "summary.json"))
+    assert summary["checked"]["encoder_mismatch"] == 2
     assert_replay_identical(session, tmp_path)
     # replay paced by the recorded times (here 50× real time) gives the same results
     import subprocess

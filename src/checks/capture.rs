@@ -31,7 +31,7 @@ pub(super) struct Measured {
     pub(super) camera: usize,
 }
 
-/// Counts and the run of consecutive failures.
+/// Counts, the run of consecutive failures, and the pose episodes in progress.
 #[derive(Debug, Clone, Default)]
 pub(super) struct CaptureStage {
     pub(super) captures: u64,
@@ -39,7 +39,88 @@ pub(super) struct CaptureStage {
     pub(super) failed: u64,
     pub(super) missing: u64,
     pub(super) probes: u64,
+    /// Captures whose encoders put them off the plan, and whose encoders disagreed with the
+    /// commanded pose.
+    pub(super) off_plan: u64,
+    pub(super) encoder_mismatch: u64,
     consecutive_failures: u32,
+    off_plan_episode: Option<Episode>,
+    encoder_episode: Option<Episode>,
+}
+
+/// A pose condition that holds over consecutive captures: raised once when it starts, cleared
+/// once when it ends, counted in between (a constant offset would otherwise raise an alarm on
+/// every capture to the end of the run).
+#[derive(Debug, Clone, PartialEq)]
+struct Episode {
+    /// The axis it concerns (encoder mismatch), or "pose".
+    axis: &'static str,
+    first_idx: u64,
+    last_idx: u64,
+    captures: u64,
+    worst_deg: f64,
+}
+
+impl Episode {
+    /// Note one capture showing the condition on `axis` with error `deg`: the alarm to raise
+    /// (from `raise`), when it starts an episode (or a different axis starts one).
+    fn note(
+        slot: &mut Option<Episode>,
+        axis: &'static str,
+        idx: u64,
+        deg: f64,
+        raise: impl FnOnce() -> Alarm,
+    ) -> Option<Alarm> {
+        match slot {
+            Some(e) if e.axis == axis => {
+                e.last_idx = idx;
+                e.captures += 1;
+                e.worst_deg = e.worst_deg.max(deg);
+                None
+            }
+            _ => {
+                *slot = Some(Episode {
+                    axis,
+                    first_idx: idx,
+                    last_idx: idx,
+                    captures: 1,
+                    worst_deg: deg,
+                });
+                Some(raise())
+            }
+        }
+    }
+
+    /// The capture at `idx` does not show the condition: the episode in progress, if any, ends
+    /// with an info alarm `<code>-cleared` that sums it up.
+    fn clear(
+        slot: &mut Option<Episode>,
+        code: &str,
+        what: &str,
+        idx: u64,
+        t: f64,
+    ) -> Option<Alarm> {
+        let e = slot.take()?;
+        Some(
+            Alarm::new(
+                AlarmKind::Positioning,
+                Severity::Info,
+                &format!("{code}-cleared"),
+                format!(
+                    "{what} ({}) held for {} capture(s), {} to {}, at most {:.4}°; capture {idx} is within tolerance again",
+                    e.axis, e.captures, e.first_idx, e.last_idx, e.worst_deg
+                ),
+            )
+            .at(Some(idx), Some(t))
+            .with(json!({
+                "axis": e.axis,
+                "captures": e.captures,
+                "first_idx": e.first_idx,
+                "last_idx": e.last_idx,
+                "worst_deg": e.worst_deg,
+            })),
+        )
+    }
 }
 
 impl CaptureStage {
@@ -93,7 +174,7 @@ impl CaptureStage {
         if input.probe {
             self.probes += 1;
         }
-        let (measured, pose_err) = pose(ctx, input, nominal, alarms);
+        let (measured, pose_err) = self.pose(ctx, input, nominal, alarms);
         rec.angles = Some(measured.angles());
         rec.pose_error_deg = Some(pose_err);
 
@@ -207,81 +288,100 @@ fn nominal(ctx: &Ctx, entry: usize, substitute: Option<f64>) -> Option<(Incidenc
     ))
 }
 
-/// The incidence measured from the encoders (the plan's when they are unusable), its largest
-/// angle from the plan, and the pose alarms: off the plan, encoders against the commands.
-fn pose(
-    ctx: &Ctx,
-    input: &CaptureInput,
-    nominal: Incidence,
-    alarms: &mut Vec<Alarm>,
-) -> (Incidence, f64) {
-    let at = (Some(input.idx), Some(input.t));
-    let measured = match ctx.rig.forward(&Pose {
-        joints_deg: [input.enc[0], input.enc[1], input.enc[2]],
-        wagon_deg: input.enc[3],
-    }) {
-        Ok(m) => m,
-        Err(e) => {
-            alarms.push(
+impl CaptureStage {
+    /// The incidence measured from the encoders (the plan's when they are unusable), its
+    /// largest angle from the plan, and the pose alarms: off the plan, encoders against the
+    /// commands, each raised when it starts and cleared when it ends.
+    fn pose(
+        &mut self,
+        ctx: &Ctx,
+        input: &CaptureInput,
+        nominal: Incidence,
+        alarms: &mut Vec<Alarm>,
+    ) -> (Incidence, f64) {
+        let at = (Some(input.idx), Some(input.t));
+        let measured = match ctx.rig.forward(&Pose {
+            joints_deg: [input.enc[0], input.enc[1], input.enc[2]],
+            wagon_deg: input.enc[3],
+        }) {
+            Ok(m) => m,
+            Err(e) => {
+                alarms.push(
+                    Alarm::new(
+                        AlarmKind::Positioning,
+                        Severity::Warning,
+                        "bad-pose",
+                        format!(
+                            "capture {}: encoder pose {:?} unusable ({e}); the plan's pose is assumed",
+                            input.idx, input.enc
+                        ),
+                    )
+                    .at(at.0, at.1),
+                );
+                nominal
+            }
+        };
+        let pose_err = angle_between(&measured.omega_i, &nominal.omega_i)
+            .max(angle_between(&measured.omega_o, &nominal.omega_o))
+            .to_degrees();
+        if pose_err > ctx.spec.pose_tolerance_deg {
+            self.off_plan += 1;
+            alarms.extend(Episode::note(&mut self.off_plan_episode, "pose", input.idx, pose_err, || {
                 Alarm::new(
                     AlarmKind::Positioning,
                     Severity::Warning,
-                    "bad-pose",
+                    "pose-off-plan",
                     format!(
-                        "capture {}: encoder pose {:?} unusable ({e}); the plan's pose is assumed",
-                        input.idx, input.enc
+                        "capture {}: the encoders put the lamp/camera {:.3}° from plan entry {} (tolerance {}°); further captures off the plan are counted until it clears",
+                        input.idx, pose_err, input.entry, ctx.spec.pose_tolerance_deg
                     ),
                 )
-                .at(at.0, at.1),
-            );
-            nominal
-        }
-    };
-    let pose_err = angle_between(&measured.omega_i, &nominal.omega_i)
-        .max(angle_between(&measured.omega_o, &nominal.omega_o))
-        .to_degrees();
-    if pose_err > ctx.spec.pose_tolerance_deg {
-        alarms.push(
-            Alarm::new(
-                AlarmKind::Positioning,
-                Severity::Warning,
+                .at(at.0, at.1)
+                .with(json!({"pose_error_deg": pose_err, "enc": input.enc, "cmd": input.cmd}))
+            }));
+        } else {
+            alarms.extend(Episode::clear(
+                &mut self.off_plan_episode,
                 "pose-off-plan",
-                format!(
-                    "capture {}: the encoders put the lamp/camera {:.3}° from plan entry {} (tolerance {}°)",
-                    input.idx, pose_err, input.entry, ctx.spec.pose_tolerance_deg
-                ),
-            )
-            .at(at.0, at.1)
-            .with(json!({"pose_error_deg": pose_err, "enc": input.enc, "cmd": input.cmd})),
-        );
-    }
-    let enc_err = (0..4)
-        .map(|k| (input.enc[k] - input.cmd[k]).abs())
-        .fold(0.0, f64::max);
-    if enc_err > ctx.spec.encoder_tolerance_deg {
+                "the encoder pose off the plan",
+                input.idx,
+                input.t,
+            ));
+        }
+        let errs: Vec<f64> = (0..4)
+            .map(|k| (input.enc[k] - input.cmd[k]).abs())
+            .collect();
         let axis = (0..4)
-            .max_by(|&a, &b| {
-                (input.enc[a] - input.cmd[a])
-                    .abs()
-                    .total_cmp(&(input.enc[b] - input.cmd[b]).abs())
-            })
+            .max_by(|&a, &b| errs[a].total_cmp(&errs[b]))
             .unwrap_or(0);
-        let name = ["joint 1", "joint 2", "joint 3", "wagon"][axis];
-        alarms.push(
-            Alarm::new(
-                AlarmKind::Positioning,
-                Severity::Warning,
+        let enc_err = errs[axis];
+        if enc_err > ctx.spec.encoder_tolerance_deg {
+            self.encoder_mismatch += 1;
+            let name = ["joint 1", "joint 2", "joint 3", "wagon"][axis];
+            alarms.extend(Episode::note(&mut self.encoder_episode, name, input.idx, enc_err, || {
+                Alarm::new(
+                    AlarmKind::Positioning,
+                    Severity::Warning,
+                    "encoder-mismatch",
+                    format!(
+                        "capture {}: {name} encoder reads {:.4}° but {:.4}° was commanded (|Δ| {:.4}° > {}°); further mismatching captures are counted until it clears",
+                        input.idx, input.enc[axis], input.cmd[axis], enc_err, ctx.spec.encoder_tolerance_deg
+                    ),
+                )
+                .at(at.0, at.1)
+                .with(json!({"axis": name, "enc": input.enc, "cmd": input.cmd}))
+            }));
+        } else {
+            alarms.extend(Episode::clear(
+                &mut self.encoder_episode,
                 "encoder-mismatch",
-                format!(
-                    "capture {}: {name} encoder reads {:.4}° but {:.4}° was commanded (|Δ| {:.4}° > {}°)",
-                    input.idx, input.enc[axis], input.cmd[axis], enc_err, ctx.spec.encoder_tolerance_deg
-                ),
-            )
-            .at(at.0, at.1)
-            .with(json!({"axis": name, "enc": input.enc, "cmd": input.cmd})),
-        );
+                "the encoder mismatch",
+                input.idx,
+                input.t,
+            ));
+        }
+        (measured, pose_err)
     }
-    (measured, pose_err)
 }
 
 /// The quality alarms of a usable capture: non-finite, clipped and dark pixels.

@@ -514,6 +514,8 @@ impl Checker {
             pairs_unresolved: p.unresolved,
             isotropy_comparisons: self.isotropy.as_ref().map_or(0, |i| i.comparisons),
             drift_interpolated: self.drift.as_ref().map_or(0, |d| d.interpolated),
+            pose_off_plan: c.off_plan,
+            encoder_mismatch: c.encoder_mismatch,
             alarms: self.alarms,
         }
     }

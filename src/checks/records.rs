@@ -256,7 +256,17 @@ pub struct CheckCounts {
     /// Interpolated pairs fed to the isotropy drift fit (weighted by their spread).
     #[serde(default)]
     pub drift_interpolated: u64,
+    /// Captures whose encoders put them off the plan, and whose encoders disagreed with the
+    /// commanded pose (their alarms are raised once per episode).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub pose_off_plan: u64,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub encoder_mismatch: u64,
     pub alarms: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// The drift probes' gain curve as the result files give it: each usable probe brighter than the

@@ -248,3 +248,49 @@ fn a_step_found_by_the_sweeps_enters_the_gain_correction() {
     let g = last.unwrap().gain_corrected.unwrap();
     assert!((g.gain - 0.97).abs() < 0.005, "{g:?}");
 }
+
+#[test]
+fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
+    let codes = |out: &CheckOutput| -> Vec<String> {
+        out.alarms
+            .iter()
+            .filter(|a| a.code.contains("encoder") || a.code.contains("pose"))
+            .map(|a| format!("{}@{}", a.code, a.idx.unwrap_or(u64::MAX)))
+            .collect()
+    };
+    // the wagon encoder reads 0.5° off for captures 30..=40, then 0.3° from 60 to the end
+    let mut ch = checker();
+    let mut seen = Vec::new();
+    for mut input in session(400) {
+        let i = input.idx;
+        if (30..=40).contains(&i) {
+            input.enc[3] += 0.5;
+        } else if i >= 60 {
+            input.enc[3] += 0.3;
+        }
+        seen.extend(codes(&ch.check(&input)));
+    }
+    assert_eq!(
+        seen,
+        [
+            "pose-off-plan@30",
+            "encoder-mismatch@30",
+            "pose-off-plan-cleared@41",
+            "encoder-mismatch-cleared@41",
+            "pose-off-plan@60",
+            "encoder-mismatch@60",
+        ],
+        "{seen:?}"
+    );
+    let c = ch.counts();
+    assert_eq!(c.encoder_mismatch, 11 + 340);
+    assert!(c.pose_off_plan > 0 && c.pose_off_plan <= c.encoder_mismatch);
+    // an exact run counts none, and its summary does not mention them
+    let mut ch = checker();
+    for input in session(100) {
+        ch.check(&input);
+    }
+    assert_eq!(ch.counts().encoder_mismatch, 0);
+    let json = serde_json::to_string(&ch.counts()).unwrap();
+    assert!(!json.contains("encoder_mismatch"), "{json}");
+}

@@ -635,8 +635,8 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
     );
 
     // summary
-    let _ = write!(h, "<h2>Summary</h2><table><tr><td>captures checked</td><td>{}</td></tr><tr><td>usable</td><td>{}</td></tr><tr><td>failed</td><td>{}</td></tr><tr><td>missing</td><td>{}</td></tr><tr><td>drift probes</td><td>{}</td></tr><tr><td>exact reciprocal pairs</td><td>{}</td></tr><tr><td>occlusion substitutes vs interpolated partner</td><td>{} ({} unresolved)</td></tr><tr><td>pairs needing resampling / grazing</td><td>{} / {}</td></tr><tr><td>isotropy comparisons</td><td>{}</td></tr><tr><td>alarms</td><td>{}</td></tr></table>",
-        c.captures, c.ok, c.failed, c.missing, c.probes, c.pairs_exact, c.pairs_interpolated, c.pairs_unresolved, c.pairs_needs_resampling, c.pairs_grazing, c.isotropy_comparisons, alarm_total(inp));
+    let _ = write!(h, "<h2>Summary</h2><table><tr><td>captures checked</td><td>{}</td></tr><tr><td>usable</td><td>{}</td></tr><tr><td>failed</td><td>{}</td></tr><tr><td>missing</td><td>{}</td></tr><tr><td>drift probes</td><td>{}</td></tr><tr><td>exact reciprocal pairs</td><td>{}</td></tr><tr><td>occlusion substitutes vs interpolated partner</td><td>{} ({} unresolved)</td></tr><tr><td>pairs needing resampling / grazing</td><td>{} / {}</td></tr><tr><td>isotropy comparisons</td><td>{}</td></tr><tr><td>captures off the plan / encoders against commands</td><td>{} / {}</td></tr><tr><td>alarms</td><td>{}</td></tr></table>",
+        c.captures, c.ok, c.failed, c.missing, c.probes, c.pairs_exact, c.pairs_interpolated, c.pairs_unresolved, c.pairs_needs_resampling, c.pairs_grazing, c.isotropy_comparisons, c.pose_off_plan, c.encoder_mismatch, alarm_total(inp));
 
     let _ = write!(h, "<h2>Reciprocity (the paper's Table 2)</h2><p class=muted>Means over pairs after the cosine re-correction; XYZ on the configured scale, L*a*b* under the configured white.</p>");
     let mut sets: Vec<(&str, &Table2)> = vec![("exact reciprocal pairs", &s.table2)];

@@ -29,6 +29,13 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
         s.checked.pairs_grazing,
         s.checked.isotropy_comparisons
     )?;
+    if s.checked.pose_off_plan + s.checked.encoder_mismatch > 0 {
+        writeln!(
+            out,
+            "pose: {} captures off the plan, {} with encoders disagreeing with the commands",
+            s.checked.pose_off_plan, s.checked.encoder_mismatch
+        )?;
+    }
     writeln!(out, "Table 2 (means over exact reciprocal pairs):")?;
     writeln!(
         out,
