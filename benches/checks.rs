@@ -2,7 +2,7 @@
 //! isotropy classes, the isotropy drift refits, substitutes' interpolated partners, the light
 //! sweeps' back-fits, interpolant builds and joint fits) over a full
 //! 6,561-capture UBO session in light-outer order, reported per window of the run so that the
-//! cost at the end of the run is visible (issue 5's target: under 1 ms per capture at the end).
+//! cost at the end of the run is visible (the target: under 1 ms per capture at the end).
 //! Synthetic reciprocal BRDF readings (`fixtures::ubo_session`) with a −1 %/h decay; no
 //! decoding, no I/O.
 //!

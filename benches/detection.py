@@ -1,4 +1,4 @@
-"""Detection benchmark (issue 5): full 6,561-capture simulated runs, several seeds per scenario.
+"""Detection benchmark: full 6,561-capture simulated runs, several seeds per scenario.
 With `--every N` the daemon asks for a drift probe every N captures (the probe path); with
 `--every 0` there are no probes and the drift comes from isotropy classes only. Reports the alarm
 rate on fault-free runs, the detection delay after onset (captures and hours), the final

@@ -7,7 +7,7 @@
 //! built over (a) (θo/90°, φo/360°) and (b) the mirror-aligned square (x, y); both are evaluated
 //! on 20,000 random directions with θo ≤ 75°, and near the mirror direction (within 15°).
 //!
-//! Second table: across θi (issue 6, item 2). The 6,561 UBO direction pairs of the same BRDFs
+//! Second table: across θi. The 6,561 UBO direction pairs of the same BRDFs
 //! (an isotropic sample: f depends on θi, θo and φo − φi only) are interpolated at 5,000 random
 //! pairs with θi, θo ≤ 75° and random azimuths by (a) QSHEP3D in plain (θi, θo, Δφ) (θi at
 //! 0.001 per degree as in (b): at θi/90 the layers leave nodes with coplanar neighbours),

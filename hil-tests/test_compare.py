@@ -1,4 +1,4 @@
-"""Cross-validation end to end (issue 6): a simulated session against the simulator's
+"""Cross-validation end to end: a simulated session against the simulator's
 Integra-like spectral reference of the same material. A clean session agrees within a small ΔE;
 a lamp step shows up in Table 3 and in the worst directions; a known drift divided out brings
 the table back."""

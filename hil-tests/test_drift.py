@@ -1,4 +1,4 @@
-"""Gain drift without probes (issue 5, isotropy path): on an isotropic sample every capture is
+"""Gain drift without probes (the isotropy path): on an isotropic sample every capture is
 compared with the first capture of the same geometry; a lamp decay raises a rate alarm naming
 that source, the summary carries the rate, and every later capture carries its colour with the
 drift divided out. Replay gives the same bytes."""

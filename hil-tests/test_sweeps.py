@@ -1,4 +1,4 @@
-"""Drift and positioning without probes, from the light sweeps (issue 5): on an isotropic sample
+"""Drift and positioning without probes, from the light sweeps: on an isotropic sample
 in light-outer order, every completed light direction is compared with the earlier ones. A lamp
 step is a `gain-step` from "light sweeps"; an arm joint that slips is a `joint-offset-suspected`
 naming that joint; a fault-free run on the realistic preset raises neither. One fixed seed, the

@@ -1,6 +1,6 @@
 """An independent "reference BRDF measurement" of the simulated material, written in goniowatch's
 tabulated reference format (docs/reference-format.md, parsed by src/reference.rs), for the
-cross-validation of a session against another instrument (issue 6).
+cross-validation of a session against another instrument.
 
 The reference instrument is a different, well-behaved machine after the paper's Integra data: a
 spectral instrument (30 bands, 400–690 nm) on an irregular grid, with the sample measured in its
