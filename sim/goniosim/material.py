@@ -1,6 +1,7 @@
 """Reciprocal BRDFs (Lambert + GGX microfacet lobe with Smith masking and Schlick Fresnel), the
-paper's four material presets, spatially varying albedo textures, and the "realistic" preset's
-non-reciprocal, geometry-dependent deviations (lamp footprint and holder bleed)."""
+paper's four material presets, spatially varying albedo textures, and two independent models of
+the non-reciprocal, geometry-dependent deviations of real data: "realistic" (lamp footprint and
+holder bleed) and "realistic-b" (vignetting, an off-centre mount, stray light)."""
 
 from __future__ import annotations
 
@@ -96,9 +97,45 @@ class Realism:
     bleed_px: float = 0.0
     # the lamp's spot is slightly chromatic: the blue end falls off faster
     footprint_rgb: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    # the second nuisance model ("realistic-b"); every length is a fraction of the image width,
+    # every term a smooth function of the pixel position, so the mean does not depend on the
+    # image size
+    b: "RealismB | None" = None
+
+
+@dataclass(frozen=True)
+class RealismB:
+    """A second model of what makes averaged BTF data non-reciprocal, different in form from the
+    footprint/bleed one (`Realism`), so that detectors are not judged on the model they were
+    tuned on.
+
+    vignette, vignette_theta: the camera's fall-off, exp(-vignette * rho^2 * (1 + vignette_theta *
+      sin^2(theta_o))) at distance rho from the image centre (the lens sees the sample obliquely).
+    mount_height, mount_offset: the sample's surface sits mount_height (fraction of the image
+      width) off the arm's rotation centre along its normal, and its centre mount_offset (x, y in
+      the sample's frame) beside it. The lamp's spot (a Gaussian of width spot_sigma, centred on
+      the rotation centre) lands on the sample at -mount_offset, shifted by mount_height *
+      tan(theta_i) towards the lamp; the camera, rectified on the sample's centre, sees it moved
+      by the parallax mount_height * tan(theta_o): footprint and parallax move with the arm.
+    stray: light from the lamp housing reaching the camera directly, a uniform warm veil of
+      stray * exp(-wagon / stray_scale_deg) times the lamp gain, where wagon is the angle between
+      lamp and camera (it grows as the camera passes close to the lamp).
+    """
+
+    vignette: float = 0.0
+    vignette_theta: float = 0.0
+    mount_height: float = 0.0
+    mount_offset: tuple[float, float] = (0.0, 0.0)
+    spot_sigma: float = 0.5
+    stray: float = 0.0
+    stray_scale_deg: float = 25.0
+    stray_rgb: tuple[float, float, float] = (1.0, 0.93, 0.80)
 
 
 REALISM = {
     "clean": Realism(),
     "realistic": Realism(footprint=1.6, bleed_px=3.2, footprint_rgb=(0.96, 1.0, 1.07)),
+    "realistic-b": Realism(
+        b=RealismB(vignette=1.0, vignette_theta=4.0, mount_height=0.06, mount_offset=(0.08, 0.03), spot_sigma=0.3, stray=0.02)
+    ),
 }

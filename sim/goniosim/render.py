@@ -54,7 +54,32 @@ def render(
         inside_edge = (half - t) * w
         mask = mask & (inside_edge > bleed)
     out = np.where(mask[..., None], img, holder)
+    if realism.b is not None:
+        out = realism_b(out, u, v, wi, wo, realism.b, gain)
     return out
+
+
+def realism_b(img: np.ndarray, u: np.ndarray, v: np.ndarray, wi: np.ndarray, wo: np.ndarray, b, gain: float) -> np.ndarray:
+    """The second nuisance model (`RealismB`) applied to a rendered image; u, v are the pixel
+    centres in image-width units from the image centre."""
+    ci = max(float(wi[2]), 1e-6)
+    co = max(float(wo[2]), 1e-6)
+    ti = math.sqrt(max(1.0 - ci * ci, 0.0)) / ci
+    to = math.sqrt(max(1.0 - co * co, 0.0)) / co
+    pi_az = math.atan2(wi[1], wi[0])
+    po_az = math.atan2(wo[1], wo[0])
+    # where the lamp's spot centre appears in the image: shifted on the sample towards the lamp,
+    # and the sample shifted in the image by the parallax
+    h, (dx, dy) = b.mount_height, b.mount_offset
+    cx = h * min(ti, 10.0) * math.cos(pi_az) - h * min(to, 10.0) * math.cos(po_az) - dx
+    cy = h * min(ti, 10.0) * math.sin(pi_az) - h * min(to, 10.0) * math.sin(po_az) - dy
+    spot = np.exp(-((u - cx) ** 2 + (v - cy) ** 2) / (2.0 * b.spot_sigma**2))
+    so = 1.0 - co * co
+    vig = np.exp(-b.vignette * (u**2 + v**2) * (1.0 + b.vignette_theta * so))
+    out = img * (spot * vig)[..., None]
+    wagon = math.degrees(math.acos(max(-1.0, min(1.0, float(np.dot(wi, wo))))))
+    veil = gain * b.stray * math.exp(-wagon / b.stray_scale_deg)
+    return out + veil * np.asarray(b.stray_rgb)
 
 
 def add_noise(img: np.ndarray, rng: np.random.Generator, photons_per_unit: float, read_noise: float) -> np.ndarray:

@@ -90,6 +90,32 @@ def test_realistic_render_is_stationary_and_not_reciprocal():
     assert abs(a1[1] / wi[2] / (b[1] / wo[2]) - 1) > 0.01
 
 
+def test_the_second_nuisance_model_is_positive_non_reciprocal_and_does_not_depend_on_image_size():
+    from goniosim.material import Material
+
+    # a uniform white Lambertian sample: only the nuisance makes the mean move
+    white = Material("white", (1.0, 1.0, 1.0), 0.0, 1.0, 0.0, 0.5, 0.04)
+    rb = REALISM["realistic-b"]
+
+    def roi_mean(n, wi, wo):
+        img = render(np.ones((n, n, 3)), wi, wo, white, rb, 1.0, max(1, round(0.08 * n)))
+        assert (img > 0).all()
+        m = int(n * 0.1)
+        return img[m : n - m, m : n - m].reshape(-1, 3).mean(axis=0)
+
+    for wi, wo in [(sph_to_vec(75, 0), sph_to_vec(15, 120)), (sph_to_vec(45, 200), sph_to_vec(60, 20))]:
+        # sizes whose 10 % margin is a whole number of pixels: the same region at both sizes
+        a20, a80 = roi_mean(20, wi, wo), roi_mean(80, wi, wo)
+        assert np.allclose(a20, a80, rtol=0.01), (a20, a80)
+        a64, b = roi_mean(64, wi, wo), roi_mean(64, wo, wi)
+        # after the cosine re-correction the pair disagrees (white: f cos θi / cos θi = 1)
+        assert abs(a64[1] / wi[2] / (b[1] / wo[2]) - 1) > 0.01
+    # stray light is a function of the lamp-camera angle only, and scales with the lamp
+    img1 = render(np.ones((16, 16, 3)), sph_to_vec(60, 0), sph_to_vec(60, 10), white, rb, 1.0, 1)
+    img2 = render(np.ones((16, 16, 3)), sph_to_vec(60, 0), sph_to_vec(60, 10), white, rb, 2.0, 1)
+    assert np.allclose(img2, 2 * img1)
+
+
 def test_white_lambertian_at_normal_incidence_renders_as_one():
     from goniosim.material import Material
 
