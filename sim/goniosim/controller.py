@@ -221,6 +221,8 @@ class Controller:
             if f.kind == "joint-offset":
                 j = int(f.p("joint", 1)) - 1
                 true_pose[j] += float(f.p("offset_deg", 1.0))
+            elif f.kind == "wagon-offset":
+                true_pose[3] += float(f.p("offset_deg", 1.0))
             elif f.kind == "encoder-mismatch":
                 j = int(f.p("joint", 1)) - 1
                 enc[j] += float(f.p("offset_deg", 0.5))

@@ -18,6 +18,7 @@ FAULT_KINDS = {
     "lamp-step": {"step_pct"},
     "lamp-flicker": {"amplitude_pct"},
     "joint-offset": {"joint", "offset_deg"},
+    "wagon-offset": {"offset_deg"},
     "encoder-mismatch": {"joint", "offset_deg"},
     "wagon-backlash": {"backlash_deg"},
     "nan-pixels": {"count"},

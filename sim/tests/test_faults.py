@@ -16,6 +16,7 @@ FAULTS = [
     {"kind": "lamp-flicker", "at_capture": 14, "until_capture": 16, "amplitude_pct": 2.0},
     {"kind": "joint-offset", "at_capture": 16, "until_capture": 18, "joint": 2, "offset_deg": 1.0},
     {"kind": "encoder-mismatch", "at_capture": 18, "until_capture": 20, "joint": 4, "offset_deg": 0.5},
+    {"kind": "wagon-offset", "at_capture": 20, "until_capture": 22, "offset_deg": -1.0},
     {"kind": "wagon-backlash", "at_capture": 36, "until_capture": 38, "backlash_deg": 0.5},
     {"kind": "nan-pixels", "at_capture": 22, "count": 5},
     {"kind": "inf-pixels", "at_capture": 23, "count": 5},
@@ -104,6 +105,8 @@ def test_positioning_faults(session):
     assert t["true_pose"][1] == pytest.approx(t["cmd"][1] + 1.0) and t["enc"] == t["cmd"]
     t = truth[18]
     assert t["enc"][3] == pytest.approx(t["cmd"][3] + 0.5) and t["true_pose"] == t["cmd"]
+    t = truth[20]
+    assert t["true_pose"][3] == pytest.approx(t["cmd"][3] - 1.0) and t["enc"] == t["cmd"]
     moved = [truth[k] for k in (36, 37) if truth[k]["cmd"][3] != truth[k - 1]["cmd"][3]]
     assert moved and all(abs(t["true_pose"][3] - t["cmd"][3]) == pytest.approx(0.5) for t in moved)
     assert truth[22]["true_pose"] == truth[22]["cmd"]
