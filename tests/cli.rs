@@ -220,3 +220,45 @@ fn the_configured_decode_budget_refuses_a_hostile_header() {
     assert!(text.contains("over the budget"), "{text}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A corpus session's expected results as a session folder of their own, for `report`.
+fn corpus_results(name: &str) -> std::path::PathBuf {
+    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/sessions")
+        .join(name);
+    let dir = std::env::temp_dir().join(format!("gw-cli-report-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    for f in ["config.toml", "session.json"] {
+        std::fs::copy(src.join(f), dir.join(f)).unwrap();
+    }
+    for e in std::fs::read_dir(src.join("expected")).unwrap().flatten() {
+        std::fs::copy(e.path(), dir.join(e.file_name())).unwrap();
+    }
+    dir
+}
+
+#[test]
+fn the_report_plots_the_isotropy_gain_estimate_when_there_are_no_probes() {
+    for (name, isotropy_line) in [("decay", true), ("probe-step", false), ("clean", false)] {
+        let dir = corpus_results(name);
+        let r = bin().arg("report").arg(&dir).output().unwrap();
+        assert_eq!(
+            r.status.code(),
+            Some(0),
+            "{name}: {}",
+            String::from_utf8_lossy(&r.stderr)
+        );
+        let html = std::fs::read_to_string(dir.join("report/report.html")).unwrap();
+        assert_eq!(
+            html.contains("isotropy-class gain estimate, as known at each capture"),
+            isotropy_line,
+            "{name}"
+        );
+        assert!(
+            !html.contains("No gain estimate") || name == "clean",
+            "{name}"
+        );
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

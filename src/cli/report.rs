@@ -335,8 +335,28 @@ fn drift_plot(inp: &ReportInputs) -> String {
             None => 1.0,
         }
     };
+    // the isotropy-class estimate as it was known at each capture's time (the gain divided out
+    // of that capture), thinned to at most ~400 points, with its ± 2σ band
+    let iso: Vec<(f64, f64, f64)> = {
+        let all: Vec<(f64, f64, f64)> = inp
+            .captures
+            .iter()
+            .filter(|c| !c.probe)
+            .filter_map(|c| {
+                let g = c.gain_corrected.as_ref()?;
+                (g.source == "isotropy classes" && g.gain.is_finite() && g.sigma_rel.is_finite())
+                    .then_some((c.t / 3600.0, g.gain, g.sigma_rel))
+            })
+            .collect();
+        let step = (all.len() / 400).max(1);
+        all.into_iter().step_by(step).collect()
+    };
     let mut lo = gain.iter().map(|g| g.1).fold(1.0f64, f64::min);
     let mut hi = gain.iter().map(|g| g.1).fold(1.0f64, f64::max);
+    for (_, g, s) in &iso {
+        lo = lo.min(g * (1.0 - 2.0 * s));
+        hi = hi.max(g * (1.0 + 2.0 * s));
+    }
     if let Some((_, t0, _, _)) = fit {
         for k in [-2.0, 2.0] {
             for t in [t0, t_end] {
@@ -379,12 +399,33 @@ fn drift_plot(inp: &ReportInputs) -> String {
             r##"<polyline points="{}" fill="none" stroke="#1f5fa8" stroke-width="2"/>"##,
             centre.join(" ")
         );
-    } else {
+    } else if iso.is_empty() {
         let _ = write!(
             p.svg,
-            r##"<text x="{:.1}" y="{:.1}" text-anchor="middle">no probe gain curve: drift probes were off (or too few)</text>"##,
+            r##"<text x="{:.1}" y="{:.1}" text-anchor="middle">no gain estimate: drift probes were off (or too few) and the sample is not isotropic</text>"##,
             p.sx(t_end / 2.0),
             p.sy((lo + hi) / 2.0) - 20.0
+        );
+    }
+    if iso.len() >= 2 {
+        let mut band: Vec<String> = iso
+            .iter()
+            .map(|(t, g, s)| format!("{:.1},{:.1}", p.sx(*t), p.sy(g * (1.0 + 2.0 * s))))
+            .collect();
+        band.extend(
+            iso.iter()
+                .rev()
+                .map(|(t, g, s)| format!("{:.1},{:.1}", p.sx(*t), p.sy(g * (1.0 - 2.0 * s)))),
+        );
+        let line: Vec<String> = iso
+            .iter()
+            .map(|(t, g, _)| format!("{:.1},{:.1}", p.sx(*t), p.sy(*g)))
+            .collect();
+        let _ = write!(
+            p.svg,
+            r##"<polygon points="{}" fill="rgba(46,125,50,0.15)"/><polyline points="{}" fill="none" stroke="#2e7d32" stroke-width="2"><title>isotropy-class gain estimate, as known at each capture</title></polyline>"##,
+            band.join(" "),
+            line.join(" ")
         );
     }
     let (y1a, y1b) = (p.sy(1.0), p.sy(1.0));
@@ -660,7 +701,8 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
         Some(d) => {
             let _ = write!(h, "<p>From the last {} drift probes (a step restarts the estimate): <b>{:+.3} ± {:.3} %/h</b> (standard error). The dots are all probes (luminance over the original capture of the same pose); the line is the fitted drift over the probes it uses, the band ± 2 standard errors of the rate; ticks on the time axis are alarms (orange warnings, red critical, grey info).</p>", d.pairs, d.rate_pct_per_h, d.se_pct_per_h);
         }
-        None => h.push_str("<p>No gain estimate: drift probes were off (`[probes] every`) or too few. Ticks on the time axis are the alarms.</p>"),
+        None if s.isotropy_drift.is_some() => h.push_str("<p>No probe estimate: drift probes were off (`[probes] every`) or too few. The green line is the isotropy-class gain estimate as it was known at each capture's time (the gain divided out of that capture), the band ± 2 standard uncertainties; ticks on the time axis are the alarms.</p>"),
+        None => h.push_str("<p>No gain estimate: drift probes were off (`[probes] every`) or too few, and isotropy classes need an isotropic sample. Ticks on the time axis are the alarms.</p>"),
     }
     h.push_str(&drift_plot(inp));
 
