@@ -6,10 +6,11 @@ drift-rate estimate of that path against the truth, and the daemon's CPU time pe
 of it: link, decoding, checks).
 
 Run (after `cargo build --release`):
-  python3 benches/detection.py [--seeds 3] [--every 100] [--presets realistic,clean] [--only "no fault"] [--keep DIR]
-  python3 benches/detection.py --replay DIR [--seeds ...] [--presets ...] [--only ...]
+  python3 benches/detection.py [--seeds 3] [--first-seed 1] [--every 100] [--presets realistic,clean]
+                               [--materials walkway,ceiling] [--only "no fault"] [--keep DIR]
+  python3 benches/detection.py --replay DIR [--seeds ...] [--presets ...] [--materials ...] [--only ...]
 Prints a Markdown table. GONIOWATCH_BIN overrides the binary. `--keep DIR` keeps every recorded
-session (DIR/<scenario>-<preset>-<seed>/s, with its captures); `--replay DIR` re-evaluates kept
+session (DIR/<scenario>[-<material>]-<preset>-<seed>/s, with its captures); `--replay DIR` re-evaluates kept
 sessions with the current binary through `goniowatch replay` (byte-identical to a live run of
 that binary on the same rig data), in seconds per session instead of a minute: the way to
 re-measure detection after a change to the checks. With `--replay` the CPU column is the
@@ -66,8 +67,14 @@ def slug(name):
     return re.sub(r"[^a-z0-9.]+", "-", name.lower()).strip("-")
 
 
-def replay(keep, name, preset, seed):
-    d = os.path.join(keep, f"{slug(name)}-{preset}-{seed}")
+def run_name(name, material, preset, seed):
+    """The kept session's folder name (walkway runs keep the name they had before materials)."""
+    m = "" if material == "walkway" else f"{material}-"
+    return f"{slug(name)}-{m}{preset}-{seed}"
+
+
+def replay(keep, name, material, preset, seed):
+    d = os.path.join(keep, run_name(name, material, preset, seed))
     if not os.path.isdir(os.path.join(d, "s")):
         return None
     out = tempfile.mkdtemp(prefix="gw-replay-")
@@ -82,15 +89,15 @@ def replay(keep, name, preset, seed):
     return r.returncode, alarms, summary, cpu, pts
 
 
-def run(tmp, name, preset, faults, seed, every, keep=None):
-    d = os.path.join(keep or tmp, f"{slug(name) if keep else name.split()[0]}-{preset}-{seed}")
+def run(tmp, name, material, preset, faults, seed, every, keep=None):
+    d = os.path.join(keep or tmp, run_name(name, material, preset, seed))
     if keep:
         shutil.rmtree(d, ignore_errors=True)
     os.makedirs(d)
     sc = os.path.join(d, "sc.toml")
     lines = [f'rig_config = "{REPO}/config/sim.toml"', "[session]", f'id = "r"', f'capture_root = "{d}/cap"',
              f'port = "{d}/port"', "image_size = [16, 16]", "speed = 0", f"seed = {seed}",
-             "[material]", 'preset = "walkway"', f'realism = "{preset}"']
+             "[material]", f'preset = "{material}"', f'realism = "{preset}"']
     for f in faults:
         lines.append("[[faults]]")
         lines += [f"{k} = {json.dumps(v)}" for k, v in f.items()]
@@ -120,6 +127,8 @@ def run(tmp, name, preset, faults, seed, every, keep=None):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--first-seed", type=int, default=1)
+    ap.add_argument("--materials", default="walkway", help="comma-separated simulator material presets")
     ap.add_argument("--every", type=int, default=100)
     ap.add_argument("--presets", default="realistic,clean")
     ap.add_argument("--only", help="run only the scenarios whose name contains this text")
@@ -134,22 +143,23 @@ def main():
     print("| preset | scenario | runs with a drift alarm (first code) | first alarm: captures after onset (hours) | final rate %/h (truth) | positioning / outlier alarms after onset (first: joint, estimate, captures after onset) | daemon CPU per capture |")
     print("|---|---|---|---|---|---|---|")
     curves = []
-    for preset in a.presets.split(","):
+    for material, preset in [(m, p) for m in a.materials.split(",") for p in a.presets.split(",")]:
+        label = preset if material == "walkway" else f"{preset}, {material}"
         for name, faults, truth in SCENARIOS:
             if a.only and a.only not in name:
                 continue
             hits, delays, rates, cpu, geo, kinds = 0, [], [], [], [], []
             runs = 0
-            for seed in range(1, a.seeds + 1):
+            for seed in range(a.first_seed, a.first_seed + a.seeds):
                 if a.replay:
-                    got = replay(a.replay, name, preset, seed)
+                    got = replay(a.replay, name, material, preset, seed)
                     if got is None:
                         continue
                     code, alarms, summary, daemon_cpu, pts = got
                 else:
-                    code, alarms, summary, daemon_cpu, pts = run(tmp, name, preset, faults, seed, a.every, a.keep)
+                    code, alarms, summary, daemon_cpu, pts = run(tmp, name, material, preset, faults, seed, a.every, a.keep)
                 if truth and truth[0] == "rate" and not a.every:
-                    curves.append((preset, name, seed, truth[2], pts))
+                    curves.append((label, name, seed, truth[2], pts))
                 runs += 1
                 cpu.append(1000 * daemon_cpu / max(1, summary["checked"]["captures"]))
                 drift = [x for x in alarms if x["kind"] == "drift" and x["code"] != "gain-drift-cleared"]
@@ -179,7 +189,7 @@ def main():
             rate = ", ".join(rates) + truth_rate
             if runs == 0:
                 continue
-            print(f"| {preset} | {name} | {hits} of {runs} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
+            print(f"| {label} | {name} | {hits} of {runs} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
     if curves:
         # the estimate's error against hours into the run; truth up to t: the mean ln-gain slope
         # of the linear decay 1 − a·t over [0, t]
