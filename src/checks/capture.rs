@@ -45,8 +45,13 @@ pub(super) struct CaptureStage {
     pub(super) encoder_mismatch: u64,
     consecutive_failures: u32,
     off_plan_episode: Option<Episode>,
-    encoder_episode: Option<Episode>,
+    /// One per axis (joints 1–3, wagon): a mismatch on one axis neither ends nor restarts
+    /// another axis's episode.
+    encoder_episodes: [Option<Episode>; 4],
 }
+
+/// The encoder axes, in the order of `enc` and `cmd`.
+const AXES: [&str; 4] = ["joint 1", "joint 2", "joint 3", "wagon"];
 
 /// A pose condition that holds over consecutive captures: raised once when it starts, cleared
 /// once when it ends, counted in between (a constant offset would otherwise raise an alarm on
@@ -63,7 +68,7 @@ struct Episode {
 
 impl Episode {
     /// Note one capture showing the condition on `axis` with error `deg`: the alarm to raise
-    /// (from `raise`), when it starts an episode (or a different axis starts one).
+    /// (from `raise`), when it starts an episode.
     fn note(
         slot: &mut Option<Episode>,
         axis: &'static str,
@@ -124,6 +129,41 @@ impl Episode {
 }
 
 impl CaptureStage {
+    /// The pose episodes still in progress, as the warnings that opened them would read now
+    /// (for a status evaluated on start or resume, when the opening alarm is in the past).
+    pub(super) fn open_episodes(&self) -> Vec<Alarm> {
+        let off_plan = self
+            .off_plan_episode
+            .iter()
+            .map(|e| ("pose-off-plan", "the encoder pose off the plan", e));
+        let encoder = self
+            .encoder_episodes
+            .iter()
+            .flatten()
+            .map(|e| ("encoder-mismatch", "the encoder mismatch", e));
+        off_plan
+            .chain(encoder)
+            .map(|(code, what, e)| {
+                Alarm::new(
+                    AlarmKind::Positioning,
+                    Severity::Warning,
+                    code,
+                    format!(
+                        "{what} ({}) has held since capture {}: {} capture(s) to {}, at most {:.4}°",
+                        e.axis, e.first_idx, e.captures, e.last_idx, e.worst_deg
+                    ),
+                )
+                .with(json!({
+                    "axis": e.axis,
+                    "captures": e.captures,
+                    "first_idx": e.first_idx,
+                    "last_idx": e.last_idx,
+                    "worst_deg": e.worst_deg,
+                }))
+            })
+            .collect()
+    }
+
     pub(super) fn check(
         &mut self,
         ctx: &Ctx,
@@ -348,37 +388,37 @@ impl CaptureStage {
                 input.t,
             ));
         }
-        let errs: Vec<f64> = (0..4)
-            .map(|k| (input.enc[k] - input.cmd[k]).abs())
-            .collect();
-        let axis = (0..4)
-            .max_by(|&a, &b| errs[a].total_cmp(&errs[b]))
-            .unwrap_or(0);
-        let enc_err = errs[axis];
-        if enc_err > ctx.spec.encoder_tolerance_deg {
-            self.encoder_mismatch += 1;
-            let name = ["joint 1", "joint 2", "joint 3", "wagon"][axis];
-            alarms.extend(Episode::note(&mut self.encoder_episode, name, input.idx, enc_err, || {
-                Alarm::new(
-                    AlarmKind::Positioning,
-                    Severity::Warning,
+        let mut mismatched = false;
+        for (k, name) in AXES.iter().copied().enumerate() {
+            let enc_err = (input.enc[k] - input.cmd[k]).abs();
+            let slot = &mut self.encoder_episodes[k];
+            if enc_err > ctx.spec.encoder_tolerance_deg {
+                mismatched = true;
+                alarms.extend(Episode::note(slot, name, input.idx, enc_err, || {
+                    Alarm::new(
+                        AlarmKind::Positioning,
+                        Severity::Warning,
+                        "encoder-mismatch",
+                        format!(
+                            "capture {}: {name} encoder reads {:.4}° but {:.4}° was commanded (|Δ| {:.4}° > {}°); further mismatching captures are counted until it clears",
+                            input.idx, input.enc[k], input.cmd[k], enc_err, ctx.spec.encoder_tolerance_deg
+                        ),
+                    )
+                    .at(at.0, at.1)
+                    .with(json!({"axis": name, "enc": input.enc, "cmd": input.cmd}))
+                }));
+            } else {
+                alarms.extend(Episode::clear(
+                    slot,
                     "encoder-mismatch",
-                    format!(
-                        "capture {}: {name} encoder reads {:.4}° but {:.4}° was commanded (|Δ| {:.4}° > {}°); further mismatching captures are counted until it clears",
-                        input.idx, input.enc[axis], input.cmd[axis], enc_err, ctx.spec.encoder_tolerance_deg
-                    ),
-                )
-                .at(at.0, at.1)
-                .with(json!({"axis": name, "enc": input.enc, "cmd": input.cmd}))
-            }));
-        } else {
-            alarms.extend(Episode::clear(
-                &mut self.encoder_episode,
-                "encoder-mismatch",
-                "the encoder mismatch",
-                input.idx,
-                input.t,
-            ));
+                    "the encoder mismatch",
+                    input.idx,
+                    input.t,
+                ));
+            }
+        }
+        if mismatched {
+            self.encoder_mismatch += 1;
         }
         (measured, pose_err)
     }

@@ -481,6 +481,11 @@ impl Checker {
         self.drift.as_ref().and_then(|d| d.estimate())
     }
 
+    /// The conditions that hold over captures and are in progress now (pose episodes).
+    pub(crate) fn open_conditions(&self) -> Vec<Alarm> {
+        self.capture.open_episodes()
+    }
+
     pub fn plan(&self) -> &SamplingPlan {
         &self.plan
     }

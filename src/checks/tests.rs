@@ -282,6 +282,12 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
         ],
         "{seen:?}"
     );
+    // the wagon's episode is still open at the end: a status evaluated now says so
+    let open = ch.open_conditions();
+    assert_eq!(open.len(), 2, "{open:?}");
+    assert!(open.iter().any(|a| a.code == "encoder-mismatch"
+        && a.evidence["axis"] == "wagon"
+        && a.evidence["first_idx"] == 60));
     let c = ch.counts();
     assert_eq!(c.encoder_mismatch, 11 + 340);
     assert!(c.pose_off_plan > 0 && c.pose_off_plan <= c.encoder_mismatch);
@@ -293,4 +299,51 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
     assert_eq!(ch.counts().encoder_mismatch, 0);
     let json = serde_json::to_string(&ch.counts()).unwrap();
     assert!(!json.contains("encoder_mismatch"), "{json}");
+}
+
+#[test]
+fn encoder_episodes_are_kept_per_axis() {
+    // joint 1 reads 0.3° off from capture 50 on; joint 2 alternates 0.2° and 0.4° off from
+    // capture 80 on, so the worst axis changes on every capture
+    let mut ch = checker();
+    let mut seen = Vec::new();
+    for mut input in session(300) {
+        let i = input.idx;
+        if i >= 50 {
+            input.enc[0] += 0.3;
+        }
+        if i >= 80 {
+            input.enc[1] += if i % 2 == 0 { 0.2 } else { 0.4 };
+        }
+        let out = ch.check(&input);
+        seen.extend(
+            out.alarms
+                .iter()
+                .filter(|a| a.code.starts_with("encoder-mismatch"))
+                .map(|a| {
+                    format!(
+                        "{}@{}:{}",
+                        a.code,
+                        a.idx.unwrap_or(u64::MAX),
+                        a.evidence["axis"]
+                    )
+                }),
+        );
+    }
+    assert_eq!(
+        seen,
+        [
+            "encoder-mismatch@50:\"joint 1\"",
+            "encoder-mismatch@80:\"joint 2\"",
+        ],
+        "{seen:?}"
+    );
+    assert_eq!(ch.counts().encoder_mismatch, 250);
+    let open: Vec<String> = ch
+        .open_conditions()
+        .iter()
+        .filter(|a| a.code == "encoder-mismatch")
+        .map(|a| a.evidence["axis"].to_string())
+        .collect();
+    assert_eq!(open, ["\"joint 1\"", "\"joint 2\""]);
 }

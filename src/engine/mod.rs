@@ -254,6 +254,7 @@ impl Engine {
                 format!("{waiting} announced captures are waiting to be checked"),
             ));
         }
+        v.extend(self.checker.open_conditions());
         v
     }
 
