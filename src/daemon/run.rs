@@ -259,14 +259,18 @@ async fn bind_status(
 ) -> Result<tokio::net::TcpListener> {
     if !addr.ip().to_canonical().is_loopback() {
         let stored = opts.session_dir.join("config.toml");
-        let path = if stored.exists() {
-            Some(stored)
+        // the stored config is read as a resume reads it (runtime keys clamped, not refused)
+        let allow = if stored.exists() {
+            let text = std::fs::read_to_string(&stored)
+                .with_context(|| format!("reading {}", stored.display()))?;
+            crate::session::folder::parse_stored_config(&stored, &text)?
+                .http
+                .allow_remote
         } else {
-            opts.config.clone()
-        };
-        let allow = match path {
-            Some(p) => crate::config::Config::load(&p)?.0.http.allow_remote,
-            None => false,
+            match &opts.config {
+                Some(p) => crate::config::Config::load(p)?.0.http.allow_remote,
+                None => false,
+            }
         };
         super::http::check_address(&addr, allow)?;
     }
