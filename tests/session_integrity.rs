@@ -211,6 +211,23 @@ fn a_missing_or_emptied_journal_never_costs_the_results() {
 }
 
 #[test]
+fn a_session_stopped_before_its_first_input_resumes() {
+    // the run writes summary.json on its first tick, before any input reaches the journal;
+    // that alone is not a result that resuming could lose
+    let base = scratch("firsttick");
+    let dir = make_session(&base);
+    for f in goniowatch::session::folder::RESULT_FILES {
+        if dir.join(f).exists() {
+            std::fs::write(dir.join(f), b"").unwrap();
+        }
+    }
+    std::fs::write(dir.join("journal.jsonl"), b"").unwrap();
+    assert!(dir.join("summary.json").exists());
+    Session::open_or_create(&dir, None, None, None).unwrap();
+    std::fs::remove_dir_all(&base).ok();
+}
+
+#[test]
 fn a_folder_with_data_but_no_config_is_not_taken_for_a_new_session() {
     let base = scratch("noconfig");
     let dir = make_session(&base);
@@ -424,6 +441,14 @@ fn replay_never_writes_over_another_session_or_into_the_captures() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert_ne!(r.status.code(), Some(0), "{err}");
     assert!(err.contains("inside the capture folder"), "{err}");
+    assert!(!inside.exists());
+    // `..` after a folder that does not exist yet still resolves into the captures
+    let sneaky = base.join("nowhere/../captures/s/replayed");
+    let r = replay_of(&dir, &sneaky);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_ne!(r.status.code(), Some(0), "{err}");
+    assert!(err.contains("inside the capture folder"), "{err}");
+    assert!(!base.join("nowhere").exists());
     assert!(!inside.exists());
     std::fs::remove_dir_all(&base).ok();
 }

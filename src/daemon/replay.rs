@@ -111,8 +111,11 @@ pub fn replay(session_dir: &Path, options: &ReplayOptions) -> Result<ReplayRepor
             out_dir.display()
         );
     }
+    // `..` is resolved by the names (a `..` after a folder that does not exist yet cannot be
+    // resolved by the file system, and create_dir_all would walk through it)
     let inside_captures = std::path::absolute(&out_dir)
         .ok()
+        .map(|p| lexically_normal(&p))
         .zip(session.info.capture_root.canonicalize().ok())
         .is_some_and(|(o, root)| {
             o.ancestors()
@@ -315,4 +318,20 @@ fn capture_jobs(all: &[(u64, Input)]) -> Vec<(usize, String)> {
             _ => None,
         })
         .collect()
+}
+
+/// `path` with `.` dropped and each `..` taking away the name before it (by the names only).
+fn lexically_normal(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out = PathBuf::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    out
 }
