@@ -304,6 +304,36 @@ fn alarm_colour(a: &Alarm) -> &'static str {
     }
 }
 
+/// The isotropy-class gain estimate as it was known at each capture's time (the gain divided
+/// out of that capture), thinned to about 400 points: (hours, gain, σ of ln gain).
+fn isotropy_curve(inp: &ReportInputs) -> Vec<(f64, f64, f64)> {
+    let all: Vec<(f64, f64, f64)> = inp
+        .captures
+        .iter()
+        .filter(|c| !c.probe)
+        .filter_map(|c| {
+            let g = c.gain_corrected.as_ref()?;
+            (g.source == "isotropy classes" && g.gain.is_finite() && g.sigma_rel.is_finite())
+                .then_some((c.t / 3600.0, g.gain, g.sigma_rel))
+        })
+        .collect();
+    thin(all, 400)
+}
+
+/// At most about `max` of `all`, evenly spaced, always with the first and the last.
+fn thin<T: Copy>(all: Vec<T>, max: usize) -> Vec<T> {
+    let n = all.len();
+    let step = n.div_ceil(max.max(1)).max(1);
+    let last = all.last().copied();
+    let mut v: Vec<T> = all.into_iter().step_by(step).collect();
+    if let Some(l) = last {
+        if !(n - 1).is_multiple_of(step) {
+            v.push(l);
+        }
+    }
+    v
+}
+
 fn drift_plot(inp: &ReportInputs) -> String {
     let mut curve = crate::checks::ProbeGainCurve::new(inp.config.checks.dark_y);
     let gain: Vec<(f64, f64)> = inp.captures.iter().filter_map(|c| curve.add(c)).collect();
@@ -335,27 +365,13 @@ fn drift_plot(inp: &ReportInputs) -> String {
             None => 1.0,
         }
     };
-    // the isotropy-class estimate as it was known at each capture's time (the gain divided out
-    // of that capture), thinned to at most ~400 points, with its ± 2σ band
-    let iso: Vec<(f64, f64, f64)> = {
-        let all: Vec<(f64, f64, f64)> = inp
-            .captures
-            .iter()
-            .filter(|c| !c.probe)
-            .filter_map(|c| {
-                let g = c.gain_corrected.as_ref()?;
-                (g.source == "isotropy classes" && g.gain.is_finite() && g.sigma_rel.is_finite())
-                    .then_some((c.t / 3600.0, g.gain, g.sigma_rel))
-            })
-            .collect();
-        let step = (all.len() / 400).max(1);
-        all.into_iter().step_by(step).collect()
-    };
+    let iso = isotropy_curve(inp);
     let mut lo = gain.iter().map(|g| g.1).fold(1.0f64, f64::min);
     let mut hi = gain.iter().map(|g| g.1).fold(1.0f64, f64::max);
+    // σ is the standard uncertainty of ln g: the band is g·exp(± 2σ)
     for (_, g, s) in &iso {
-        lo = lo.min(g * (1.0 - 2.0 * s));
-        hi = hi.max(g * (1.0 + 2.0 * s));
+        lo = lo.min(g * (-2.0 * s).exp());
+        hi = hi.max(g * (2.0 * s).exp());
     }
     if let Some((_, t0, _, _)) = fit {
         for k in [-2.0, 2.0] {
@@ -399,7 +415,7 @@ fn drift_plot(inp: &ReportInputs) -> String {
             r##"<polyline points="{}" fill="none" stroke="#1f5fa8" stroke-width="2"/>"##,
             centre.join(" ")
         );
-    } else if iso.is_empty() {
+    } else if iso.len() < 2 {
         let _ = write!(
             p.svg,
             r##"<text x="{:.1}" y="{:.1}" text-anchor="middle">no gain estimate: drift probes were off (or too few) and the sample is not isotropic</text>"##,
@@ -410,12 +426,12 @@ fn drift_plot(inp: &ReportInputs) -> String {
     if iso.len() >= 2 {
         let mut band: Vec<String> = iso
             .iter()
-            .map(|(t, g, s)| format!("{:.1},{:.1}", p.sx(*t), p.sy(g * (1.0 + 2.0 * s))))
+            .map(|(t, g, s)| format!("{:.1},{:.1}", p.sx(*t), p.sy(g * (2.0 * s).exp())))
             .collect();
         band.extend(
             iso.iter()
                 .rev()
-                .map(|(t, g, s)| format!("{:.1},{:.1}", p.sx(*t), p.sy(g * (1.0 - 2.0 * s)))),
+                .map(|(t, g, s)| format!("{:.1},{:.1}", p.sx(*t), p.sy(g * (-2.0 * s).exp()))),
         );
         let line: Vec<String> = iso
             .iter()
@@ -701,8 +717,8 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
         Some(d) => {
             let _ = write!(h, "<p>From the last {} drift probes (a step restarts the estimate): <b>{:+.3} ± {:.3} %/h</b> (standard error). The dots are all probes (luminance over the original capture of the same pose); the line is the fitted drift over the probes it uses, the band ± 2 standard errors of the rate; ticks on the time axis are alarms (orange warnings, red critical, grey info).</p>", d.pairs, d.rate_pct_per_h, d.se_pct_per_h);
         }
-        None if s.isotropy_drift.is_some() => h.push_str("<p>No probe estimate: drift probes were off (`[probes] every`) or too few. The green line is the isotropy-class gain estimate as it was known at each capture's time (the gain divided out of that capture), the band ± 2 standard uncertainties; ticks on the time axis are the alarms.</p>"),
-        None => h.push_str("<p>No gain estimate: drift probes were off (`[probes] every`) or too few, and isotropy classes need an isotropic sample. Ticks on the time axis are the alarms.</p>"),
+        None if isotropy_curve(inp).len() >= 2 => h.push_str("<p>No probe estimate: drift probes were off (`[probes] every`) or too few. The green line is the isotropy-class gain estimate as it was known at each capture's time (the gain divided out of that capture), the band a factor exp(± 2σ) with σ the standard uncertainty of its logarithm; ticks on the time axis are the alarms.</p>"),
+        None => h.push_str("<p>No gain estimate: drift probes were off (`[probes] every`) or too few, and the isotropy classes gave none (they need an isotropic sample and repeated geometries). Ticks on the time axis are the alarms.</p>"),
     }
     h.push_str(&drift_plot(inp));
 
@@ -1056,4 +1072,25 @@ pub fn report(session: &Path, out: Option<&Path>) -> Result<Vec<PathBuf>> {
         written.push(path);
     }
     Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::thin;
+
+    #[test]
+    fn thinning_keeps_at_most_about_max_with_the_ends() {
+        let v: Vec<u32> = (0..1001).collect();
+        let t = thin(v, 400);
+        assert!(t.len() <= 401, "{}", t.len());
+        assert_eq!(t.first(), Some(&0));
+        assert_eq!(t.last(), Some(&1000));
+        let t = thin((0..7).collect::<Vec<u32>>(), 400);
+        assert_eq!(t, (0..7).collect::<Vec<u32>>());
+        assert!(thin(Vec::<u32>::new(), 400).is_empty());
+        assert_eq!(thin(vec![5u32], 400), vec![5]);
+        let t = thin((0..800).collect::<Vec<u32>>(), 400);
+        assert_eq!(t.len(), 401);
+        assert_eq!(t.last(), Some(&799));
+    }
 }
