@@ -485,6 +485,7 @@ impl Config {
         let mut cfg: Config =
             toml::from_str(text).map_err(|e| ConfigError::Parse(e.to_string()))?;
         let mut notes = Vec::new();
+        let mut defaults = Config::default();
         for field in RUNTIME_KEYS {
             let Some(r) = KEY_RANGES.iter().find(|r| r.field == *field) else {
                 continue;
@@ -494,22 +495,36 @@ impl Config {
             };
             let v = slot.get();
             if r.check(v).is_err() {
+                // NaN has no nearest bound: the documented default stands in for it
                 let fixed = if v.is_nan() {
-                    r.min
+                    defaults.runtime_value(field).map_or(r.min, |d| d.get())
                 } else {
                     v.clamp(r.min, r.max)
                 };
                 slot.set(fixed);
+                let effect = if *field == "ingest.max_decode_mib" {
+                    " (captures larger than the budget are refused, so a replay that decodes the files again may differ from the live run)"
+                } else {
+                    ""
+                };
                 notes.push(format!(
-                    "stored config: {field} = {v} is outside {}; {fixed} is used",
+                    "stored config: {field} = {v} is outside {}; {fixed} is used{effect}",
                     r.interval()
                 ));
             }
         }
         if cfg.ingest.retry_max_ms < cfg.ingest.retry_first_ms {
+            notes.push(format!(
+                "stored config: ingest.retry_max_ms = {} is below ingest.retry_first_ms = {}; {} is used",
+                cfg.ingest.retry_max_ms, cfg.ingest.retry_first_ms, cfg.ingest.retry_first_ms
+            ));
             cfg.ingest.retry_max_ms = cfg.ingest.retry_first_ms;
         }
         if cfg.link.reconnect_max_ms < cfg.link.reconnect_min_ms {
+            notes.push(format!(
+                "stored config: link.reconnect_max_ms = {} is below link.reconnect_min_ms = {}; {} is used",
+                cfg.link.reconnect_max_ms, cfg.link.reconnect_min_ms, cfg.link.reconnect_min_ms
+            ));
             cfg.link.reconnect_max_ms = cfg.link.reconnect_min_ms;
         }
         cfg.validate()?;
@@ -908,6 +923,29 @@ mod tests {
             assert!(KEY_RANGES.iter().any(|r| r.field == *k), "{k}");
             assert!(Config::default().runtime_value(k).is_some(), "{k}");
         }
+    }
+
+    #[test]
+    fn a_stored_nan_takes_the_default_and_swapped_bounds_are_said() {
+        let text = "[ingest]\ngive_up_s = nan\nretry_first_ms = 5000\nretry_max_ms = 100\n[link]\nreconnect_min_ms = 4000\nreconnect_max_ms = 1000\n";
+        let (c, notes) = Config::from_stored_toml_str(text).unwrap();
+        assert_eq!(c.ingest.give_up_s, Config::default().ingest.give_up_s);
+        assert_eq!(c.ingest.retry_max_ms, 5000);
+        assert_eq!(c.link.reconnect_max_ms, 4000);
+        assert!(
+            notes.iter().any(|n| n.contains("ingest.give_up_s")),
+            "{notes:?}"
+        );
+        assert!(
+            notes.iter().any(|n| n.contains("ingest.retry_max_ms")),
+            "{notes:?}"
+        );
+        assert!(
+            notes.iter().any(|n| n.contains("link.reconnect_max_ms")),
+            "{notes:?}"
+        );
+        let (_, notes) = Config::from_stored_toml_str("[ingest]\nmax_decode_mib = 1\n").unwrap();
+        assert!(notes.iter().any(|n| n.contains("replay")), "{notes:?}");
     }
 
     #[test]
