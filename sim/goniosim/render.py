@@ -55,7 +55,8 @@ def render(
         mask = mask & (inside_edge > bleed)
     out = np.where(mask[..., None], img, holder)
     if realism.b is not None:
-        out = realism_b(out, u, v, wi, wo, realism.b, gain)
+        # realism_b works in image-width units on both axes (u already is)
+        out = realism_b(out, u, v * (h / w), wi, wo, realism.b, gain)
     return out
 
 

@@ -116,6 +116,19 @@ def test_the_second_nuisance_model_is_positive_non_reciprocal_and_does_not_depen
     assert np.allclose(img2, 2 * img1)
 
 
+def test_the_second_nuisance_model_measures_both_image_axes_in_image_widths():
+    from goniosim.material import Material
+
+    white = Material("white", (1.0, 1.0, 1.0), 0.0, 1.0, 0.0, 0.5, 0.04)
+    rb = REALISM["realistic-b"]
+    wi, wo = sph_to_vec(60, 30), sph_to_vec(45, 250)
+    square = render(np.ones((80, 80, 3)), wi, wo, white, rb, 1.0, 0)
+    wide = render(np.ones((20, 80, 3)), wi, wo, white, rb, 1.0, 0)
+    # row 0 of the 20 × 80 image lies 0.11875 image widths above the centre, as row 30 of the
+    # 80 × 80 one does
+    assert np.allclose(wide[0], square[30], rtol=1e-12)
+
+
 def test_white_lambertian_at_normal_incidence_renders_as_one():
     from goniosim.material import Material
 
