@@ -201,6 +201,8 @@ pub struct Config {
     pub ingest: IngestSpec,
     #[serde(default)]
     pub http: HttpSpec,
+    #[serde(default)]
+    pub source: crate::archive::SourceSpec,
 }
 
 /// `[link]` in the config.
@@ -409,6 +411,9 @@ pub(crate) const KEY_RANGES: &[KeyRange] = &[
     closed("ingest.decode_threads", 1.0, 16.0),
     closed("ingest.settle_ms", 0.0, 600_000.0),
     closed("ingest.max_decode_mib", 16.0, 65_536.0),
+    above("source.seconds_per_capture", 0.0, 86_400.0),
+    closed("source.angle_tolerance_deg", 0.0, 10.0),
+    closed("source.poll_ms", 10.0, 600_000.0),
     closed("rig.joints[0].offset_deg", -360.0, 360.0),
     closed("rig.joints[1].offset_deg", -360.0, 360.0),
     closed("rig.joints[2].offset_deg", -360.0, 360.0),
@@ -622,6 +627,40 @@ impl Config {
         if self.probes.every > 0 {
             self.probe_entry()?;
         }
+        if self.source.kind == crate::archive::SourceKind::Files {
+            self.validate_files_source()?;
+        }
+        Ok(())
+    }
+
+    /// A files source has no controller: what needs one must be off.
+    fn validate_files_source(&self) -> Result<(), ConfigError> {
+        if self.source.sidecar.is_none() {
+            crate::archive::listing::compile_pattern(&self.source.pattern).map_err(|e| {
+                ConfigError::Invalid {
+                    field: "source.pattern",
+                    message: e.to_string(),
+                }
+            })?;
+        }
+        if self.probes.every > 0 {
+            return Err(ConfigError::Invalid {
+                field: "probes.every",
+                message: "drift probes need a controller that takes them (source.kind = \"protocol\"); set it to 0 for a files source".into(),
+            });
+        }
+        if self.alarms.pause_on_critical {
+            return Err(ConfigError::Invalid {
+                field: "alarms.pause_on_critical",
+                message: "pausing needs a controller (source.kind = \"protocol\")".into(),
+            });
+        }
+        if self.source.extensions.is_empty() {
+            return Err(ConfigError::Invalid {
+                field: "source.extensions",
+                message: "no file type is taken as a capture".into(),
+            });
+        }
         Ok(())
     }
 
@@ -686,6 +725,15 @@ impl Config {
             ("ingest.settle_ms", i.settle_ms as f64),
             ("ingest.max_decode_mib", i.max_decode_mib as f64),
             ("rig.wagon.offset_deg", self.rig.wagon.offset_deg),
+            (
+                "source.seconds_per_capture",
+                self.source.seconds_per_capture,
+            ),
+            (
+                "source.angle_tolerance_deg",
+                self.source.angle_tolerance_deg,
+            ),
+            ("source.poll_ms", self.source.poll_ms as f64),
         ];
         for (k, j) in self.rig.joints.iter().enumerate() {
             v.push((
@@ -949,6 +997,41 @@ mod tests {
     }
 
     #[test]
+    fn a_files_source_refuses_what_needs_a_controller_and_names_the_key() {
+        let ok = Config::from_toml_str("[source]\nkind = \"files\"\n").unwrap();
+        assert_eq!(ok.source.kind, crate::archive::SourceKind::Files);
+        for (text, key) in [
+            (
+                "[source]\nkind = \"files\"\n[probes]\nevery = 50\n",
+                "probes.every",
+            ),
+            (
+                "[source]\nkind = \"files\"\n[alarms]\npause_on_critical = true\n",
+                "alarms.pause_on_critical",
+            ),
+            (
+                "[source]\nkind = \"files\"\npattern = \"(?P<x>1)\"\n",
+                "source.pattern",
+            ),
+            (
+                "[source]\nkind = \"files\"\nextensions = []\n",
+                "source.extensions",
+            ),
+            (
+                "[source]\nkind = \"files\"\nangle_tolerance_deg = 11\n",
+                "source.angle_tolerance_deg",
+            ),
+            ("[source]\nkind = \"tape\"\n", "kind"),
+        ] {
+            let e = Config::from_toml_str(text).unwrap_err().to_string();
+            assert!(e.contains(key), "{text}: {e}");
+        }
+        // a sidecar needs no pattern
+        Config::from_toml_str("[source]\nkind = \"files\"\npattern = \"x\"\nsidecar = \"c.csv\"\n")
+            .unwrap();
+    }
+
+    #[test]
     fn a_rect_roi_without_pixels_is_refused_and_fast_links_are_accepted() {
         let e = Config::from_toml_str(
             "[capture]\nroi = { kind = \"rect\", x = 0, y = 0, width = 0, height = 8 }\n",
@@ -977,7 +1060,7 @@ mod tests {
 
     #[test]
     fn the_shipped_configs_parse_and_keep_the_sweep_defaults() {
-        for name in ["ubo.toml", "sim.toml"] {
+        for name in ["ubo.toml", "sim.toml", "archive.toml"] {
             let path = format!("{}/config/{name}", env!("CARGO_MANIFEST_DIR"));
             let c = Config::from_toml_str(&std::fs::read_to_string(path).unwrap()).unwrap();
             assert_eq!(c.checks.sweeps, Default::default(), "{name}");

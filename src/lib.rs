@@ -5,6 +5,8 @@
 //!   reciprocity, resampling, drift statistics). Pure and deterministic.
 //! - [`reference`]: the reference-BRDF file format (pure parsing).
 //! - [`protocol`]: the line framing of docs/protocol.md and its typed messages (pure).
+//! - [`archive`]: captures known only by their files: names or a sidecar → plan entries, and
+//!   the controller's side of the protocol that announces them (pure).
 //! - [`checks`]: the checker: a router over one stage per concern, and the result records (pure).
 //! - [`config`]: the TOML configuration as plain data (parsing and validation; the
 //!   checks' and core's spec types are its sections).
@@ -24,6 +26,7 @@
 
 #![warn(unreachable_pub)]
 
+pub mod archive;
 pub mod checks;
 pub mod cli;
 pub mod config;

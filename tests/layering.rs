@@ -9,22 +9,30 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ("measure", &[]),
     ("reference", &["measure"]),
     ("protocol", &[]),
+    ("archive", &["measure", "protocol"]),
     ("checks", &["measure"]),
-    ("config", &["measure", "checks"]),
-    ("engine", &["measure", "checks", "config", "protocol"]),
+    ("config", &["measure", "checks", "archive"]),
+    (
+        "engine",
+        &["measure", "checks", "config", "protocol", "archive"],
+    ),
     ("decode", &["measure"]),
     (
         "fixtures",
-        &["measure", "checks", "config", "protocol", "engine"],
+        &[
+            "measure", "checks", "config", "protocol", "engine", "archive",
+        ],
     ),
     (
         "session",
-        &["measure", "checks", "config", "protocol", "engine"],
+        &[
+            "measure", "checks", "config", "protocol", "engine", "archive",
+        ],
     ),
     (
         "daemon",
         &[
-            "measure", "checks", "config", "protocol", "engine", "decode", "session",
+            "measure", "checks", "config", "protocol", "engine", "decode", "session", "archive",
         ],
     ),
     (
@@ -39,6 +47,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "session",
             "daemon",
             "reference",
+            "archive",
         ],
     ),
 ];

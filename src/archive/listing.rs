@@ -1,0 +1,643 @@
+//! A capture folder's files → the captures of the plan, in acquisition order, with their times.
+//!
+//! A file is placed by its name (the `[source] pattern`) or by its row in a sidecar table. The
+//! angles must lie within `angle_tolerance_deg` of a plan direction; a file that cannot be placed
+//! is listed in [`Listing::skipped`] with the reason, never guessed. Sidecar rows whose file is
+//! absent are kept as captures, so that the ingestion records them as missing.
+
+use super::{OrderRule, SourceSpec};
+use crate::measure::geometry::{angle_between, Spherical};
+use crate::measure::kinematics::Rig;
+use crate::measure::plan::SamplingPlan;
+use regex::Regex;
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, BTreeSet};
+use thiserror::Error;
+
+/// What the listing knows of one file (the shell reads the folder; time is data).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FileFact {
+    /// Path relative to the capture folder, with `/` separators.
+    pub name: String,
+    /// Modification time, seconds since the Unix epoch.
+    pub mtime_s: Option<f64>,
+}
+
+/// One row of a sidecar table.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SidecarRow {
+    pub file: String,
+    #[serde(default)]
+    pub theta_i: Option<f64>,
+    #[serde(default)]
+    pub phi_i: Option<f64>,
+    #[serde(default)]
+    pub theta_o: Option<f64>,
+    #[serde(default)]
+    pub phi_o: Option<f64>,
+    #[serde(default)]
+    pub entry: Option<usize>,
+    #[serde(default)]
+    pub idx: Option<u64>,
+    #[serde(default)]
+    pub t: Option<f64>,
+    /// Relative exposure of a low-dynamic-range capture (not used for HDR files).
+    #[serde(default)]
+    pub exposure: Option<f64>,
+}
+
+#[derive(Debug, Error, PartialEq)]
+pub enum ListingError {
+    #[error("source.pattern does not compile: {0}")]
+    Pattern(String),
+    #[error("source.pattern needs the named groups tl, pl, tv and pv, or entry")]
+    PatternGroups,
+    #[error("source.order = \"index\" needs an idx group in the pattern or an idx column in the sidecar")]
+    NoIndex,
+    #[error("source.order = \"time\" needs a sidecar with a t column")]
+    NoTimes,
+    #[error("sidecar line {line}: {message}")]
+    Sidecar { line: usize, message: String },
+}
+
+/// Why a file is not among the captures.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum SkipReason {
+    /// Its name does not end in one of `[source] extensions`.
+    NotACapture,
+    /// Its name does not match the pattern.
+    NoMatch,
+    /// The sidecar has no row for it.
+    NotInSidecar,
+    /// Its angles or entry are not in the plan.
+    NotInPlan(String),
+    /// Another file stands for the same plan entry, earlier in the order.
+    Duplicate { entry: usize, kept: String },
+    /// The order or time it needs is missing.
+    Unordered(String),
+}
+
+impl std::fmt::Display for SkipReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SkipReason::NotACapture => write!(f, "not a capture file type"),
+            SkipReason::NoMatch => write!(f, "the name does not match source.pattern"),
+            SkipReason::NotInSidecar => write!(f, "no row in the sidecar"),
+            SkipReason::NotInPlan(why) => write!(f, "not in the plan: {why}"),
+            SkipReason::Duplicate { entry, kept } => {
+                write!(f, "plan entry {entry} again ({kept} is kept)")
+            }
+            SkipReason::Unordered(why) => write!(f, "{why}"),
+        }
+    }
+}
+
+/// Where the capture times come from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub enum TimeSource {
+    Sidecar,
+    Mtime,
+    /// No times: capture position × this many seconds.
+    Index {
+        seconds_per_capture: f64,
+    },
+}
+
+/// One capture of the listing, in acquisition order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArchiveCapture {
+    pub file: String,
+    pub entry: usize,
+    /// Seconds since the first capture.
+    pub t: f64,
+    /// The plan's pose for the entry (q1, q2, q3, wagon), as commanded and as read.
+    pub pose: [f64; 4],
+    /// θi used when the plan entry needs a substitute pose.
+    pub sub: Option<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Listing {
+    pub captures: Vec<ArchiveCapture>,
+    pub skipped: Vec<(String, SkipReason)>,
+    pub order: OrderRule,
+    pub times: TimeSource,
+}
+
+impl Listing {
+    /// One paragraph for the operator: what was found, the order and the times used.
+    pub fn describe(&self) -> String {
+        let order = match self.order {
+            OrderRule::Index => "the capture index in the names or the sidecar",
+            OrderRule::Time => "the sidecar's times",
+            OrderRule::Mtime => "the files' modification times",
+            OrderRule::Plan | OrderRule::Auto => "the plan's acquisition order of the entries",
+        };
+        let times = match self.times {
+            TimeSource::Sidecar => "times from the sidecar".to_string(),
+            TimeSource::Mtime => "times from the files' modification times".to_string(),
+            TimeSource::Index {
+                seconds_per_capture,
+            } => format!(
+                "no capture times: capture index × {seconds_per_capture} s (source.seconds_per_capture), so drift rates are per capture index, not per hour of the run"
+            ),
+        };
+        format!(
+            "{} captures placed, {} files skipped; order: {order}; {times}",
+            self.captures.len(),
+            self.skipped.len()
+        )
+    }
+}
+
+/// Parse a sidecar's text: CSV with a header row when `csv`, else JSON lines.
+pub fn parse_sidecar(text: &str, csv: bool) -> Result<Vec<SidecarRow>, ListingError> {
+    if csv {
+        let mut r = ::csv::ReaderBuilder::new()
+            .trim(::csv::Trim::All)
+            .from_reader(text.as_bytes());
+        r.deserialize()
+            .enumerate()
+            .map(|(k, row)| {
+                row.map_err(|e| ListingError::Sidecar {
+                    line: k + 2,
+                    message: e.to_string(),
+                })
+            })
+            .collect()
+    } else {
+        text.lines()
+            .enumerate()
+            .filter(|(_, l)| !l.trim().is_empty())
+            .map(|(k, l)| {
+                serde_json::from_str(l).map_err(|e| ListingError::Sidecar {
+                    line: k + 1,
+                    message: e.to_string(),
+                })
+            })
+            .collect()
+    }
+}
+
+/// Compile and check `[source] pattern`.
+pub fn compile_pattern(pattern: &str) -> Result<Regex, ListingError> {
+    let re = Regex::new(pattern).map_err(|e| ListingError::Pattern(e.to_string()))?;
+    let names: BTreeSet<&str> = re.capture_names().flatten().collect();
+    let angles = ["tl", "pl", "tv", "pv"].iter().all(|g| names.contains(g));
+    if !angles && !names.contains("entry") {
+        return Err(ListingError::PatternGroups);
+    }
+    Ok(re)
+}
+
+/// Where one file says it belongs.
+#[derive(Debug, Clone, Copy)]
+struct Placement {
+    angles: Option<[f64; 4]>,
+    entry: Option<usize>,
+    idx: Option<u64>,
+    t: Option<f64>,
+    mtime: Option<f64>,
+}
+
+fn wanted(name: &str, spec: &SourceSpec) -> bool {
+    let lower = name.to_ascii_lowercase();
+    spec.extensions
+        .iter()
+        .any(|e| lower.ends_with(&format!(".{}", e.to_ascii_lowercase())))
+}
+
+/// The plan direction within `tol_deg` of (θ, φ), if any (the nearest).
+fn direction_of(plan: &SamplingPlan, theta: f64, phi: f64, tol_deg: f64) -> Option<usize> {
+    let v = Spherical::from_deg(theta, phi).to_vector();
+    plan.directions()
+        .iter()
+        .map(|d| {
+            (
+                d.index,
+                angle_between(&v, &d.spherical().to_vector()).to_degrees(),
+            )
+        })
+        .filter(|(_, a)| *a <= tol_deg)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(i, _)| i)
+}
+
+/// Place `files` (and the sidecar's rows, when given) on `plan`.
+pub fn build(
+    files: &[FileFact],
+    sidecar: Option<&[SidecarRow]>,
+    spec: &SourceSpec,
+    plan: &SamplingPlan,
+    rig: &Rig,
+) -> Result<Listing, ListingError> {
+    let mut skipped: Vec<(String, SkipReason)> = Vec::new();
+    let mut placed: Vec<(String, Placement)> = Vec::new();
+    let mtimes: BTreeMap<&str, Option<f64>> =
+        files.iter().map(|f| (f.name.as_str(), f.mtime_s)).collect();
+    let sidecar_name = spec
+        .sidecar
+        .as_ref()
+        .map(|p| p.to_string_lossy().replace('\\', "/"));
+    match sidecar {
+        Some(rows) => {
+            let listed: BTreeSet<&str> = rows.iter().map(|r| r.file.as_str()).collect();
+            for f in files {
+                if Some(&f.name) == sidecar_name.as_ref() {
+                    continue;
+                }
+                if !listed.contains(f.name.as_str()) {
+                    let why = if wanted(&f.name, spec) {
+                        SkipReason::NotInSidecar
+                    } else {
+                        SkipReason::NotACapture
+                    };
+                    skipped.push((f.name.clone(), why));
+                }
+            }
+            for r in rows {
+                let angles = match (r.theta_i, r.phi_i, r.theta_o, r.phi_o) {
+                    (Some(a), Some(b), Some(c), Some(d)) => Some([a, b, c, d]),
+                    _ => None,
+                };
+                placed.push((
+                    r.file.clone(),
+                    Placement {
+                        angles,
+                        entry: r.entry,
+                        idx: r.idx,
+                        t: r.t,
+                        mtime: mtimes.get(r.file.as_str()).copied().flatten(),
+                    },
+                ));
+            }
+        }
+        None => {
+            let re = compile_pattern(&spec.pattern)?;
+            for f in files {
+                if !wanted(&f.name, spec) {
+                    skipped.push((f.name.clone(), SkipReason::NotACapture));
+                    continue;
+                }
+                let Some(c) = re.captures(&f.name) else {
+                    skipped.push((f.name.clone(), SkipReason::NoMatch));
+                    continue;
+                };
+                let num = |g: &str| c.name(g).and_then(|m| m.as_str().parse::<f64>().ok());
+                let angles = match (num("tl"), num("pl"), num("tv"), num("pv")) {
+                    (Some(a), Some(b), Some(cc), Some(d)) => Some([a, b, cc, d]),
+                    _ => None,
+                };
+                placed.push((
+                    f.name.clone(),
+                    Placement {
+                        angles,
+                        entry: c.name("entry").and_then(|m| m.as_str().parse().ok()),
+                        idx: c.name("idx").and_then(|m| m.as_str().parse().ok()),
+                        t: None,
+                        mtime: f.mtime_s,
+                    },
+                ));
+            }
+        }
+    }
+    // the plan entry of each placed file
+    let tol = spec.angle_tolerance_deg;
+    let mut entries: Vec<(String, Placement, usize)> = Vec::new();
+    for (name, p) in placed {
+        let entry = match (p.entry, p.angles) {
+            (Some(e), _) if e < plan.capture_count() => Ok(e),
+            (Some(e), _) => Err(format!("entry {e} (the plan has {})", plan.capture_count())),
+            (None, Some([tl, pl, tv, pv])) => {
+                let finite = [tl, pl, tv, pv].iter().all(|v| v.is_finite());
+                match (
+                    finite.then(|| direction_of(plan, tl, pl, tol)).flatten(),
+                    finite.then(|| direction_of(plan, tv, pv, tol)).flatten(),
+                ) {
+                    (Some(l), Some(c)) => plan
+                        .index_of(l, c)
+                        .ok_or_else(|| "no such entry".to_string()),
+                    _ => Err(format!(
+                        "light ({tl}°, {pl}°) or camera ({tv}°, {pv}°) is more than {tol}° from every plan direction"
+                    )),
+                }
+            }
+            (None, None) => Err("no angles and no entry".into()),
+        };
+        match entry {
+            Ok(e) => entries.push((name, p, e)),
+            Err(why) => skipped.push((name, SkipReason::NotInPlan(why))),
+        }
+    }
+    // the order
+    let has_idx = !entries.is_empty() && entries.iter().all(|(_, p, _)| p.idx.is_some());
+    let has_t = !entries.is_empty() && entries.iter().all(|(_, p, _)| p.t.is_some());
+    let order = match spec.order {
+        OrderRule::Auto if has_idx => OrderRule::Index,
+        OrderRule::Auto if has_t => OrderRule::Time,
+        OrderRule::Auto => OrderRule::Plan,
+        OrderRule::Index if !has_idx && !entries.is_empty() => return Err(ListingError::NoIndex),
+        OrderRule::Time if !has_t && !entries.is_empty() => return Err(ListingError::NoTimes),
+        o => o,
+    };
+    if order == OrderRule::Mtime {
+        let (with, without): (Vec<_>, Vec<_>) =
+            entries.into_iter().partition(|(_, p, _)| p.mtime.is_some());
+        for (name, _, _) in without {
+            skipped.push((
+                name,
+                SkipReason::Unordered("no modification time (the file is absent)".into()),
+            ));
+        }
+        entries = with;
+    }
+    let key = |p: &Placement, e: usize| -> (f64, usize) {
+        match order {
+            OrderRule::Index => (p.idx.unwrap_or(u64::MAX) as f64, e),
+            OrderRule::Time => (p.t.unwrap_or(f64::INFINITY), e),
+            OrderRule::Mtime => (p.mtime.unwrap_or(f64::INFINITY), e),
+            _ => (e as f64, e),
+        }
+    };
+    entries.sort_by(|a, b| {
+        let (ka, kb) = (key(&a.1, a.2), key(&b.1, b.2));
+        ka.0.total_cmp(&kb.0)
+            .then(ka.1.cmp(&kb.1))
+            .then(a.0.cmp(&b.0))
+    });
+    // times, relative to the first capture
+    let times = match order {
+        OrderRule::Time => TimeSource::Sidecar,
+        OrderRule::Mtime => TimeSource::Mtime,
+        _ if has_t => TimeSource::Sidecar,
+        _ => TimeSource::Index {
+            seconds_per_capture: spec.seconds_per_capture,
+        },
+    };
+    let t0 = match times {
+        TimeSource::Sidecar => entries
+            .iter()
+            .filter_map(|e| e.1.t)
+            .fold(f64::INFINITY, f64::min),
+        TimeSource::Mtime => entries
+            .iter()
+            .filter_map(|e| e.1.mtime)
+            .fold(f64::INFINITY, f64::min),
+        TimeSource::Index { .. } => 0.0,
+    };
+    let mut seen: BTreeMap<usize, String> = BTreeMap::new();
+    let mut captures = Vec::new();
+    for (name, p, entry) in entries {
+        if let Some(kept) = seen.get(&entry) {
+            skipped.push((
+                name,
+                SkipReason::Duplicate {
+                    entry,
+                    kept: kept.clone(),
+                },
+            ));
+            continue;
+        }
+        let pe = match plan.entry(entry) {
+            Ok(pe) => pe,
+            Err(e) => {
+                skipped.push((name, SkipReason::NotInPlan(e.to_string())));
+                continue;
+            }
+        };
+        let dirs = plan.directions();
+        let planned = rig.plan_pose(dirs[pe.light].spherical(), dirs[pe.camera].spherical());
+        let Ok(planned) = planned else {
+            skipped.push((
+                name,
+                SkipReason::NotInPlan(format!("the rig model cannot take plan entry {entry}")),
+            ));
+            continue;
+        };
+        let t = match times {
+            TimeSource::Sidecar => p.t.map(|t| t - t0),
+            TimeSource::Mtime => p.mtime.map(|t| t - t0),
+            TimeSource::Index {
+                seconds_per_capture,
+            } => Some(captures.len() as f64 * seconds_per_capture),
+        };
+        let Some(t) = t.filter(|t| t.is_finite() && *t >= 0.0) else {
+            skipped.push((name, SkipReason::Unordered("no usable time".into())));
+            continue;
+        };
+        seen.insert(entry, name.clone());
+        let j = planned.pose.joints_deg;
+        captures.push(ArchiveCapture {
+            file: name,
+            entry,
+            t,
+            pose: [j[0], j[1], j[2], planned.pose.wagon_deg],
+            sub: planned.substitute.map(|(_, used)| used),
+        });
+    }
+    skipped.sort_by(|a, b| a.0.cmp(&b.0));
+    Ok(Listing {
+        captures,
+        skipped,
+        order,
+        times,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::archive::{SourceKind, BONN_PATTERN};
+    use crate::measure::kinematics::RigSpec;
+
+    fn setup() -> (SamplingPlan, Rig, SourceSpec) {
+        let spec = SourceSpec {
+            kind: SourceKind::Files,
+            ..SourceSpec::default()
+        };
+        (
+            SamplingPlan::ubo(),
+            Rig::new(RigSpec::default()).unwrap(),
+            spec,
+        )
+    }
+
+    fn bonn(plan: &SamplingPlan, entry: usize, idx: Option<usize>) -> String {
+        let e = plan.entry(entry).unwrap();
+        let (l, c) = (plan.directions()[e.light], plan.directions()[e.camera]);
+        let name = format!(
+            "tl{:03.0}_pl{:03.0}_tv{:03.0}_pv{:03.0}.hdr",
+            l.theta_deg, l.phi_deg, c.theta_deg, c.phi_deg
+        );
+        match idx {
+            Some(i) => format!("{i:05} {name}"),
+            None => format!("set/{name}"),
+        }
+    }
+
+    fn facts(names: &[String]) -> Vec<FileFact> {
+        names
+            .iter()
+            .map(|n| FileFact {
+                name: n.clone(),
+                mtime_s: None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn bonn_names_are_placed_on_their_plan_entries_in_plan_order() {
+        let (plan, rig, spec) = setup();
+        let entries = [5usize, 0, 81 * 40 + 7, 6560, 100];
+        let names: Vec<String> = entries.iter().map(|&e| bonn(&plan, e, None)).collect();
+        let l = build(&facts(&names), None, &spec, &plan, &rig).unwrap();
+        assert!(l.skipped.is_empty(), "{:?}", l.skipped);
+        assert_eq!(l.order, OrderRule::Plan);
+        let got: Vec<usize> = l.captures.iter().map(|c| c.entry).collect();
+        assert_eq!(got, [0, 5, 100, 81 * 40 + 7, 6560]);
+        // no times: position × seconds_per_capture, and the listing says so
+        assert_eq!(l.captures[2].t, 14.0);
+        assert!(l.describe().contains("per capture index"));
+        // entry 0 (light = camera) needs the rig's substitute pose, as the controller would send
+        let want = rig
+            .plan_pose(
+                plan.directions()[0].spherical(),
+                plan.directions()[0].spherical(),
+            )
+            .unwrap();
+        assert_eq!(l.captures[0].sub, want.substitute.map(|s| s.1));
+        assert!(l.captures[0].sub.is_some());
+    }
+
+    #[test]
+    fn a_leading_index_orders_the_captures() {
+        let (plan, rig, spec) = setup();
+        let names = vec![
+            bonn(&plan, 9, Some(2)),
+            bonn(&plan, 3, Some(1)),
+            bonn(&plan, 7, Some(0)),
+        ];
+        let l = build(&facts(&names), None, &spec, &plan, &rig).unwrap();
+        assert_eq!(l.order, OrderRule::Index);
+        let got: Vec<usize> = l.captures.iter().map(|c| c.entry).collect();
+        assert_eq!(got, [7, 3, 9]);
+    }
+
+    #[test]
+    fn what_cannot_be_placed_is_skipped_with_its_reason() {
+        let (plan, rig, spec) = setup();
+        let names = vec![
+            "readme.txt".to_string(),
+            "IMG_0001.hdr".to_string(),
+            "tl017_pl000_tv000_pv000.hdr".to_string(),
+            "tl015_pl000_tv000_pv000.hdr".to_string(),
+            "copy/tl015_pl000_tv000_pv000.EXR".to_string(),
+        ];
+        let l = build(&facts(&names), None, &spec, &plan, &rig).unwrap();
+        assert_eq!(l.captures.len(), 1);
+        let why: BTreeMap<&str, &SkipReason> =
+            l.skipped.iter().map(|(n, r)| (n.as_str(), r)).collect();
+        assert_eq!(why["readme.txt"], &SkipReason::NotACapture);
+        assert_eq!(why["IMG_0001.hdr"], &SkipReason::NoMatch);
+        assert!(matches!(
+            why["tl017_pl000_tv000_pv000.hdr"],
+            SkipReason::NotInPlan(_)
+        ));
+        // the same entry twice: the first by name is kept, the other named
+        let dup = why
+            .iter()
+            .find(|(_, r)| matches!(r, SkipReason::Duplicate { .. }))
+            .unwrap();
+        assert!(dup.1.to_string().contains("is kept"), "{}", dup.1);
+    }
+
+    #[test]
+    fn angles_within_the_tolerance_are_placed_and_hue_of_phi_wraps() {
+        let (plan, rig, mut spec) = setup();
+        spec.angle_tolerance_deg = 0.5;
+        // φ = 359.8° is 0.2° from φ = 0 at θ = 75°: about 0.19° on the sphere
+        spec.pattern =
+            r"tl(?P<tl>[\d.]+)_pl(?P<pl>[\d.]+)_tv(?P<tv>[\d.]+)_pv(?P<pv>[\d.]+)".into();
+        let names = vec!["tl75_pl359.8_tv30.2_pv0.hdr".to_string()];
+        let l = build(&facts(&names), None, &spec, &plan, &rig).unwrap();
+        assert_eq!(l.captures.len(), 1, "{:?}", l.skipped);
+        let e = plan.entry(l.captures[0].entry).unwrap();
+        assert_eq!(plan.directions()[e.light].theta_deg, 75.0);
+        assert_eq!(plan.directions()[e.light].phi_deg, 0.0);
+        spec.angle_tolerance_deg = 0.1;
+        let l = build(&facts(&names), None, &spec, &plan, &rig).unwrap();
+        assert!(l.captures.is_empty());
+    }
+
+    #[test]
+    fn a_sidecar_gives_entries_times_and_order_and_keeps_absent_files() {
+        let (plan, rig, mut spec) = setup();
+        spec.sidecar = Some("captures.csv".into());
+        let csv = "file,theta_i,phi_i,theta_o,phi_o,t\n\
+                   b.hdr,15,0,0,0,20.5\n\
+                   a.hdr,0,0,15,0,10.5\n\
+                   gone.hdr,15,60,15,0,30.5\n";
+        let rows = parse_sidecar(csv, true).unwrap();
+        let names: Vec<String> = ["a.hdr", "b.hdr", "captures.csv", "stray.hdr"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        let l = build(&facts(&names), Some(&rows), &spec, &plan, &rig).unwrap();
+        assert_eq!(l.order, OrderRule::Time);
+        assert_eq!(l.times, TimeSource::Sidecar);
+        let got: Vec<(&str, f64)> = l.captures.iter().map(|c| (c.file.as_str(), c.t)).collect();
+        assert_eq!(got, [("a.hdr", 0.0), ("b.hdr", 10.0), ("gone.hdr", 20.0)]);
+        assert_eq!(
+            l.skipped,
+            [("stray.hdr".to_string(), SkipReason::NotInSidecar)]
+        );
+        // JSON lines, with entries instead of angles
+        let rows = parse_sidecar("{\"file\":\"x.exr\",\"entry\":12}\n\n", false).unwrap();
+        let l = build(
+            &facts(&["x.exr".to_string()]),
+            Some(&rows),
+            &spec,
+            &plan,
+            &rig,
+        )
+        .unwrap();
+        assert_eq!(l.captures[0].entry, 12);
+        // a bad row names its line
+        let e = parse_sidecar("file,theta_i\nx.hdr,abc\n", true).unwrap_err();
+        assert!(matches!(e, ListingError::Sidecar { line: 2, .. }), "{e}");
+        let e = parse_sidecar("{\"file\":\"x\",\"colour\":1}\n", false).unwrap_err();
+        assert!(e.to_string().contains("line 1"), "{e}");
+    }
+
+    #[test]
+    fn modification_times_order_and_time_the_captures() {
+        let (plan, rig, mut spec) = setup();
+        spec.order = OrderRule::Mtime;
+        let mut f = facts(&[bonn(&plan, 1, None), bonn(&plan, 2, None)]);
+        f[0].mtime_s = Some(1_000_100.0);
+        f[1].mtime_s = Some(1_000_000.0);
+        let l = build(&f, None, &spec, &plan, &rig).unwrap();
+        let got: Vec<(usize, f64)> = l.captures.iter().map(|c| (c.entry, c.t)).collect();
+        assert_eq!(got, [(2, 0.0), (1, 100.0)]);
+        assert_eq!(l.times, TimeSource::Mtime);
+    }
+
+    #[test]
+    fn a_pattern_without_angle_or_entry_groups_is_refused() {
+        assert_eq!(
+            compile_pattern("(?P<x>\\d+)").unwrap_err(),
+            ListingError::PatternGroups
+        );
+        assert!(matches!(
+            compile_pattern("(").unwrap_err(),
+            ListingError::Pattern(_)
+        ));
+        assert!(compile_pattern(BONN_PATTERN).is_ok());
+        assert!(compile_pattern("e(?P<entry>\\d+)").is_ok());
+        let (plan, rig, mut spec) = setup();
+        spec.order = OrderRule::Index;
+        let e = build(&facts(&[bonn(&plan, 1, None)]), None, &spec, &plan, &rig).unwrap_err();
+        assert_eq!(e, ListingError::NoIndex);
+    }
+}
