@@ -38,6 +38,30 @@ enum Command {
     /// Print the sampling plan: directions, captures, reciprocal pairs, isotropy classes and the
     /// entries the rig must take at a substitute pose.
     Plan(PlanArgs),
+    /// Check a finished capture set (a folder of captures whose names or sidecar give the
+    /// angles) with the same checks as a live run, on every core, into a session folder that
+    /// `report`, `compare` and `replay` read like any other. The folder is only read.
+    Check(CheckArgs),
+}
+
+#[derive(Args)]
+struct CheckArgs {
+    /// The capture folder (only read).
+    dir: PathBuf,
+    /// Config file; its [source] must be absent or kind = "files" (default: the built-in
+    /// config/archive.toml: the UBO plan, Bonn-style names).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Session folder for the results (default: DIR.check beside DIR). Rerunning on the same
+    /// folder resumes it.
+    #[arg(long)]
+    session: Option<PathBuf>,
+    /// Decoding threads (default: one per core).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=64))]
+    workers: Option<u16>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
 }
 
 #[derive(Args)]
@@ -218,6 +242,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Compare(a) => compare_command(a, &mut out),
         Command::Report(a) => report_command(a, &mut out),
         Command::Plan(a) => plan_command(a, &mut out),
+        Command::Check(a) => check_command(a, &mut out),
     }
 }
 
@@ -282,11 +307,14 @@ fn run_command(args: RunArgs, out: &mut impl Write) -> Result<ExitCode> {
     let (end, summary) = rt.block_on(run(RunOptions {
         session_dir: session.clone(),
         config,
+        config_text: None,
         port,
         capture_root,
         keep_running,
         progress: !quiet,
         http,
+        finished_set: false,
+        workers: None,
     }))?;
     rt.shutdown_timeout(std::time::Duration::from_secs(1));
     print_summary(&summary, out)?;
@@ -435,4 +463,132 @@ fn plan_command(args: PlanArgs, out: &mut impl Write) -> Result<ExitCode> {
     }
 
     Ok(ExitCode::SUCCESS)
+}
+
+/// The built-in config of `check` without --config.
+const ARCHIVE_CONFIG: &str = include_str!("../config/archive.toml");
+
+/// `path` made absolute, with `.` dropped and `..` taken by the names.
+fn normal_absolute(path: &Path) -> Result<PathBuf> {
+    let abs = std::path::absolute(path).with_context(|| format!("{}", path.display()))?;
+    let mut out = PathBuf::new();
+    for c in abs.components() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    Ok(out)
+}
+
+fn check_command(args: CheckArgs, out: &mut impl Write) -> Result<ExitCode> {
+    let CheckArgs {
+        dir,
+        config,
+        session,
+        workers,
+        quiet,
+    } = args;
+    if !dir.is_dir() {
+        return Err(UsageError(format!("{} is not a folder of captures", dir.display())).into());
+    }
+    let dir_abs = normal_absolute(&dir)?;
+    let session = match session {
+        Some(s) => s,
+        None => {
+            let name = dir_abs
+                .file_name()
+                .map(|n| format!("{}.check", n.to_string_lossy()))
+                .ok_or_else(|| UsageError("give --session for a capture folder at /".into()))?;
+            dir_abs.with_file_name(name)
+        }
+    };
+    let session_abs = normal_absolute(&session)?;
+    let real_dir = dir.canonicalize().unwrap_or_else(|_| dir_abs.clone());
+    if session_abs.starts_with(&dir_abs)
+        || session_abs
+            .ancestors()
+            .any(|a| a.canonicalize().is_ok_and(|a| a == real_dir))
+    {
+        return Err(UsageError(format!(
+            "the session folder {} is inside the capture folder {}; goniowatch never writes there. Give --session elsewhere",
+            session.display(),
+            dir.display()
+        ))
+        .into());
+    }
+    let (text, source) = match &config {
+        Some(p) => (
+            std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read config {}", p.display()))?,
+            p.clone(),
+        ),
+        None => (
+            ARCHIVE_CONFIG.to_string(),
+            PathBuf::from("(built-in config/archive.toml)"),
+        ),
+    };
+    let table: toml::Table = text
+        .parse()
+        .map_err(|e| goniowatch::config::ConfigError::Parse(format!("{e}")))
+        .with_context(|| format!("invalid config {}", source.display()))?;
+    let text = match table.get("source") {
+        None => format!("{text}\n[source]\nkind = \"files\"\n"),
+        Some(s) if s.get("kind").and_then(|k| k.as_str()) == Some("files") => text,
+        Some(_) => {
+            return Err(UsageError(format!(
+                "{}: check reads a folder of files; its [source] needs kind = \"files\" (or leave [source] out)",
+                source.display()
+            ))
+            .into())
+        }
+    };
+    // a folder where nothing can be placed is refused before a session folder is made
+    let cfg = goniowatch::config::Config::from_toml_str(&text)
+        .with_context(|| format!("invalid config {}", source.display()))?;
+    let listing = goniowatch::daemon::archive::preflight(&dir_abs, &cfg)?;
+    if listing.captures.is_empty() {
+        return Err(UsageError(format!(
+            "no capture in {} could be placed on the plan ({} file(s) looked at)\n{}",
+            dir.display(),
+            listing.skipped.len(),
+            goniowatch::daemon::archive::describe(&listing, 10)
+        ))
+        .into());
+    }
+    let workers = workers.map(usize::from).unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(2)
+    });
+    use goniowatch::cli::summary::print_summary;
+    use goniowatch::daemon::run::{run, RunEnd, RunOptions};
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")?;
+    let (end, summary) = rt.block_on(run(RunOptions {
+        session_dir: session.clone(),
+        config: None,
+        config_text: Some((text, source)),
+        port: None,
+        capture_root: Some(dir_abs),
+        keep_running: false,
+        progress: !quiet,
+        http: None,
+        finished_set: true,
+        workers: Some(workers),
+    }))?;
+    rt.shutdown_timeout(std::time::Duration::from_secs(1));
+    print_summary(&summary, out)?;
+    writeln!(out, "results in {}", session.display())?;
+    Ok(match end {
+        RunEnd::Finished { critical: false } => ExitCode::SUCCESS,
+        RunEnd::Finished { critical: true } => ExitCode::from(EXIT_CRITICAL),
+        RunEnd::Signal(n) => ExitCode::from(128 + n as u8),
+    })
 }

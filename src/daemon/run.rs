@@ -11,7 +11,7 @@ use super::status::{Published, StatusModel};
 use crate::engine::{Engine, Input, Output, Summary};
 use crate::session::folder::{Results, SessionLock};
 use crate::session::journal::{now_ms, JournalEntry, JournalItem, JsonlFile};
-use crate::session::recovery::{recover, Session};
+use crate::session::recovery::{recover, ConfigGiven, Session};
 use anyhow::{Context, Result};
 use std::collections::{BTreeSet, VecDeque};
 use std::io::IsTerminal;
@@ -25,6 +25,9 @@ const IDLE_AFTER: Duration = Duration::from_secs(5);
 pub struct RunOptions {
     pub session_dir: PathBuf,
     pub config: Option<PathBuf>,
+    /// A config given as text, and the name session.json records for it (used when `config`
+    /// is not given).
+    pub config_text: Option<(String, PathBuf)>,
     pub port: Option<PathBuf>,
     pub capture_root: Option<PathBuf>,
     /// Stay attached after the controller reports `done` (default: exit once all is checked).
@@ -33,6 +36,12 @@ pub struct RunOptions {
     pub progress: bool,
     /// Serve the status page here (`--http`).
     pub http: Option<std::net::SocketAddr>,
+    /// With a files source: the capture folder is a finished set (`check`), listed once,
+    /// rather than followed as it is written.
+    pub finished_set: bool,
+    /// Decoding threads for this run instead of the config's `ingest.workers` (`check` uses
+    /// every core).
+    pub workers: Option<usize>,
 }
 
 /// The most unannounced file names recorded at the end of a run.
@@ -54,6 +63,9 @@ struct Live {
     hook: Vec<String>,
     bar: Option<indicatif::ProgressBar>,
     capture_root: PathBuf,
+    /// Files in the capture folder that are not captures by definition (a files source's
+    /// sidecar), left out of the unannounced files.
+    not_captures: BTreeSet<String>,
     finished: bool,
     last_plain_report: Instant,
     hooks: Vec<tokio::task::JoinHandle<()>>,
@@ -205,7 +217,7 @@ impl Live {
                 .filter_map(|e| e.file_name().to_str().map(str::to_string))
                 .filter(|n| !n.starts_with('.'))
                 .map(|n| d.join(n).to_string_lossy().into_owned())
-                .filter(|n| !announced.contains(n.as_str()))
+                .filter(|n| !announced.contains(n.as_str()) && !self.not_captures.contains(n))
                 .collect();
             names.sort();
             out.extend(names);
@@ -229,9 +241,14 @@ pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         None => None,
         Some(addr) => Some(bind_status(&opts, addr).await?),
     };
-    let session = Session::open_or_create(
+    let given = match (&opts.config, &opts.config_text) {
+        (Some(p), _) => Some(ConfigGiven::File(p)),
+        (None, Some((text, source))) => Some(ConfigGiven::Text { text, source }),
+        (None, None) => None,
+    };
+    let session = Session::open_or_create_given(
         &opts.session_dir,
-        opts.config.as_deref(),
+        given,
         opts.port.as_deref(),
         opts.capture_root.as_deref(),
     )?;
@@ -320,9 +337,14 @@ async fn start(
     let (link_tx, link_rx) = mpsc::unbounded_channel::<String>();
     let (stop_tx, stop_rx) = watch::channel(false);
     let outcome_tx = ev_tx.clone();
+    let mut ingest = cfg.ingest.clone();
+    if let Some(w) = opts.workers {
+        ingest.workers = w.clamp(1, 64);
+        ingest.queue = ingest.queue.max(2 * ingest.workers);
+    }
     let pool = Pool::start(
         session.info.capture_root.clone(),
-        cfg.ingest.clone(),
+        ingest,
         cfg.capture,
         move |idx, outcome| {
             let _ = outcome_tx.send(Input::Outcome { idx, outcome });
@@ -338,6 +360,12 @@ async fn start(
         hook: cfg.alarms.hook.clone(),
         bar,
         capture_root: session.info.capture_root.clone(),
+        not_captures: match (&cfg.source.kind, &cfg.source.sidecar) {
+            (crate::archive::SourceKind::Files, Some(p)) => {
+                BTreeSet::from([p.to_string_lossy().replace('\\', "/")])
+            }
+            _ => BTreeSet::new(),
+        },
         finished: false,
         last_plain_report: Instant::now(),
         hooks: Vec::new(),
@@ -374,9 +402,29 @@ async fn start(
         log_alarm(&a, live.bar.as_ref(), true);
         live.hooks.extend(run_hook(&live.hook, &a, true));
     }
-    let mut link_spec = cfg.link.clone();
-    link_spec.port = session.info.port.clone();
-    let link = tokio::spawn(super::link::run(link_spec, ev_tx, link_rx, stop_rx));
+    let link = match cfg.source.kind {
+        crate::archive::SourceKind::Protocol => {
+            let mut link_spec = cfg.link.clone();
+            link_spec.port = session.info.port.clone();
+            tokio::spawn(super::link::run(link_spec, ev_tx, link_rx, stop_rx))
+        }
+        crate::archive::SourceKind::Files => {
+            eprintln!(
+                "goniowatch: files source{}: captures are placed by their {} in {}; with no controller there is no encoder pose (the plan's pose is assumed), no drift probe and no PAUSE",
+                if opts.finished_set { " (a finished set)" } else { " (watching)" },
+                if cfg.source.sidecar.is_some() { "sidecar rows" } else { "file names" },
+                session.info.capture_root.display()
+            );
+            let archive = super::archive::ArchiveLink {
+                root: session.info.capture_root.clone(),
+                spec: cfg.source.clone(),
+                plan: cfg.plan()?,
+                rig: crate::measure::kinematics::Rig::new(cfg.rig.clone())?,
+                finished: opts.finished_set,
+            };
+            tokio::spawn(super::archive::run(archive, ev_tx, link_rx, stop_rx))
+        }
+    };
     Ok((
         live,
         Channels {

@@ -65,6 +65,30 @@ fn results_present(dir: &Path) -> Vec<&'static str> {
         .collect()
 }
 
+/// The config a new session is created from.
+#[derive(Debug, Clone, Copy)]
+pub enum ConfigGiven<'a> {
+    /// A config file (relative paths in it are taken from its folder).
+    File(&'a Path),
+    /// A config text, named `source` in session.json (relative paths from the working folder).
+    Text { text: &'a str, source: &'a Path },
+}
+
+impl ConfigGiven<'_> {
+    fn path(&self) -> &Path {
+        match self {
+            ConfigGiven::File(p) => p,
+            ConfigGiven::Text { source, .. } => source,
+        }
+    }
+    fn text(&self) -> String {
+        match self {
+            ConfigGiven::File(p) => std::fs::read_to_string(p).unwrap_or_default(),
+            ConfigGiven::Text { text, .. } => text.to_string(),
+        }
+    }
+}
+
 impl Session {
     /// Create `dir` from a config file, or reopen it (then its stored config is used).
     pub fn open_or_create(
@@ -73,6 +97,17 @@ impl Session {
         port: Option<&Path>,
         capture_root: Option<&Path>,
     ) -> Result<Session> {
+        Self::open_or_create_given(dir, config_path.map(ConfigGiven::File), port, capture_root)
+    }
+
+    /// Create `dir` from a config file or text, or reopen it (then its stored config is used).
+    pub fn open_or_create_given(
+        dir: &Path,
+        given: Option<ConfigGiven<'_>>,
+        port: Option<&Path>,
+        capture_root: Option<&Path>,
+    ) -> Result<Session> {
+        let config_path = given.as_ref().map(ConfigGiven::path);
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create session folder {}", dir.display()))?;
         let stored = dir.join("config.toml");
@@ -97,9 +132,9 @@ impl Session {
                     .with_context(|| format!("cannot read {}", info_path.display()))?,
             )
             .with_context(|| format!("cannot parse {}", info_path.display()))?;
-            if let Some(p) = config_path {
-                let given = std::fs::read_to_string(p).unwrap_or_default();
-                if given != text {
+            if let Some(g) = &given {
+                let p = g.path();
+                if g.text() != text {
                     tracing::warn!(
                         "{} differs from the session's stored config; the stored one is used",
                         p.display()
@@ -137,16 +172,27 @@ impl Session {
                 dir.display()
             );
         };
-        let (config, text) = Config::load(config_path)
-            .with_context(|| format!("invalid config {}", config_path.display()))?;
+        let (config, text, base) = match given {
+            Some(ConfigGiven::Text { text, .. }) => (
+                Config::from_toml_str(text)
+                    .with_context(|| format!("invalid config {}", config_path.display()))?,
+                text.to_string(),
+                PathBuf::from("."),
+            ),
+            _ => {
+                let (config, text) = Config::load(config_path)
+                    .with_context(|| format!("invalid config {}", config_path.display()))?;
+                let base = config_path
+                    .canonicalize()
+                    .ok()
+                    .and_then(|p| p.parent().map(Path::to_path_buf))
+                    .unwrap_or_else(|| PathBuf::from("."));
+                (config, text, base)
+            }
+        };
         config
             .live_white()
             .with_context(|| format!("invalid config {}", config_path.display()))?;
-        let base = config_path
-            .canonicalize()
-            .ok()
-            .and_then(|p| p.parent().map(Path::to_path_buf))
-            .unwrap_or_else(|| PathBuf::from("."));
         let info = SessionInfo {
             created_ms: super::journal::now_ms(),
             goniowatch: env!("CARGO_PKG_VERSION").into(),
