@@ -1,6 +1,11 @@
 """Command line:
 
 - `python -m goniosim run SCENARIO ...`: run a simulated session;
+- `python -m goniosim archive SCENARIO --out DIR --naming bonn|bonn-indexed|sidecar ...`: write the
+  scenario's capture set, faults included, without a serial link, into DIR/<session id>/ with
+  Bonn-style names (`tl015_pl060_tv030_pv000.hdr`, optionally after the capture index) or with a
+  captures.csv sidecar (file, angles, time) beside `cap_…` names: what `goniowatch check` and the
+  watch mode read;
 - `python -m goniosim stats TRUTH`: the paper's Table 2 from a truth file;
 - `python -m goniosim reference SCENARIO --out FILE [--seed N] [--no-calibration] [--noise-pct X]`:
   write an independent reference BRDF measurement of the scenario's material (spectral, 30 bands,
@@ -30,6 +35,14 @@ def main(argv=None) -> int:
     r.add_argument("--speed", type=float, help="0 = as fast as possible, 1 = real time (7 s per capture), k = k times")
     r.add_argument("--seed", type=int)
     r.add_argument("--linger", type=float, default=5.0, help="seconds to keep answering after the last capture")
+    ar = sub.add_parser("archive", help="write a scenario's capture set without a serial link (Bonn-style names or a sidecar)")
+    ar.add_argument("scenario")
+    ar.add_argument("--out", required=True, help="capture root; the set goes to OUT/<session id>/")
+    ar.add_argument("--naming", choices=["bonn", "bonn-indexed", "sidecar"], default="bonn")
+    ar.add_argument("--truth", help="ground-truth JSON lines file")
+    ar.add_argument("--captures", type=int, help="stop after this many captures")
+    ar.add_argument("--speed", type=float, default=0.0, help="0 = as fast as possible (default), k = k times real time")
+    ar.add_argument("--seed", type=int)
     st = sub.add_parser("stats", help="the paper's Table 2 from a truth file's noiseless means")
     st.add_argument("truth")
     st.add_argument("--rgb-scale", type=float, default=100.0)
@@ -56,6 +69,9 @@ def main(argv=None) -> int:
         names = ["|dX|", "|dY|", "|dZ|", "dE*ab", "dC*ab", "dH*ab", "dE00"]
         print(json.dumps({"pairs": n, **{k: round(v, 4) for k, v in zip(names, m)}}))
         return 0
+
+    if a.cmd == "archive":
+        return _archive(a)
 
     overrides = {}
     for key, val in (
@@ -85,6 +101,36 @@ def main(argv=None) -> int:
     finally:
         ctl.close()
     return 0
+
+
+def _archive(a) -> int:
+    overrides = {"capture_root": a.out, "speed": a.speed}
+    for key, val in (("truth", a.truth), ("captures", a.captures), ("seed", a.seed)):
+        if val is not None:
+            overrides[key] = val
+    try:
+        sc = S.load(a.scenario, overrides)
+    except (S.ScenarioError, OSError, ValueError) as e:
+        print(f"goniosim: {e}", file=sys.stderr)
+        return 2
+    link_faults = sorted({f.kind for f in sc.faults} & LINK_FAULTS)
+    if link_faults:
+        print(f"goniosim: {', '.join(link_faults)}: a serial-link fault has no effect on a capture set without a link", file=sys.stderr)
+    from .controller import Controller
+
+    ctl = Controller(sc, naming=a.naming)
+    print(f"goniosim: writing {sc.capture_count} captures to {sc.capture_root}/{sc.session_id}/ ({a.naming} names)", file=sys.stderr, flush=True)
+    try:
+        ctl.run()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        ctl.close()
+    return 0
+
+
+# Faults of the serial link (and of the announcement on it), which a set without a link cannot show.
+LINK_FAULTS = {"reboot", "unplug", "corrupt-bytes", "drop-lines", "slow-link", "malformed-announcement", "duplicate-index", "encoder-mismatch"}
 
 
 def _reference(a) -> int:

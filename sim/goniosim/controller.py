@@ -32,14 +32,51 @@ class CaptureRecord:
     fields: dict
 
 
+class NoCable:
+    """The cable of a rig without a serial link (`archive`): its faults have nothing to act on."""
+
+    rig_path = None
+    corrupt_rate = 0.0
+    drop_rate = 0.0
+    baud = 0
+
+    def unplug(self, duration_s: float) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+# File names of a capture set written without a controller (`archive --naming`): the Bonn
+# convention with the plan's nominal angles, optionally after the capture index.
+NAMINGS = ("bonn", "bonn-indexed", "sidecar")
+
+
 class Controller:
-    def __init__(self, sc: Scenario, cable: Cable | None = None, log=sys.stderr, linger_s: float = 5.0) -> None:
+    def __init__(
+        self,
+        sc: Scenario,
+        cable: Cable | None = None,
+        log=sys.stderr,
+        linger_s: float = 5.0,
+        naming: str | None = None,
+    ) -> None:
+        """`naming` set: no serial link; the captures are named by `naming` (NAMINGS), and with
+        "sidecar" a captures.csv beside them maps each file to its angles and time."""
         self.sc = sc
+        self.naming = naming
+        if naming is not None:
+            cable = NoCable()
         self.cable = cable if cable is not None else Cable(sc.port, sc.baud, sc.seed)
         self.own_cable = cable is None
         self.log = log
         self.linger_s = linger_s
-        self.ser = serial.Serial(self.cable.rig_path, baudrate=115200, timeout=0)
+        self.ser = serial.Serial(self.cable.rig_path, baudrate=115200, timeout=0) if naming is None else None
+        self.sidecar = None
+        if naming == "sidecar":
+            os.makedirs(os.path.join(sc.capture_root, sc.session_id), exist_ok=True)
+            self.sidecar = open(os.path.join(sc.capture_root, sc.session_id, "captures.csv"), "w", encoding="utf-8")
+            self.sidecar.write("file,theta_i,phi_i,theta_o,phi_o,t\n")
         self.rx = P.LineBuffer()
         self.seq = 0
         self.boot = 0
@@ -67,13 +104,15 @@ class Controller:
 
     # -- serial ----------------------------------------------------------------------------------
     def send(self, verb: str, fields: dict | None = None, event: bool = False) -> None:
-        if event and not self.subscribed:
+        if self.ser is None or (event and not self.subscribed):
             return
         line = P.frame(self.seq, verb, fields)
         self.seq = (self.seq + 1) % P.SEQ_MOD
         self.ser.write(line)
 
     def poll(self) -> None:
+        if self.ser is None:
+            return
         data = self.ser.read(65536)
         if not data:
             return
@@ -253,9 +292,14 @@ class Controller:
 
         # NaN/Inf cannot be stored in Radiance RGBE: such captures are written as OpenEXR
         fmt = "exr" if ("nan-pixels" in kinds or "inf-pixels" in kinds or sc.format == "exr") else "hdr"
-        rel = f"{sc.session_id}/cap_{idx:05d}_e{entry:04d}.{fmt}"
+        nominal = (ld[0], ld[1], cd[0], cd[1])
+        rel = self.file_name(idx, entry, fmt, nominal)
         path = os.path.join(sc.capture_root, rel)
         written = self.write_capture(path, img, fmt, kinds)
+        if self.sidecar is not None:
+            name = rel.split("/", 1)[1]
+            self.sidecar.write(f"{name},{nominal[0]:g},{nominal[1]:g},{nominal[2]:g},{nominal[3]:g},{self.t:.3f}\n")
+            self.sidecar.flush()
 
         fields = {
             "idx": idx,
@@ -310,6 +354,16 @@ class Controller:
         self.next_idx += 1
         self.t += sc.time_per_capture_s
 
+    def file_name(self, idx: int, entry: int, fmt: str, nominal: tuple) -> str:
+        """The capture's path under the capture root."""
+        ti, pi, to, po = nominal
+        bonn = f"tl{ti:03.0f}_pl{pi:03.0f}_tv{to:03.0f}_pv{po:03.0f}.{fmt}"
+        if self.naming == "bonn":
+            return f"{self.sc.session_id}/{bonn}"
+        if self.naming == "bonn-indexed":
+            return f"{self.sc.session_id}/{idx:05d}_{bonn}"
+        return f"{self.sc.session_id}/cap_{idx:05d}_e{entry:04d}.{fmt}"
+
     def write_capture(self, path: str, img: np.ndarray, fmt: str, kinds: set[str]) -> bool:
         if "missing-file" in kinds:
             return False
@@ -346,7 +400,8 @@ class Controller:
     def run(self) -> None:
         sc = self.sc
         self.reboot()  # first boot: IDENT, boot = 1
-        self.sleep(0.05)
+        if self.ser is not None:
+            self.sleep(0.05)
         period = sc.time_per_capture_s / sc.speed if sc.speed > 0 else 0.0
         count = sc.capture_count
         started = time.monotonic()
@@ -365,13 +420,18 @@ class Controller:
         self.send("STATUS", {"state": "done", "t": f"{self.t:.3f}", "next": self.next_idx}, event=True)
         for th in self._writers:
             th.join()
+        if self.ser is None:
+            return
         end = time.monotonic() + self.linger_s
         while time.monotonic() < end and not self.stop.is_set():
             self.sleep(0.02)
 
     def close(self) -> None:
         self.truth.close()
-        self.ser.close()
+        if self.sidecar is not None:
+            self.sidecar.close()
+        if self.ser is not None:
+            self.ser.close()
         if self.own_cable:
             self.cable.close()
 
