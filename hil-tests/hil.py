@@ -41,6 +41,49 @@ def read_jsonl(path):
         return [json.loads(line) for line in f if line.strip()]
 
 
+def write_scenario(tmp, name, faults, capture_root, **session):
+    """A simulator scenario file (16 × 16 images, full speed, seed 7, walkway, realistic unless
+    given); returns its path and the session id."""
+    preset = session.pop("preset", "walkway")
+    realism = session.pop("realism", "realistic")
+    sc = {"id": name, "capture_root": capture_root, "image_size": [16, 16], "speed": 0, "seed": 7}
+    sc.update(session)
+    lines = [f'rig_config = "{os.path.join(REPO, "config", "sim.toml")}"', "[session]"]
+    for k, v in sc.items():
+        lines.append(f"{k} = {json.dumps(v)}")
+    lines += ["[material]", f'preset = "{preset}"', f'realism = "{realism}"']
+    for f in faults:
+        lines.append("[[faults]]")
+        lines += [f"{k} = {json.dumps(v)}" for k, v in f.items()]
+    path = tmp / f"{name}.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path, sc["id"]
+
+
+def write_archive(tmp, name, faults=(), naming="bonn", captures=None, speed=0.0, **session):
+    """The capture set of a scenario, written by `goniosim archive` into tmp/<name>-cap/<name>/
+    (run to completion unless `speed` > 0, then returned running); returns (folder, process)."""
+    root = str(tmp / f"{name}-cap")
+    scenario, sid = write_scenario(tmp, name, faults, root, **session)
+    cmd = [sys.executable, "-m", "goniosim", "archive", str(scenario), "--out", root, "--naming", naming, "--speed", str(speed)]
+    if captures is not None:
+        cmd += ["--captures", str(captures)]
+    p = subprocess.Popen(cmd, cwd=os.path.join(REPO, "sim"), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    if speed == 0:
+        out, _ = p.communicate(timeout=600)
+        assert p.returncode == 0, out
+    return tmp / f"{name}-cap" / sid, p
+
+
+def run_check(folder, session=None, config=None, *extra, timeout=300):
+    """`goniowatch check FOLDER` with config/sim.toml unless given; returns (code, out, err)."""
+    cmd = [binary(), "check", str(folder), "--quiet", "--config", str(config or os.path.join(REPO, "config", "sim.toml"))]
+    if session is not None:
+        cmd += ["--session", str(session)]
+    r = subprocess.run(cmd + list(extra), capture_output=True, text=True, timeout=timeout)
+    return r.returncode, r.stdout, r.stderr
+
+
 class Rig:
     """A simulated rig session (goniosim in a subprocess), or a real rig's port."""
 
@@ -52,27 +95,7 @@ class Rig:
         self.proc = None
         if REAL_PORT:
             return
-        preset = session.pop("preset", "walkway")
-        realism = session.pop("realism", "realistic")
-        sc = {
-            "id": name,
-            "capture_root": self.capture_root,
-            "port": self.port,
-            "image_size": [16, 16],
-            "speed": 0,
-            "seed": 7,
-        }
-        sc.update(session)
-        self.session_id = sc["id"]
-        lines = [f'rig_config = "{os.path.join(REPO, "config", "sim.toml")}"', "[session]"]
-        for k, v in sc.items():
-            lines.append(f"{k} = {json.dumps(v)}")
-        lines += ["[material]", f'preset = "{preset}"', f'realism = "{realism}"']
-        for f in faults:
-            lines.append("[[faults]]")
-            lines += [f"{k} = {json.dumps(v)}" for k, v in f.items()]
-        self.scenario = tmp / f"{name}.toml"
-        self.scenario.write_text("\n".join(lines) + "\n")
+        self.scenario, self.session_id = write_scenario(tmp, name, faults, self.capture_root, port=self.port, **session)
         self.log = open(tmp / f"{name}.sim.log", "w")
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "goniosim", "run", str(self.scenario), "--linger", str(linger)],

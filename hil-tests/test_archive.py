@@ -1,0 +1,162 @@
+"""Captures without a controller: `goniowatch check` on a finished capture set and `goniowatch run`
+in watch mode, both with a files source ([source] kind = "files"). The same scenario through the
+protocol and through the files gives the same captures and the same alarms; bad names, unreadable
+and half-written files, an empty folder and a bad config each get a clear message."""
+
+import json
+import os
+import signal
+import subprocess
+import time
+
+from hil import (
+    REPO,
+    assert_replay_identical,
+    binary,
+    daemon_config,
+    needs_simulator,
+    read_jsonl,
+    run_check,
+    run_daemon,
+    write_archive,
+)
+
+FAULTS = [
+    {"kind": "lamp-step", "at_capture": 700, "step_pct": -3.0},
+    {"kind": "dark-frame", "at_capture": 300},
+    {"kind": "nan-pixels", "at_capture": 500, "count": 5},
+]
+CHECKS = ["capture-quality", "drift", "positioning", "reciprocity-outlier", "isotropy"]
+
+
+def verdicts(session):
+    """The alarms that judge the captures (not the link's), as (code, idx)."""
+    return sorted((a["code"], a.get("idx")) for a in read_jsonl(session / "alarms.jsonl") if a["kind"] in CHECKS)
+
+
+def values(session):
+    return [(c["idx"], c["entry"], c["t"], c.get("xyz")) for c in read_jsonl(session / "captures.jsonl")]
+
+
+def test_the_same_scenario_through_the_protocol_and_through_the_files_gives_the_same_verdicts(hil, tmp_path):
+    needs_simulator()
+    rig = hil("proto", FAULTS, captures=1400)
+    live = tmp_path / "proto-session"
+    code, _, err = run_daemon(rig, live, daemon_config(tmp_path, "proto"), timeout=300)
+    assert code == 0, err[-2000:]
+    expected = verdicts(live)
+    assert {"gain-step", "gain-drift"} & {c for c, _ in expected} and ("dark-capture", 300) in expected, expected
+
+    for naming in ["bonn", "sidecar"]:
+        folder, _ = write_archive(tmp_path, f"files-{naming}", FAULTS, naming=naming, captures=1400, id="proto")
+        session = tmp_path / f"{naming}-session"
+        cfg = None
+        if naming == "sidecar":
+            cfg = tmp_path / "sidecar.toml"
+            text = open(os.path.join(REPO, "config", "sim.toml"), encoding="utf-8").read()
+            cfg.write_text(text + '\n[source]\nkind = "files"\nsidecar = "captures.csv"\n')
+        code, out, err = run_check(folder, session, cfg)
+        assert code == 0, err[-3000:]
+        assert "1400 checked" in out, out
+        assert "files source" in err and ("sidecar" in err) == (naming == "sidecar"), err
+        assert verdicts(session) == expected, naming
+        # the same images, the same times, the same numbers
+        assert values(session) == values(live), naming
+        assert_replay_identical(session, tmp_path)
+    # the capture folder was only read
+    assert sorted(os.listdir(folder)) == sorted(n for n in os.listdir(folder) if not n.endswith(".check"))
+
+
+def test_check_reports_what_it_cannot_place_or_read(tmp_path):
+    needs_simulator()
+    folder, _ = write_archive(tmp_path, "bad", [], naming="bonn-indexed", captures=120)
+    names = sorted(os.listdir(folder))
+    # a file type that is no capture, a capture whose name says nothing, angles off the plan,
+    # an unreadable file and a half-written one (both under good names)
+    (folder / "notes.txt").write_text("operator notes\n")
+    (folder / "IMG_0001.hdr").write_bytes((folder / names[5]).read_bytes())
+    (folder / "00999_tl017_pl000_tv000_pv000.hdr").write_bytes((folder / names[5]).read_bytes())
+    (folder / names[10]).write_bytes(b"#?RADIANCE\nthis is not an image\n")
+    whole = (folder / names[20]).read_bytes()
+    (folder / names[20]).write_bytes(whole[: len(whole) // 2])
+    before = {n: (folder / n).read_bytes() for n in os.listdir(folder)}
+    session = tmp_path / "bad-session"
+    code, out, err = run_check(folder, session)
+    assert code == 0, err[-3000:]
+    assert "120 announced" in out and "2 failed" in out, out
+    assert "skipped notes.txt: not a capture file type" in err, err
+    assert "skipped IMG_0001.hdr: the name does not match source.pattern" in err, err
+    assert "skipped 00999_tl017_pl000_tv000_pv000.hdr: not in the plan" in err, err
+    failed = {c["idx"]: c for c in read_jsonl(session / "captures.jsonl") if c["status"] == "failed"}
+    assert set(failed) == {10, 20}, failed
+    codes = {a["code"] for a in read_jsonl(session / "alarms.jsonl")}
+    assert "unannounced-files" in codes, codes
+    assert {n: (folder / n).read_bytes() for n in os.listdir(folder)} == before, "the capture folder was changed"
+
+
+def test_check_refuses_an_empty_folder_a_session_inside_it_and_a_protocol_config(tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    code, _, err = run_check(empty, tmp_path / "s1")
+    assert code == 2 and "no capture in" in err, err
+    assert not (tmp_path / "s1").exists()
+    (empty / "x.hdr").write_bytes(b"")
+    code, _, err = run_check(empty, empty / "session")
+    assert code == 2 and "inside the capture folder" in err, err
+    assert not (empty / "session").exists()
+    cfg = tmp_path / "proto.toml"
+    cfg.write_text('[source]\nkind = "protocol"\n')
+    code, _, err = run_check(empty, tmp_path / "s2", cfg)
+    assert code == 2 and 'kind = "files"' in err, err
+    cfg.write_text('[source]\nkind = "files"\npattern = "(?P<tl>\\\\d+"\n')
+    code, _, err = run_check(empty, tmp_path / "s3", cfg)
+    assert code == 2 and "source.pattern" in err, err
+    code, _, err = run_check(tmp_path / "nowhere", tmp_path / "s4")
+    assert code == 2 and "not a folder" in err, err
+
+
+def test_watch_mode_follows_a_folder_as_it_is_written(tmp_path):
+    needs_simulator()
+    n = 600
+    faults = [{"kind": "dark-frame", "at_capture": 250}]
+    folder, writer = write_archive(tmp_path, "watch", faults, naming="bonn", captures=n, speed=7.0 / 0.01)
+    cfg = tmp_path / "watch-daemon.toml"
+    text = open(os.path.join(REPO, "config", "sim.toml"), encoding="utf-8").read()
+    cfg.write_text(text + '\n[source]\nkind = "files"\npoll_ms = 100\n')
+    session = tmp_path / "watch-session"
+    os.makedirs(folder, exist_ok=True)
+    p = subprocess.Popen(
+        [binary(), "run", "--config", str(cfg), "--session", str(session), "--capture-root", str(folder), "--quiet"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        writer.communicate(timeout=300)
+        assert writer.returncode == 0
+        # stop once every written capture is checked (counted by the daemon, not timed)
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            try:
+                if json.load(open(session / "summary.json"))["checked"]["captures"] >= n:
+                    break
+            except (OSError, ValueError, KeyError):
+                pass
+            time.sleep(0.2)
+        p.send_signal(signal.SIGINT)
+        out, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert "watching" in err, err
+    caps = read_jsonl(session / "captures.jsonl")
+    assert len(caps) == n, (len(caps), err[-2000:])
+    assert [c["idx"] for c in caps] == list(range(n))
+    # the same verdicts as a check of the finished folder
+    checked = tmp_path / "watch-checked"
+    code, _, err2 = run_check(folder, checked)
+    assert code == 0, err2[-2000:]
+    assert verdicts(session) == verdicts(checked)
+    assert values(session) == values(checked)
+    assert ("dark-capture", 250) in verdicts(session)
+    assert_replay_identical(session, tmp_path)
