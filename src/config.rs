@@ -212,8 +212,36 @@ pub struct LinkSpec {
     /// The controller's serial port (a stable path; the simulator makes it a symlink).
     pub port: PathBuf,
     pub baud: u32,
+    /// Character size, 5 to 8 bits.
+    pub data_bits: u8,
+    pub parity: Parity,
+    /// 1 or 2.
+    pub stop_bits: u8,
+    pub flow_control: FlowControl,
     pub reconnect_min_ms: u64,
     pub reconnect_max_ms: u64,
+}
+
+/// `link.parity`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Parity {
+    #[default]
+    None,
+    Odd,
+    Even,
+}
+
+/// `link.flow_control`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum FlowControl {
+    #[default]
+    None,
+    /// Hardware handshake on the RTS/CTS lines.
+    RtsCts,
+    /// Software handshake with XON/XOFF characters.
+    XonXoff,
 }
 
 impl Default for LinkSpec {
@@ -221,6 +249,10 @@ impl Default for LinkSpec {
         LinkSpec {
             port: PathBuf::from("/tmp/goniowatch-rig"),
             baud: 115_200,
+            data_bits: 8,
+            parity: Parity::None,
+            stop_bits: 1,
+            flow_control: FlowControl::None,
             reconnect_min_ms: 100,
             reconnect_max_ms: 2000,
         }
@@ -400,6 +432,8 @@ pub(crate) const KEY_RANGES: &[KeyRange] = &[
     closed("alarms.crc_errors_alarm", 1.0, 1e6),
     closed("alarms.crc_window", 1.0, 1e6),
     closed("link.baud", 50.0, 12_000_000.0),
+    closed("link.data_bits", 5.0, 8.0),
+    closed("link.stop_bits", 1.0, 2.0),
     closed("link.reconnect_min_ms", 1.0, 60_000.0),
     closed("link.reconnect_max_ms", 1.0, 3_600_000.0),
     closed("ingest.workers", 1.0, 64.0),
@@ -713,6 +747,8 @@ impl Config {
             ("alarms.crc_errors_alarm", a.crc_errors_alarm as f64),
             ("alarms.crc_window", a.crc_window as f64),
             ("link.baud", l.baud as f64),
+            ("link.data_bits", l.data_bits as f64),
+            ("link.stop_bits", l.stop_bits as f64),
             ("link.reconnect_min_ms", l.reconnect_min_ms as f64),
             ("link.reconnect_max_ms", l.reconnect_max_ms as f64),
             ("ingest.workers", i.workers as f64),
@@ -994,6 +1030,34 @@ mod tests {
         );
         let (_, notes) = Config::from_stored_toml_str("[ingest]\nmax_decode_mib = 1\n").unwrap();
         assert!(notes.iter().any(|n| n.contains("replay")), "{notes:?}");
+    }
+
+    #[test]
+    fn serial_line_settings_parse_and_bad_ones_are_named() {
+        let c = Config::from_toml_str(
+            "[link]\ndata_bits = 7\nparity = \"even\"\nstop_bits = 2\nflow_control = \"rts-cts\"\n",
+        )
+        .unwrap();
+        assert_eq!(
+            (
+                c.link.data_bits,
+                c.link.parity,
+                c.link.stop_bits,
+                c.link.flow_control
+            ),
+            (7, Parity::Even, 2, FlowControl::RtsCts)
+        );
+        let d = Config::default().link;
+        assert_eq!((d.data_bits, d.parity, d.stop_bits), (8, Parity::None, 1));
+        for (text, key) in [
+            ("[link]\ndata_bits = 9\n", "link.data_bits"),
+            ("[link]\nstop_bits = 3\n", "link.stop_bits"),
+            ("[link]\nparity = \"mark\"\n", "parity"),
+            ("[link]\nflow_control = \"dtr\"\n", "flow_control"),
+        ] {
+            let e = Config::from_toml_str(text).unwrap_err().to_string();
+            assert!(e.contains(key), "{text}: {e}");
+        }
     }
 
     #[test]

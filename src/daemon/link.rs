@@ -55,6 +55,37 @@ impl Encoder<String> for RigCodec {
     }
 }
 
+/// The port's settings from `[link]` (validated ranges: 5–8 data bits, 1–2 stop bits).
+fn serial_builder(port: &str, spec: &LinkSpec) -> tokio_serial::SerialPortBuilder {
+    use tokio_serial::{DataBits, FlowControl, Parity, StopBits};
+    let data_bits = match spec.data_bits {
+        5 => DataBits::Five,
+        6 => DataBits::Six,
+        7 => DataBits::Seven,
+        _ => DataBits::Eight,
+    };
+    let parity = match spec.parity {
+        crate::config::Parity::None => Parity::None,
+        crate::config::Parity::Odd => Parity::Odd,
+        crate::config::Parity::Even => Parity::Even,
+    };
+    let stop_bits = if spec.stop_bits == 2 {
+        StopBits::Two
+    } else {
+        StopBits::One
+    };
+    let flow = match spec.flow_control {
+        crate::config::FlowControl::None => FlowControl::None,
+        crate::config::FlowControl::RtsCts => FlowControl::Hardware,
+        crate::config::FlowControl::XonXoff => FlowControl::Software,
+    };
+    tokio_serial::new(port, spec.baud)
+        .data_bits(data_bits)
+        .parity(parity)
+        .stop_bits(stop_bits)
+        .flow_control(flow)
+}
+
 /// Run the link until `stop` turns true. Inputs go to `events`; lines to send come from `lines`.
 pub async fn run(
     spec: LinkSpec,
@@ -71,7 +102,7 @@ pub async fn run(
             return;
         }
         let port = spec.port.to_string_lossy().into_owned();
-        match tokio_serial::new(&port, spec.baud).open_native_async() {
+        match serial_builder(&port, &spec).open_native_async() {
             Ok(mut stream) => {
                 // exclusive mode would lock out a restarted daemon while the port stays open
                 if let Err(e) = stream.set_exclusive(false) {
