@@ -9,6 +9,8 @@ import signal
 import subprocess
 import time
 
+import pytest
+
 from hil import (
     REPO,
     assert_replay_identical,
@@ -115,16 +117,20 @@ def test_check_refuses_an_empty_folder_a_session_inside_it_and_a_protocol_config
     assert code == 2 and "not a folder" in err, err
 
 
-def test_watch_mode_follows_a_folder_as_it_is_written(tmp_path):
+@pytest.mark.parametrize("wake", ["notify", "poll"])
+def test_watch_mode_follows_a_folder_as_it_is_written(tmp_path, wake):
+    """notify: file-system events alone (the listing interval is 10 minutes); poll: the
+    listing every 100 ms alone (as on a network share)."""
     needs_simulator()
     n = 600
     faults = [{"kind": "dark-frame", "at_capture": 250}]
-    folder, writer = write_archive(tmp_path, "watch", faults, naming="bonn", captures=n, speed=7.0 / 0.01)
     cfg = tmp_path / "watch-daemon.toml"
     text = open(os.path.join(REPO, "config", "sim.toml"), encoding="utf-8").read()
-    cfg.write_text(text + '\n[source]\nkind = "files"\npoll_ms = 100\n')
+    source = "poll_ms = 600000\n" if wake == "notify" else "poll_ms = 100\nnotify = false\n"
+    cfg.write_text(text + '\n[source]\nkind = "files"\n' + source)
     session = tmp_path / "watch-session"
-    os.makedirs(folder, exist_ok=True)
+    # the folder the camera will write into does not exist yet when the daemon starts
+    folder = tmp_path / "watch-cap" / "watch"
     p = subprocess.Popen(
         [binary(), "run", "--config", str(cfg), "--session", str(session), "--capture-root", str(folder), "--quiet"],
         stdout=subprocess.PIPE,
@@ -132,6 +138,9 @@ def test_watch_mode_follows_a_folder_as_it_is_written(tmp_path):
         text=True,
     )
     try:
+        time.sleep(0.5)
+        written, writer = write_archive(tmp_path, "watch", faults, naming="bonn", captures=n, speed=7.0 / 0.01)
+        assert written == folder
         writer.communicate(timeout=300)
         assert writer.returncode == 0
         # stop once every written capture is checked (counted by the daemon, not timed)

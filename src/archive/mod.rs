@@ -72,6 +72,9 @@ pub struct SourceSpec {
     pub extensions: Vec<String>,
     /// Watch mode: how often the capture folder is listed.
     pub poll_ms: u64,
+    /// Watch mode: list the folder as soon as the file system reports a change too (inotify);
+    /// off for shares that report none, where `poll_ms` alone applies.
+    pub notify: bool,
 }
 
 impl Default for SourceSpec {
@@ -85,6 +88,7 @@ impl Default for SourceSpec {
             angle_tolerance_deg: 0.5,
             extensions: vec!["hdr".into(), "exr".into()],
             poll_ms: 1000,
+            notify: true,
         }
     }
 }

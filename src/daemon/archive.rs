@@ -36,35 +36,44 @@ pub(crate) struct ArchiveLink {
 /// that start with `.` (partial writes, editor files) and links.
 pub(crate) fn list_files(root: &Path) -> Result<Vec<FileFact>> {
     let mut out = Vec::new();
-    let mut stack = vec![PathBuf::new()];
-    while let Some(rel) = stack.pop() {
-        let dir = root.join(&rel);
-        let rd =
-            std::fs::read_dir(&dir).with_context(|| format!("cannot list {}", dir.display()))?;
-        for e in rd.flatten() {
-            let Some(name) = e.file_name().to_str().map(str::to_string) else {
-                continue;
-            };
-            if name.starts_with('.') {
+    let walk = walkdir::WalkDir::new(root)
+        .follow_links(false)
+        .sort_by_file_name()
+        .into_iter()
+        .filter_entry(|e| e.depth() == 0 || !e.file_name().to_string_lossy().starts_with('.'));
+    for e in walk {
+        let e = match e {
+            Ok(e) => e,
+            // the folder itself must be readable; a sub-folder that vanished or is unreadable
+            // is left out (its files are reported as missing if they were expected)
+            Err(err) if err.depth() == 0 => {
+                return Err(anyhow::anyhow!("cannot list {}: {err}", root.display()))
+            }
+            Err(err) => {
+                tracing::warn!("files source: {err}");
                 continue;
             }
-            let Ok(ft) = e.file_type() else { continue };
-            let path = rel.join(&name);
-            if ft.is_dir() {
-                stack.push(path);
-            } else if ft.is_file() {
-                let mtime_s = e
-                    .metadata()
-                    .ok()
-                    .and_then(|m| m.modified().ok())
-                    .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
-                    .map(|d| d.as_secs_f64());
-                out.push(FileFact {
-                    name: path.to_string_lossy().replace('\\', "/"),
-                    mtime_s,
-                });
-            }
+        };
+        if !e.file_type().is_file() {
+            continue;
         }
+        let Ok(rel) = e.path().strip_prefix(root) else {
+            continue;
+        };
+        let Some(name) = rel.to_str() else {
+            tracing::warn!("files source: {} is not UTF-8; left out", rel.display());
+            continue;
+        };
+        let mtime_s = e
+            .metadata()
+            .ok()
+            .and_then(|m| m.modified().ok())
+            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+            .map(|d| d.as_secs_f64());
+        out.push(FileFact {
+            name: name.replace('\\', "/"),
+            mtime_s,
+        });
     }
     out.sort_by(|a, b| a.name.cmp(&b.name));
     Ok(out)
@@ -123,6 +132,39 @@ pub fn describe(listing: &Listing, show: usize) -> String {
     s
 }
 
+/// After a file-system event, how long to wait for the burst around it before listing.
+const WAKE_SETTLE: Duration = Duration::from_millis(50);
+
+/// Watch `root` recursively; every event sends a wake-up. None (polling only) when the file
+/// system cannot be watched.
+fn watch_folder(
+    root: &Path,
+    wake: mpsc::UnboundedSender<()>,
+) -> Option<notify::RecommendedWatcher> {
+    use notify::Watcher;
+    let handler = move |event: notify::Result<notify::Event>| {
+        if event.is_ok() {
+            let _ = wake.send(());
+        }
+    };
+    match notify::recommended_watcher(handler) {
+        Ok(mut w) => match w.watch(root, notify::RecursiveMode::Recursive) {
+            Ok(()) => Some(w),
+            Err(e) => {
+                tracing::warn!(
+                    "cannot watch {} for changes ({e}); listing it every source.poll_ms instead",
+                    root.display()
+                );
+                None
+            }
+        },
+        Err(e) => {
+            tracing::warn!("no file-system watcher ({e}); listing every source.poll_ms instead");
+            None
+        }
+    }
+}
+
 fn flush(ctl: &mut ArchiveController, events: &mpsc::UnboundedSender<Input>) -> bool {
     while let Some(line) = ctl.poll_line() {
         if events.send(Input::Rx { line }).is_err() {
@@ -156,12 +198,23 @@ pub(crate) async fn run(
     let mut said = false;
     let mut last_error: Option<String> = None;
     let poll = Duration::from_millis(link.spec.poll_ms.max(10));
+    // watch mode: a change in the folder lists it at once (inotify); the listing every
+    // `poll_ms` stays as the fallback for file systems that send no events (network shares)
+    let (wake_tx, mut wake) = mpsc::unbounded_channel::<()>();
+    let watching = !link.finished && link.spec.notify;
+    let mut watcher = None;
+    let mut watch_failed = false;
     let link = std::sync::Arc::new(link);
     let mut tick = tokio::time::interval(poll);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
         tokio::select! {
             _ = tick.tick(), if !ended => {
+                // (again) until the folder exists and can be watched
+                if watching && watcher.is_none() && !watch_failed && link.root.is_dir() {
+                    watcher = watch_folder(&link.root, wake_tx.clone());
+                    watch_failed = watcher.is_none();
+                }
                 let l = link.clone();
                 match tokio::task::spawn_blocking(move || place(&l)).await {
                     Ok(Ok(listing)) => {
@@ -182,6 +235,8 @@ pub(crate) async fn run(
                         }
                     }
                     Ok(Err(e)) => {
+                        // a folder that is not there yet is looked for every second
+                        tick.reset_after(poll.min(Duration::from_secs(1)));
                         let msg = format!("{e:#}");
                         if last_error.as_ref() != Some(&msg) {
                             tracing::warn!("files source: {msg}; listing again");
@@ -195,6 +250,12 @@ pub(crate) async fn run(
                 Some(line) => ctl.handle_line(&line),
                 None => return,
             },
+            Some(()) = wake.recv(), if !ended => {
+                // let a burst of events settle, then list on the next turn
+                tokio::time::sleep(WAKE_SETTLE).await;
+                while wake.try_recv().is_ok() {}
+                tick.reset_immediately();
+            }
             _ = stop.changed() => return,
         }
         // answer everything the engine has sent so far
