@@ -585,6 +585,7 @@ fn check_command(args: CheckArgs, out: &mut impl Write) -> Result<ExitCode> {
     }))?;
     rt.shutdown_timeout(std::time::Duration::from_secs(1));
     print_summary(&summary, out)?;
+    writeln!(out, "files: {}", listing.describe())?;
     writeln!(out, "results in {}", session.display())?;
     Ok(match end {
         RunEnd::Finished { critical: false } => ExitCode::SUCCESS,

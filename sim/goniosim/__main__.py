@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import signal
 import sys
 
@@ -104,7 +105,8 @@ def main(argv=None) -> int:
 
 
 def _archive(a) -> int:
-    overrides = {"capture_root": a.out, "speed": a.speed}
+    # --out is taken from the working folder (paths inside a scenario are from its own folder)
+    overrides = {"capture_root": os.path.abspath(a.out), "speed": a.speed}
     for key, val in (("truth", a.truth), ("captures", a.captures), ("seed", a.seed)):
         if val is not None:
             overrides[key] = val
