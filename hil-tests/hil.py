@@ -60,7 +60,7 @@ def write_scenario(tmp, name, faults, capture_root, **session):
     return path, sc["id"]
 
 
-def write_archive(tmp, name, faults=(), naming="bonn", captures=None, speed=0.0, **session):
+def write_archive(tmp, name, faults=(), naming="bonn", captures=None, speed=0.0, ldr=None, **session):
     """The capture set of a scenario, written by `goniosim archive` into tmp/<name>-cap/<name>/
     (run to completion unless `speed` > 0, then returned running); returns (folder, process)."""
     root = str(tmp / f"{name}-cap")
@@ -68,6 +68,8 @@ def write_archive(tmp, name, faults=(), naming="bonn", captures=None, speed=0.0,
     cmd = [sys.executable, "-m", "goniosim", "archive", str(scenario), "--out", root, "--naming", naming, "--speed", str(speed)]
     if captures is not None:
         cmd += ["--captures", str(captures)]
+    if ldr is not None:
+        cmd += ["--ldr", ldr]
     p = subprocess.Popen(cmd, cwd=os.path.join(REPO, "sim"), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if speed == 0:
         out, _ = p.communicate(timeout=600)

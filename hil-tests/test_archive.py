@@ -52,11 +52,7 @@ def test_the_same_scenario_through_the_protocol_and_through_the_files_gives_the_
     for naming in ["bonn", "sidecar"]:
         folder, _ = write_archive(tmp_path, f"files-{naming}", FAULTS, naming=naming, captures=1400, id="proto")
         session = tmp_path / f"{naming}-session"
-        cfg = None
-        if naming == "sidecar":
-            cfg = tmp_path / "sidecar.toml"
-            text = open(os.path.join(REPO, "config", "sim.toml"), encoding="utf-8").read()
-            cfg.write_text(text + '\n[source]\nkind = "files"\nsidecar = "captures.csv"\n')
+        cfg = sidecar_config(tmp_path) if naming == "sidecar" else None
         code, out, err = run_check(folder, session, cfg)
         assert code == 0, err[-3000:]
         assert "1400 checked" in out, out
@@ -67,6 +63,37 @@ def test_the_same_scenario_through_the_protocol_and_through_the_files_gives_the_
         assert_replay_identical(session, tmp_path)
     # the capture folder was only read
     assert sorted(os.listdir(folder)) == sorted(n for n in os.listdir(folder) if not n.endswith(".check"))
+
+
+def sidecar_config(tmp_path):
+    cfg = tmp_path / "sidecar.toml"
+    text = open(os.path.join(REPO, "config", "sim.toml"), encoding="utf-8").read()
+    cfg.write_text(text + '\n[source]\nkind = "files"\nsidecar = "captures.csv"\n')
+    return cfg
+
+
+def test_an_ldr_archive_with_per_capture_exposures_reads_like_the_hdr_one(tmp_path):
+    """16-bit sRGB PNGs, each auto-exposed by a power of two recorded in the sidecar: after the
+    transfer function is undone and the exposure divided out, every capture's Y is within 1 % of
+    the same capture written as Radiance HDR (whose own RGBE rounding is about 0.4 %), and the
+    checks reach the same verdicts (NaN pixels aside: a PNG cannot hold them)."""
+    needs_simulator()
+    faults = [f for f in FAULTS if f["kind"] != "nan-pixels"]
+    hdr, _ = write_archive(tmp_path, "hdrset", faults, naming="bonn", captures=1400, id="set")
+    ldr, _ = write_archive(tmp_path, "ldrset", faults, naming="sidecar", captures=1400, ldr="png16", id="set")
+    assert sorted(os.listdir(ldr))[0].endswith(".png")
+    exposures = {float(line.split(",")[-1]) for line in (ldr / "captures.csv").read_text().splitlines()[1:]}
+    assert len(exposures) > 1, exposures
+    a, b = tmp_path / "hdr-session", tmp_path / "ldr-session"
+    for folder, session, cfg in [(hdr, a, None), (ldr, b, sidecar_config(tmp_path))]:
+        code, out, err = run_check(folder, session, cfg)
+        assert code == 0, err[-3000:]
+    ya = [c["xyz"][1] for c in read_jsonl(a / "captures.jsonl")]
+    yb = [c["xyz"][1] for c in read_jsonl(b / "captures.jsonl")]
+    assert len(ya) == len(yb) == 1400
+    worst = max(abs(y2 / y1 - 1) for y1, y2 in zip(ya, yb))
+    assert worst < 0.01, worst
+    assert [c for c, _ in verdicts(a)] == [c for c, _ in verdicts(b)], (verdicts(a), verdicts(b))
 
 
 def test_check_reports_what_it_cannot_place_or_read(tmp_path):

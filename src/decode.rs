@@ -31,14 +31,31 @@ use thiserror::Error;
 pub enum CaptureFormat {
     Hdr,
     Exr,
+    /// 8- or 16-bit PNG, sRGB-encoded: linearised on decode.
+    Png,
+    /// 8-bit JPEG, sRGB-encoded: linearised on decode.
+    Jpeg,
+}
+
+impl CaptureFormat {
+    /// Low dynamic range: values are display-encoded codes in [0, 1] after linearising, and a
+    /// code at its maximum is a clipped pixel.
+    pub fn is_ldr(self) -> bool {
+        matches!(self, CaptureFormat::Png | CaptureFormat::Jpeg)
+    }
 }
 
 #[derive(Debug, Error, PartialEq)]
 pub enum DecodeError {
     #[error("file is empty")]
     Empty,
-    #[error("not a Radiance .hdr or OpenEXR file (magic bytes {0:02x?})")]
+    #[error("not a Radiance .hdr, OpenEXR, PNG or JPEG file (magic bytes {0:02x?})")]
     UnknownFormat(Vec<u8>),
+    #[error("{format} decoder: {message}")]
+    Ldr {
+        format: &'static str,
+        message: String,
+    },
     #[error("Radiance decoder: {0}")]
     Hdr(String),
     #[error("OpenEXR decoder: {0}")]
@@ -178,6 +195,12 @@ pub(crate) fn detect_format(bytes: &[u8]) -> Result<CaptureFormat, DecodeError> 
     if bytes.starts_with(b"#?") {
         return Ok(CaptureFormat::Hdr);
     }
+    if bytes.starts_with(&[0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a]) {
+        return Ok(CaptureFormat::Png);
+    }
+    if bytes.starts_with(&[0xff, 0xd8, 0xff]) {
+        return Ok(CaptureFormat::Jpeg);
+    }
     Err(DecodeError::UnknownFormat(
         bytes[..bytes.len().min(8)].to_vec(),
     ))
@@ -201,6 +224,7 @@ pub fn decode(bytes: &[u8], limits: &DecodeLimits) -> Result<DecodedImage, Decod
     let result = catch_unwind(AssertUnwindSafe(|| match format {
         CaptureFormat::Hdr => decode_hdr(bytes, limits),
         CaptureFormat::Exr => decode_exr(bytes, limits),
+        CaptureFormat::Png | CaptureFormat::Jpeg => decode_ldr(bytes, format, limits),
     }));
     match result {
         Ok(r) => r,
@@ -233,6 +257,12 @@ pub fn required_bytes(bytes: &[u8], limits: &DecodeLimits) -> Result<u64, Decode
             }
             let reader = exr_reader(bytes)?;
             exr_plan(reader.meta_data(), header, bytes.len(), limits).map(|(_, c)| c.needed)
+        }
+        CaptureFormat::Png | CaptureFormat::Jpeg => {
+            let dec = ldr_decoder(bytes, format)?;
+            let (w, h) = dec.dimensions();
+            check_size(w as usize, h as usize, limits)?;
+            Ok(ldr_cost(w, h, dec.total_bytes()))
         }
     }));
     match result {
@@ -426,6 +456,156 @@ fn decode_hdr(bytes: &[u8], limits: &DecodeLimits) -> Result<DecodedImage, Decod
         .map_err(|e| DecodeError::Hdr(e.to_string()))?;
     Ok(DecodedImage {
         format: CaptureFormat::Hdr,
+        width: w as usize,
+        height: h as usize,
+        pixels: Pixels::Interleaved(data),
+    })
+}
+
+/// A PNG or JPEG decoder over `bytes` (the `image` crate's, on a `BufReader`).
+fn ldr_decoder(
+    bytes: &[u8],
+    format: CaptureFormat,
+) -> Result<Box<dyn image::ImageDecoder + '_>, DecodeError> {
+    let reader = BufReader::new(Cursor::new(bytes));
+    let (name, dec): (&'static str, Result<Box<dyn image::ImageDecoder>, _>) = match format {
+        CaptureFormat::Png => (
+            "PNG",
+            image::codecs::png::PngDecoder::new(reader)
+                .map(|d| Box::new(d) as Box<dyn image::ImageDecoder>),
+        ),
+        _ => (
+            "JPEG",
+            image::codecs::jpeg::JpegDecoder::new(reader)
+                .map(|d| Box::new(d) as Box<dyn image::ImageDecoder>),
+        ),
+    };
+    dec.map_err(|e| DecodeError::Ldr {
+        format: name,
+        message: e.to_string(),
+    })
+}
+
+/// An upper bound of what an LDR decode allocates: the f32 RGB result, the decoder's output
+/// buffer, as much again for its own planes (JPEG components, interlaced PNG passes), and 1 MiB
+/// of fixed working set (zlib window, rows, Huffman tables, the 16-bit sRGB table).
+fn ldr_cost(w: u32, h: u32, decoded_bytes: u64) -> u64 {
+    (w as u64)
+        .saturating_mul(h as u64)
+        .saturating_mul(12)
+        .saturating_add(decoded_bytes.saturating_mul(2))
+        .saturating_add(1 << 20)
+}
+
+/// Linear values of the 256 8-bit sRGB codes.
+fn srgb_table_8() -> &'static [f32] {
+    static T: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+    T.get_or_init(|| {
+        (0..=255u32)
+            .map(|c| srgb_to_linear(c as f32 / 255.0))
+            .collect()
+    })
+}
+
+/// Linear values of the 65,536 16-bit sRGB codes.
+fn srgb_table_16() -> &'static [f32] {
+    static T: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+    T.get_or_init(|| {
+        (0..=65535u32)
+            .map(|c| srgb_to_linear(c as f32 / 65535.0))
+            .collect()
+    })
+}
+
+/// The sRGB transfer function undone: code value in [0, 1] → linear.
+fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Decode a PNG or JPEG capture to linear RGB: the sRGB transfer function is undone (through a
+/// table for each code value), grey becomes R = G = B, alpha is dropped. A saturated code reads
+/// exactly 1.0, so the averaging counts it as clipped at a clip level of 1.
+fn decode_ldr(
+    bytes: &[u8],
+    format: CaptureFormat,
+    limits: &DecodeLimits,
+) -> Result<DecodedImage, DecodeError> {
+    use image::{ColorType, ImageDecoder};
+    let name = if format == CaptureFormat::Png {
+        "PNG"
+    } else {
+        "JPEG"
+    };
+    let err = |e: image::ImageError| DecodeError::Ldr {
+        format: name,
+        message: e.to_string(),
+    };
+    let mut dec = ldr_decoder(bytes, format)?;
+    let (w, h) = dec.dimensions();
+    check_size(w as usize, h as usize, limits)?;
+    let needed = ldr_cost(w, h, dec.total_bytes());
+    if needed > limits.max_bytes {
+        return Err(DecodeError::OverBudget {
+            needed,
+            budget: limits.max_bytes,
+            channels: dec.color_type().channel_count() as usize,
+            pixels: w as u64 * h as u64,
+            bytes_per_pixel: dec.color_type().bytes_per_pixel() as u64,
+            block_bytes: dec.total_bytes(),
+            header_bytes: 0,
+        });
+    }
+    let mut lim = image::Limits::default();
+    lim.max_image_width = Some(limits.max_dimension);
+    lim.max_image_height = Some(limits.max_dimension);
+    lim.max_alloc = Some(limits.max_bytes);
+    dec.set_limits(lim).map_err(err)?;
+    let colour = dec.color_type();
+    let channels = colour.channel_count() as usize;
+    // w × h ≤ max_pixels (checked above)
+    let n = (w as usize) * (h as usize);
+    let mut raw = vec![0u8; dec.total_bytes() as usize];
+    dec.read_image(&mut raw).map_err(err)?;
+    let mut data = vec![0f32; n * 3];
+    match colour {
+        ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 => {
+            let table = srgb_table_8();
+            for (px, p) in data.chunks_exact_mut(3).zip(raw.chunks_exact(channels)) {
+                if channels < 3 {
+                    px.fill(table[p[0] as usize]);
+                } else {
+                    for k in 0..3 {
+                        px[k] = table[p[k] as usize];
+                    }
+                }
+            }
+        }
+        ColorType::L16 | ColorType::La16 | ColorType::Rgb16 | ColorType::Rgba16 => {
+            let table = srgb_table_16();
+            let code = |p: &[u8], k: usize| u16::from_ne_bytes([p[2 * k], p[2 * k + 1]]) as usize;
+            for (px, p) in data.chunks_exact_mut(3).zip(raw.chunks_exact(2 * channels)) {
+                if channels < 3 {
+                    px.fill(table[code(p, 0)]);
+                } else {
+                    for k in 0..3 {
+                        px[k] = table[code(p, k)];
+                    }
+                }
+            }
+        }
+        other => {
+            return Err(DecodeError::Ldr {
+                format: name,
+                message: format!("colour type {other:?} is not supported"),
+            })
+        }
+    }
+    Ok(DecodedImage {
+        format,
         width: w as usize,
         height: h as usize,
         pixels: Pixels::Interleaved(data),

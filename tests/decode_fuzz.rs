@@ -732,6 +732,7 @@ fn kind(e: &DecodeError) -> &'static str {
         DecodeError::TooLarge { .. } => "TooLarge",
         DecodeError::Panicked(_) => "Panicked",
         DecodeError::OverBudget { .. } => "OverBudget",
+        DecodeError::Ldr { .. } => "Ldr",
     }
 }
 
@@ -853,6 +854,31 @@ fn generated_corpus() -> Vec<(String, Vec<u8>)> {
     out.push(("generated_dwab_f32.exr".to_string(), write(&dwab)));
 
     out.push(("generated_two_part.exr".to_string(), two_part_exr(40, 64).0));
+
+    // low-dynamic-range captures: PNG 8 and 16 bit, JPEG
+    {
+        use image::{ExtendedColorType, ImageEncoder};
+        let (w, h) = (97u32, 61u32);
+        let rgb8: Vec<u8> = (0..w * h * 3).map(|i| (i * 7 % 251) as u8).collect();
+        let mut png8 = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut png8)
+            .write_image(&rgb8, w, h, ExtendedColorType::Rgb8)
+            .expect("png8");
+        out.push(("generated_rgb8.png".to_string(), png8));
+        let rgb16: Vec<u8> = (0..w * h * 3)
+            .flat_map(|i| ((i * 977 % 65521) as u16).to_ne_bytes())
+            .collect();
+        let mut png16 = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut png16)
+            .write_image(&rgb16, w, h, ExtendedColorType::Rgb16)
+            .expect("png16");
+        out.push(("generated_rgb16.png".to_string(), png16));
+        let mut jpeg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 90)
+            .write_image(&rgb8, w, h, ExtendedColorType::Rgb8)
+            .expect("jpeg");
+        out.push(("generated_rgb8.jpg".to_string(), jpeg));
+    }
     for (name, bytes) in &out {
         decode(bytes, &DecodeLimits::default()).unwrap_or_else(|e| panic!("{name}: {e}"));
     }

@@ -839,3 +839,54 @@ fn a_malformed_line_inside_a_resync_answer_is_asked_again_not_taken_as_lost() {
         );
     }
 }
+
+#[test]
+fn an_announced_exposure_is_divided_out_and_a_bad_one_is_refused() {
+    let (mut e, mut c) = (engine(), Controller::default());
+    connected(&mut e, &mut c);
+    let line = |c: &mut Controller, idx: u64, exposure: &str| {
+        c.line(
+            "CAPTURE",
+            &[
+                ("idx", idx.to_string()),
+                ("entry", (idx + 1).to_string()),
+                ("file", format!("s/cap_{idx}.png")),
+                ("t", format!("{}", idx as f64 * 7.0)),
+                ("cmd", "0,90,-90,15".into()),
+                ("enc", "0,90,-90,15".into()),
+                ("exp", "x".into()),
+                ("exposure", exposure.into()),
+            ],
+        )
+    };
+    e.handle(&line(&mut c, 0, "2"));
+    let out = e.handle(&Input::Outcome {
+        idx: 0,
+        outcome: fixtures::ok_outcome([0.4, 0.2, 0.6]),
+    });
+    let rec = out
+        .iter()
+        .find_map(|o| match o {
+            Output::Capture(r) => Some(r.clone()),
+            _ => None,
+        })
+        .unwrap();
+    assert_eq!(rec.mean_rgb, Some([0.2, 0.1, 0.3]), "{rec:?}");
+    // zero, negative or not a number: the announcement is malformed (asked again, not guessed)
+    for bad in ["0", "-1", "x", "inf"] {
+        let (mut e, mut c) = (engine(), Controller::default());
+        connected(&mut e, &mut c);
+        let out = e.handle(&line(&mut c, 0, bad));
+        assert!(
+            !out.iter().any(|o| matches!(o, Output::Ingest { .. })),
+            "{bad}: not taken"
+        );
+        assert!(
+            sent(&out).iter().any(|l| l.starts_with("RESYNC"))
+                || alarms(&out).contains(&"bad-announcement".to_string()),
+            "{bad}: {:?} {:?}",
+            sent(&out),
+            alarms(&out)
+        );
+    }
+}

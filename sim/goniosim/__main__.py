@@ -40,6 +40,7 @@ def main(argv=None) -> int:
     ar.add_argument("scenario")
     ar.add_argument("--out", required=True, help="capture root; the set goes to OUT/<session id>/")
     ar.add_argument("--naming", choices=["bonn", "bonn-indexed", "sidecar"], default="bonn")
+    ar.add_argument("--ldr", choices=["png8", "png16"], help="write sRGB PNG captures (auto-exposed per capture, recorded in the sidecar, with --naming sidecar)")
     ar.add_argument("--truth", help="ground-truth JSON lines file")
     ar.add_argument("--captures", type=int, help="stop after this many captures")
     ar.add_argument("--speed", type=float, default=0.0, help="0 = as fast as possible (default), k = k times real time")
@@ -120,7 +121,7 @@ def _archive(a) -> int:
         print(f"goniosim: {', '.join(link_faults)}: a serial-link fault has no effect on a capture set without a link", file=sys.stderr)
     from .controller import Controller
 
-    ctl = Controller(sc, naming=a.naming)
+    ctl = Controller(sc, naming=a.naming, ldr=a.ldr)
     print(f"goniosim: writing {sc.capture_count} captures to {sc.capture_root}/{sc.session_id}/ ({a.naming} names)", file=sys.stderr, flush=True)
     try:
         ctl.run()

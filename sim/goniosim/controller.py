@@ -18,7 +18,7 @@ from . import protocol as P
 from .geometry import vec_to_sph
 from .link import Cable
 from .material import PRESETS, REALISM, albedo_texture
-from .render import add_noise, exr_bytes_to_file, hdr_bytes, render, write_atomic
+from .render import add_noise, exr_bytes_to_file, hdr_bytes, png_bytes, render, write_atomic
 from .scenario import ONE_SHOT, Scenario
 
 PROTO_VERSION = 1
@@ -50,6 +50,8 @@ class NoCable:
 # File names of a capture set written without a controller (`archive --naming`): the Bonn
 # convention with the plan's nominal angles, optionally after the capture index.
 NAMINGS = ("bonn", "bonn-indexed", "sidecar")
+# The exposure of LDR captures written without a sidecar to record a per-capture one.
+LDR_EXPOSURE = 0.25
 
 
 class Controller:
@@ -60,11 +62,15 @@ class Controller:
         log=sys.stderr,
         linger_s: float = 5.0,
         naming: str | None = None,
+        ldr: str | None = None,
     ) -> None:
         """`naming` set: no serial link; the captures are named by `naming` (NAMINGS), and with
         "sidecar" a captures.csv beside them maps each file to its angles and time."""
         self.sc = sc
         self.naming = naming
+        # archive only: captures as sRGB PNG ("png8", "png16"), auto-exposed per capture when a
+        # sidecar records the exposure, else at the fixed LDR_EXPOSURE
+        self.ldr = ldr
         if naming is not None:
             cable = NoCable()
         self.cable = cable if cable is not None else Cable(sc.port, sc.baud, sc.seed)
@@ -76,7 +82,7 @@ class Controller:
         if naming == "sidecar":
             os.makedirs(os.path.join(sc.capture_root, sc.session_id), exist_ok=True)
             self.sidecar = open(os.path.join(sc.capture_root, sc.session_id, "captures.csv"), "w", encoding="utf-8")
-            self.sidecar.write("file,theta_i,phi_i,theta_o,phi_o,t\n")
+            self.sidecar.write("file,theta_i,phi_i,theta_o,phi_o,t" + (",exposure" if ldr else "") + "\n")
         self.rx = P.LineBuffer()
         self.seq = 0
         self.boot = 0
@@ -292,13 +298,18 @@ class Controller:
 
         # NaN/Inf cannot be stored in Radiance RGBE: such captures are written as OpenEXR
         fmt = "exr" if ("nan-pixels" in kinds or "inf-pixels" in kinds or sc.format == "exr") else "hdr"
+        exposure = None
+        if self.ldr is not None:
+            fmt = "png"
+            exposure = self.exposure_for(img)
         nominal = (ld[0], ld[1], cd[0], cd[1])
         rel = self.file_name(idx, entry, fmt, nominal)
         path = os.path.join(sc.capture_root, rel)
-        written = self.write_capture(path, img, fmt, kinds)
+        written = self.write_capture(path, img, fmt, kinds, exposure)
         if self.sidecar is not None:
             name = rel.split("/", 1)[1]
-            self.sidecar.write(f"{name},{nominal[0]:g},{nominal[1]:g},{nominal[2]:g},{nominal[3]:g},{self.t:.3f}\n")
+            extra = f",{exposure!r}" if exposure is not None else ""
+            self.sidecar.write(f"{name},{nominal[0]:g},{nominal[1]:g},{nominal[2]:g},{nominal[3]:g},{self.t:.3f}{extra}\n")
             self.sidecar.flush()
 
         fields = {
@@ -364,10 +375,21 @@ class Controller:
             return f"{self.sc.session_id}/{idx:05d}_{bonn}"
         return f"{self.sc.session_id}/cap_{idx:05d}_e{entry:04d}.{fmt}"
 
-    def write_capture(self, path: str, img: np.ndarray, fmt: str, kinds: set[str]) -> bool:
+    def exposure_for(self, img: np.ndarray) -> float:
+        """The LDR exposure: with a sidecar, the largest power of two (as a camera's shutter
+        steps) that keeps the brightest pixel below 0.9, so nothing clips; without, the fixed
+        LDR_EXPOSURE."""
+        if self.sidecar is None:
+            return LDR_EXPOSURE
+        top = float(np.max(np.nan_to_num(img, nan=0.0, posinf=0.0)))
+        return float(2.0 ** math.floor(math.log2(0.9 / top))) if top > 0 else 1.0
+
+    def write_capture(self, path: str, img: np.ndarray, fmt: str, kinds: set[str], exposure: float | None = None) -> bool:
         if "missing-file" in kinds:
             return False
-        if fmt == "exr":
+        if fmt == "png":
+            data = png_bytes(img, exposure or 1.0, 16 if self.ldr == "png16" else 8)
+        elif fmt == "exr":
             tmp = os.path.join(os.path.dirname(path), "." + os.path.basename(path) + ".tmp.exr")
             exr_bytes_to_file(img, tmp, half=True)
             with open(tmp, "rb") as f:

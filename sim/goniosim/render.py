@@ -128,6 +128,32 @@ def exr_bytes_to_file(img: np.ndarray, path: str, half: bool) -> None:
         f.write(path)
 
 
+def srgb_encode(linear: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1 encoding of linear values in [0, 1]."""
+    x = np.clip(linear, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
+def png_bytes(img: np.ndarray, exposure: float, bits: int) -> bytes:
+    """An sRGB-encoded RGB PNG (8 or 16 bit) of the linear image times `exposure`: values above
+    1 clip at the largest code, NaN and negative values read 0."""
+    import struct
+    import zlib
+
+    h, w, _ = img.shape
+    lin = np.nan_to_num(img * exposure, nan=0.0, posinf=1.0, neginf=0.0)
+    top = (1 << bits) - 1
+    codes = np.rint(srgb_encode(lin) * top)
+    raw = codes.astype(">u2" if bits == 16 else np.uint8).reshape(h, -1)
+    rows = b"".join(b"\x00" + raw[y].tobytes() for y in range(h))
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    ihdr = struct.pack(">IIBBBBB", w, h, bits, 2, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(rows, 6)) + chunk(b"IEND", b"")
+
+
 def write_atomic(path: str, data: bytes) -> None:
     """Write to a temporary name in the same directory, then rename into place."""
     d, name = os.path.split(path)

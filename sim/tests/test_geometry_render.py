@@ -160,3 +160,26 @@ def test_goniowatch_reads_the_simulators_files(tmp_path):
     out = json.loads(subprocess.run([exe, "average", "--json", str(path)], check=True, capture_output=True).stdout)
     assert out["width"] == 24 and out["height"] == 16
     np.testing.assert_allclose(out["mean_rgb"], decode_hdr(path.read_bytes()).reshape(-1, 3).mean(axis=0), rtol=5e-3)
+
+
+def test_png_writer_encodes_srgb_codes_and_clips():
+    import struct
+    import zlib
+
+    from goniosim.render import png_bytes
+
+    img = np.array([[[0.0, 0.5, 1.0], [2.0, np.nan, 0.002]]])  # 1 × 2 pixels
+    for bits, dtype in [(8, np.uint8), (16, ">u2")]:
+        data = png_bytes(img, 1.0, bits)
+        assert data[:8] == b"\x89PNG\r\n\x1a\n"
+        w, h, depth, colour = struct.unpack(">IIBB", data[16:26])
+        assert (w, h, depth, colour) == (2, 1, bits, 2)
+        n = struct.unpack(">I", data[33:37])[0]
+        assert data[37:41] == b"IDAT"
+        rows = zlib.decompress(data[41 : 41 + n])
+        assert rows[0] == 0  # filter: none
+        codes = np.frombuffer(rows[1:], dtype=dtype).astype(float) / ((1 << bits) - 1)
+        lin = np.where(codes <= 0.04045, codes / 12.92, ((codes + 0.055) / 1.055) ** 2.4)
+        want = [0.0, 0.5, 1.0, 1.0, 0.0, 0.002]
+        tol = 0.004 if bits == 8 else 1e-4
+        assert np.allclose(lin, want, atol=tol, rtol=tol), (bits, lin)

@@ -107,6 +107,9 @@ impl ArchiveController {
         if let Some(s) = c.sub {
             fields.push(("sub", format!("{s:.4}")));
         }
+        if let Some(e) = c.exposure {
+            fields.push(("exposure", format!("{e}")));
+        }
         if replay {
             fields.push(("replay", "1".to_string()));
         }
@@ -215,6 +218,7 @@ mod tests {
             t,
             pose: [0.0, 90.0, -90.0, 15.0],
             sub: None,
+            exposure: None,
         }
     }
 

@@ -115,6 +115,8 @@ pub struct ArchiveCapture {
     pub pose: [f64; 4],
     /// θi used when the plan entry needs a substitute pose.
     pub sub: Option<f64>,
+    /// Relative exposure from the sidecar (the capture's linear values are divided by it).
+    pub exposure: Option<f64>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -199,6 +201,7 @@ struct Placement {
     idx: Option<u64>,
     t: Option<f64>,
     mtime: Option<f64>,
+    exposure: Option<f64>,
 }
 
 fn wanted(name: &str, spec: &SourceSpec) -> bool {
@@ -269,6 +272,7 @@ pub fn build(
                         idx: r.idx,
                         t: r.t,
                         mtime: mtimes.get(r.file.as_str()).copied().flatten(),
+                        exposure: r.exposure,
                     },
                 ));
             }
@@ -297,6 +301,7 @@ pub fn build(
                         idx: c.name("idx").and_then(|m| m.as_str().parse().ok()),
                         t: None,
                         mtime: f.mtime_s,
+                        exposure: None,
                     },
                 ));
             }
@@ -426,6 +431,13 @@ pub fn build(
             skipped.push((name, SkipReason::Unordered("no usable time".into())));
             continue;
         };
+        if let Some(e) = p.exposure.filter(|e| !(e.is_finite() && *e > 0.0)) {
+            skipped.push((
+                name,
+                SkipReason::NotInPlan(format!("exposure {e} is not a positive number")),
+            ));
+            continue;
+        }
         seen.insert(entry, name.clone());
         let j = planned.pose.joints_deg;
         captures.push(ArchiveCapture {
@@ -434,6 +446,7 @@ pub fn build(
             t,
             pose: [j[0], j[1], j[2], planned.pose.wagon_deg],
             sub: planned.substitute.map(|(_, used)| used),
+            exposure: p.exposure,
         });
     }
     skipped.sort_by(|a, b| a.0.cmp(&b.0));
@@ -593,16 +606,23 @@ mod tests {
             [("stray.hdr".to_string(), SkipReason::NotInSidecar)]
         );
         // JSON lines, with entries instead of angles
-        let rows = parse_sidecar("{\"file\":\"x.exr\",\"entry\":12}\n\n", false).unwrap();
-        let l = build(
-            &facts(&["x.exr".to_string()]),
-            Some(&rows),
-            &spec,
-            &plan,
-            &rig,
+        let rows = parse_sidecar(
+            "{\"file\":\"x.png\",\"entry\":12,\"exposure\":0.5}\n\n{\"file\":\"y.png\",\"entry\":13,\"exposure\":-1}\n",
+            false,
         )
         .unwrap();
-        assert_eq!(l.captures[0].entry, 12);
+        let names = ["x.png".to_string(), "y.png".to_string()];
+        let l = build(&facts(&names), Some(&rows), &spec, &plan, &rig).unwrap();
+        assert_eq!(l.captures.len(), 1);
+        assert_eq!(
+            (l.captures[0].entry, l.captures[0].exposure),
+            (12, Some(0.5))
+        );
+        assert!(
+            l.skipped[0].1.to_string().contains("exposure"),
+            "{:?}",
+            l.skipped
+        );
         // a bad row names its line
         let e = parse_sidecar("file,theta_i\nx.hdr,abc\n", true).unwrap_err();
         assert!(matches!(e, ListingError::Sidecar { line: 2, .. }), "{e}");

@@ -60,7 +60,8 @@ pub struct SourceSpec {
     pub pattern: String,
     /// A table beside the captures (relative to the capture folder): `.csv` with a header, or
     /// `.jsonl`, one row per file with `file` and either `theta_i, phi_i, theta_o, phi_o` or
-    /// `entry`, and optionally `t` (seconds) and `idx`.
+    /// `entry`, and optionally `t` (seconds), `idx` and `exposure` (relative; the capture's
+    /// linear values are divided by it).
     pub sidecar: Option<PathBuf>,
     pub order: OrderRule,
     /// Where no capture times are known: the time between captures, in seconds (the rates are
@@ -86,7 +87,9 @@ impl Default for SourceSpec {
             order: OrderRule::Auto,
             seconds_per_capture: 7.0,
             angle_tolerance_deg: 0.5,
-            extensions: vec!["hdr".into(), "exr".into()],
+            extensions: ["hdr", "exr", "png", "jpg", "jpeg"]
+                .map(String::from)
+                .to_vec(),
             poll_ms: 1000,
             notify: true,
         }

@@ -3,7 +3,7 @@
 
 use crate::config::Config;
 use crate::decode::{decode, CaptureFormat};
-use crate::measure::averaging::{average, AverageOptions, CaptureStats};
+use crate::measure::averaging::{AverageOptions, CaptureStats};
 use crate::measure::colour::{xyz_to_lab, Lab, Xyz};
 use serde::Serialize;
 use std::path::Path;
@@ -64,7 +64,7 @@ fn average_file_inner(
         .map_err(|e| anyhow::anyhow!("{}", e.reason))
         .context("cannot read file")?;
     let img = decode(&bytes, &limits)?;
-    let s: CaptureStats = average(&img.view(), opts)?;
+    let s: CaptureStats = crate::daemon::ingest::average_decoded(&img, opts)?;
     let xyz = cfg.xyz_of(s.mean_rgb);
     let lab = cfg
         .colour

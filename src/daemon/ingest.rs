@@ -196,6 +196,23 @@ pub(crate) fn read_capture(
 }
 
 /// Read, decode and average one file once.
+/// Average a decoded capture. A low-dynamic-range capture's code at its maximum reads 1.0
+/// linear, which is where it clipped: its clip level is at most 1.
+pub fn average_decoded(
+    img: &crate::decode::DecodedImage,
+    opts: &AverageOptions,
+) -> Result<crate::measure::averaging::CaptureStats, crate::measure::averaging::AverageError> {
+    if img.format.is_ldr() {
+        let ldr = AverageOptions {
+            clip_level: opts.clip_level.min(1.0),
+            ..*opts
+        };
+        average(&img.view(), &ldr)
+    } else {
+        average(&img.view(), opts)
+    }
+}
+
 pub fn measure_file(
     root: &Path,
     path: &Path,
@@ -215,7 +232,7 @@ fn measure_file_stamped(
     let size = stamp.size;
     let img = decode(&bytes, limits).map_err(|e| AttemptError::retry(e.to_string(), Some(size)))?;
     let stats =
-        average(&img.view(), opts).map_err(|e| AttemptError::retry(e.to_string(), Some(size)))?;
+        average_decoded(&img, opts).map_err(|e| AttemptError::retry(e.to_string(), Some(size)))?;
     let sha256 = hex(&Sha256::digest(&bytes));
     Ok((
         Outcome::Ok {

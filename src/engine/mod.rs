@@ -893,7 +893,7 @@ impl Engine {
                     enc: a.enc,
                     substitute: a.substitute,
                     probe: a.probe,
-                    outcome: outcome.clone(),
+                    outcome: at_exposure(outcome.clone(), a.exposure),
                 };
                 let (status, size, sha, error) = match &outcome {
                     Outcome::Ok { size, sha256, .. } => {
@@ -962,5 +962,35 @@ impl Engine {
             self.flush_storms(out, true);
             out.push(Output::Finished);
         }
+    }
+}
+
+/// A capture's outcome with its announced relative exposure divided out of the mean (the counts
+/// are of the pixels as stored and stay).
+fn at_exposure(outcome: Outcome, exposure: Option<f64>) -> Outcome {
+    match (outcome, exposure) {
+        (
+            Outcome::Ok {
+                mut stats,
+                width,
+                height,
+                size,
+                sha256,
+            },
+            Some(e),
+        ) => {
+            for c in &mut stats.mean_rgb {
+                *c /= e;
+            }
+            stats.max_value /= e;
+            Outcome::Ok {
+                stats,
+                width,
+                height,
+                size,
+                sha256,
+            }
+        }
+        (o, _) => o,
     }
 }

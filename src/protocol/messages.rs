@@ -72,6 +72,9 @@ pub struct Announcement {
     pub enc: [f64; 4],
     /// The θi used when the entry was taken at a substitute pose.
     pub substitute: Option<f64>,
+    /// The capture's exposure relative to the session's (`exposure=`, positive): its linear
+    /// values are divided by it, for captures taken at different exposures (LDR archives).
+    pub exposure: Option<f64>,
     pub probe: bool,
     /// Re-sent for a `RESYNC`.
     pub replay: bool,
@@ -162,6 +165,15 @@ fn announcement(m: &Message) -> Result<Announcement, String> {
                 .ok_or("bad sub")?,
         ),
     };
+    let exposure = match m.get("exposure") {
+        None => None,
+        Some(s) => Some(
+            s.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite() && *v > 0.0)
+                .ok_or("bad exposure (a positive number)")?,
+        ),
+    };
     Ok(Announcement {
         idx,
         entry,
@@ -170,6 +182,7 @@ fn announcement(m: &Message) -> Result<Announcement, String> {
         cmd,
         enc,
         substitute,
+        exposure,
         probe: m.get("probe") == Some("1"),
         replay: m.get("replay") == Some("1"),
     })
