@@ -10,10 +10,9 @@ use std::{
     io::{Cursor, Read, Write},
 };
 
-use smallvec::SmallVec;
 
 use crate::{
-    error::{u32_to_usize, u64_to_usize, Error, Result, UnitResult},
+    error::{u64_to_usize, Error, Result, UnitResult},
     io::Data,
     math::RoundingMode,
 };
@@ -43,10 +42,11 @@ pub fn decompress(compressed: &[u8], expected_size: usize) -> Result<Vec<u16>> {
     }
 
     let decoding_table = build_decoding_table(&encoding_table, min_code_index, max_code_index)?;
+    let long_codes = LongCodes::new(&encoding_table, min_code_index, max_code_index);
 
     let result = decode_with_tables(
-        &encoding_table,
         &decoding_table,
+        &long_codes,
         remaining_compressed,
         i32::try_from(bit_count)?,
         max_code_index_32,
@@ -94,35 +94,124 @@ const ENCODING_TABLE_SIZE: usize = ((1 << ENCODE_BITS) + 1) as usize;
 const DECODING_TABLE_SIZE: usize = (1 << DECODE_BITS) as usize;
 const DECODE_MASK: u64 = DECODING_TABLE_SIZE as u64 - 1;
 
+/// A decoding-table entry: the low 8 bits are the code length (0: no code), or `LONG_ENTRY`
+/// for a prefix of longer codes; the bits above are the symbol.
+const ENTRY_LEN_MASK: u32 = 0xFF;
+const LONG_ENTRY: u32 = 0xFF;
+
 const SHORT_ZEROCODE_RUN: u64 = 59;
 const LONG_ZEROCODE_RUN: u64 = 63;
 const SHORTEST_LONG_RUN: u64 = 2 + LONG_ZEROCODE_RUN - SHORT_ZEROCODE_RUN;
 const LONGEST_LONG_RUN: u64 = 255 + SHORTEST_LONG_RUN;
 
-#[derive(Clone, Debug, Eq, PartialEq)]
-enum Code {
-    Empty,
-    Short(ShortCode),
-    Long(SmallVec<[u32; 2]>), // often 2, sometimes 4, rarely 8
+
+/// Decode (uncompress) n bits based on encoding & decoding tables:
+/// The codes longer than `DECODE_BITS`, by length. The encoding table is canonical (built by
+/// `build_canonical_table`), so the codes of one length are consecutive integers: a code of
+/// length `len` is found by one range test per length instead of by trying every candidate
+/// code that shares its first `DECODE_BITS` bits (each of which costs a random access into the
+/// 65,537-entry encoding table). Float data, whose low halves are close to noise, has most of its
+/// symbols in such codes. (goniowatch: this struct and its use are the patch.)
+struct LongCodes {
+    /// Per length: the smallest code, how many codes, where they start in `codes`/`symbols`.
+    first: [u64; 64],
+    count: [u64; 64],
+    start: [usize; 64],
+    codes: Vec<u64>,
+    symbols: Vec<u32>,
+    min_len: u64,
+    max_len: u64,
+    /// Every code sits in the slot its value gives (checked once when built).
+    consecutive: bool,
 }
 
-#[derive(Clone, Debug, Eq, PartialEq)]
-struct ShortCode {
-    value: u32,
-    len: u8,
-}
+impl LongCodes {
+    fn new(encoding_table: &[u64], min_code_index: usize, max_code_index: usize) -> Self {
+        let table = encoding_table.get(min_code_index..=max_code_index).unwrap_or(&[]);
+        let is_long = |e: u64| length(e) > DECODE_BITS && length(e) < 64;
+        // per length: how many codes, and the smallest
+        let mut first = [u64::MAX; 64];
+        let mut count = [0_u64; 64];
+        for &e in table.iter().filter(|&&e| is_long(e)) {
+            let l = length(e) as usize;
+            count[l] += 1;
+            first[l] = first[l].min(code(e));
+        }
+        let mut start = [0_usize; 64];
+        let mut total = 0_usize;
+        let (mut min_len, mut max_len) = (1, 0);
+        for l in 0..64 {
+            start[l] = total;
+            total += count[l] as usize;
+            if count[l] > 0 {
+                if max_len == 0 {
+                    min_len = l as u64;
+                }
+                max_len = l as u64;
+            }
+        }
+        // each code in its slot (start + code − first): no sort; a table whose codes of one
+        // length are not consecutive leaves slots that fail the check in `find`
+        let mut codes = vec![u64::MAX; total];
+        let mut symbols = vec![0_u32; total];
+        let mut filled = 0;
+        for (i, &e) in table.iter().enumerate().filter(|(_, &e)| is_long(e)) {
+            let l = length(e) as usize;
+            let offset = code(e).wrapping_sub(first[l]);
+            if offset < count[l] {
+                let slot = start[l] + offset as usize;
+                if codes[slot] == u64::MAX {
+                    filled += 1;
+                }
+                codes[slot] = code(e);
+                symbols[slot] = (i + min_code_index) as u32;
+            }
+        }
+        // every slot filled once: the codes of each length are consecutive, and a slot's code is
+        // known from its position (no check per lookup)
+        let consecutive = filled == total;
+        LongCodes { first, count, start, codes, symbols, min_len, max_len, consecutive }
+    }
 
-impl ShortCode {
+    /// The symbol whose code starts the unread bits, reading bytes as far as the code needs;
+    /// `None` when no long code matches.
     #[inline]
-    fn len(&self) -> u64 {
-        u64::from(self.len)
+    fn find(
+        &self,
+        code_bits: &mut u64,
+        code_bit_count: &mut u64,
+        input: &mut &[u8],
+    ) -> Result<Option<u32>> {
+        for len in self.min_len..=self.max_len {
+            let l = len as usize;
+            let n = self.count[l];
+            if n == 0 {
+                continue;
+            }
+            while *code_bit_count < len && !input.is_empty() {
+                read_byte(code_bits, code_bit_count, input)?;
+            }
+            if *code_bit_count < len {
+                return Ok(None);
+            }
+            let value = (*code_bits >> (*code_bit_count - len)) & ((1_u64 << len) - 1);
+            let offset = value.wrapping_sub(self.first[l]);
+            if offset < n {
+                let i = self.start[l] + offset as usize;
+                // consecutive by construction; a malformed table is checked code by code
+                if self.consecutive || self.codes.get(i) == Some(&value) {
+                    *code_bit_count -= len;
+                    return Ok(self.symbols.get(i).copied());
+                }
+            }
+        }
+        Ok(None)
     }
 }
 
-/// Decode (uncompress) n bits based on encoding & decoding tables:
 fn decode_with_tables(
-    encoding_table: &[u64],
-    decoding_table: &[Code],
+    decoding_table: &[u32],
+    long_codes: &LongCodes,
     mut input: &[u8],
     input_bit_count: i32,
     run_length_code: u32,
@@ -138,14 +227,17 @@ fn decode_with_tables(
         // Access decoding table
         while code_bit_count >= DECODE_BITS {
             let code_index = (code_bits >> (code_bit_count - DECODE_BITS)) & DECODE_MASK;
-            let code = &decoding_table[u64_to_usize(code_index, "huffman code index")?];
+            let entry = decoding_table[u64_to_usize(code_index, "huffman code index")?];
+            let len = u64::from(entry & ENTRY_LEN_MASK);
 
             // Get short code
-            if let Code::Short(code) = code {
-                code_bit_count -= code.len();
+            if len == u64::from(LONG_ENTRY) {
+                let long_code = long_codes
+                    .find(&mut code_bits, &mut code_bit_count, &mut input)?
+                    .ok_or_else(|| Error::invalid(INVALID_CODE))?;
 
                 read_code_into_vec(
-                    code.value,
+                    long_code,
                     run_length_code,
                     &mut code_bits,
                     &mut code_bit_count,
@@ -153,40 +245,11 @@ fn decode_with_tables(
                     &mut output,
                     expected_output_size,
                 )?;
-            } else if let Code::Long(ref long_codes) = code {
-                debug_assert_ne!(long_codes.len(), 0);
-
-                let long_code = long_codes
-                    .iter()
-                    .filter_map(|&long_code| {
-                        let encoded_long_code =
-                            encoding_table[u32_to_usize(long_code, "huffman long code").ok()?];
-                        let length = length(encoded_long_code);
-
-                        while code_bit_count < length && !input.is_empty() {
-                            let err = read_byte(&mut code_bits, &mut code_bit_count, &mut input);
-                            if let Err(err) = err {
-                                return Some(Err(err));
-                            }
-                        }
-
-                        if code_bit_count >= length {
-                            let required_code =
-                                (code_bits >> (code_bit_count - length)) & ((1 << length) - 1);
-
-                            if self::code(encoded_long_code) == required_code {
-                                code_bit_count -= length;
-                                return Some(Ok(long_code));
-                            }
-                        }
-
-                        None
-                    })
-                    .next()
-                    .ok_or_else(|| Error::invalid(INVALID_CODE))?;
+            } else if len != 0 {
+                code_bit_count -= len;
 
                 read_code_into_vec(
-                    long_code?,
+                    entry >> 8,
                     run_length_code,
                     &mut code_bits,
                     &mut code_bit_count,
@@ -207,16 +270,17 @@ fn decode_with_tables(
 
     while code_bit_count > 0 {
         let index = (code_bits << (DECODE_BITS - code_bit_count)) & DECODE_MASK;
-        let code = &decoding_table[u64_to_usize(index, "huffman code index")?];
+        let entry = decoding_table[u64_to_usize(index, "huffman code index")?];
+        let len = u64::from(entry & ENTRY_LEN_MASK);
 
-        if let Code::Short(short_code) = code {
-            if short_code.len() > code_bit_count {
+        if len != 0 && len != u64::from(LONG_ENTRY) {
+            if len > code_bit_count {
                 return Err(Error::invalid("code"));
-            } // FIXME why does this happen??
-            code_bit_count -= short_code.len(); // FIXME may throw "attempted to subtract with overflow"
+            }
+            code_bit_count -= len;
 
             read_code_into_vec(
-                short_code.value,
+                entry >> 8,
                 run_length_code,
                 &mut code_bits,
                 &mut code_bit_count,
@@ -245,8 +309,10 @@ fn build_decoding_table(
     encoding_table: &[u64],
     min_code_index: usize,
     max_code_index: usize,
-) -> Result<Vec<Code>> {
-    let mut decoding_table = vec![Code::Empty; DECODING_TABLE_SIZE]; // not an array because of code not being copy
+) -> Result<Vec<u32>> {
+    // one u32 per entry (symbol << 8 | length, or LONG_ENTRY): 64 KiB, which stays in cache,
+    // where the enum entries took 512 KiB (goniowatch's patch)
+    let mut decoding_table = vec![0_u32; DECODING_TABLE_SIZE];
 
     for (code_index, &encoded_code) in
         encoding_table[..=max_code_index].iter().enumerate().skip(min_code_index)
@@ -264,24 +330,21 @@ fn build_decoding_table(
             let long_code = &mut decoding_table
                 [u64_to_usize(code >> (length - DECODE_BITS), "long code index")?];
 
-            match long_code {
-                Code::Empty => *long_code = Code::Long(smallvec![code_index]),
-                Code::Long(lits) => lits.push(code_index),
+            match *long_code & ENTRY_LEN_MASK {
+                0 => *long_code = LONG_ENTRY,
+                LONG_ENTRY => {}
                 _ => {
                     return Err(Error::invalid(INVALID_TABLE_ENTRY));
                 }
             }
         } else if length != 0 {
-            let default_value = Code::Short(ShortCode {
-                value: code_index,
-                len: length as u8,
-            });
+            let entry = (code_index << 8) | length as u32;
 
             let start_index = u64_to_usize(code << (DECODE_BITS - length), "huffman start index")?;
             let count = u64_to_usize(1 << (DECODE_BITS - length), "huffman count")?;
 
             for value in &mut decoding_table[start_index..start_index + count] {
-                *value = default_value.clone();
+                *value = entry;
             }
         }
     }
