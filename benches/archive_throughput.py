@@ -6,12 +6,16 @@ and OpenCV readers, a process per core).
     cargo build --release
     python3 benches/archive_throughput.py                 # the full 6,561 captures per format
     python3 benches/archive_throughput.py --captures 656  # a tenth of the set
+    python3 benches/archive_throughput.py --peer-captures 656  # check on the whole set, the peer on a tenth
 
 Per format the script writes `--distinct` different textures (2048 × 1536, the benchmark texture
 of benches/average.rs at different phases) and gives them the Bonn names of the first
 `--captures` plan entries as hard links, so the set costs `--distinct` files of disk. The files
 are then in the page cache for both tools: the figures are decode and averaging, not the disk.
 Every capture's mean is compared between the two (max relative difference, over R, G, B).
+`--peer-captures N` runs the peer on the first N captures only (its time per capture does not
+depend on the set: one process per file, nothing kept), and compares rates; check always runs on
+the whole set, where its journal and session files grow. check's peak memory is /usr/bin/time's.
 Prints a Markdown table for BENCHMARKS.md; the working folder is target/archive-bench.
 """
 
@@ -167,13 +171,17 @@ def run_check(binary, folder, session, cores):
         # the whole image, as the peer averages it; the files were just written: no settle wait
         f.write('[capture]\nroi = { kind = "full" }\n[ingest]\nsettle_ms = 0\nqueue = 64\n[source]\nkind = "files"\n')
     shutil.rmtree(session, ignore_errors=True)
+    rss_file = os.path.join(os.path.dirname(session), "check.rss")
+    cmd = [binary, "check", folder, "--quiet", "--config", cfg, "--session", session, "--workers", str(cores)]
     t0 = time.perf_counter()
-    r = subprocess.run([binary, "check", folder, "--quiet", "--config", cfg, "--session", session, "--workers", str(cores)], capture_output=True, text=True)
+    r = subprocess.run(["/usr/bin/time", "-o", rss_file, "-f", "%M"] + cmd, capture_output=True, text=True)
     dt = time.perf_counter() - t0
+    with open(rss_file) as f:
+        rss_mb = int(f.read().split()[-1]) / 1024
     if r.returncode not in (0, 4):
         raise RuntimeError(r.stderr[-3000:])
     caps = [json.loads(line) for line in open(os.path.join(session, "captures.jsonl"))]
-    return dt, {os.path.basename(c["file"]): c.get("mean_rgb") for c in caps}, caps
+    return dt, {os.path.basename(c["file"]): c.get("mean_rgb") for c in caps}, caps, rss_mb
 
 
 def main():
@@ -183,30 +191,32 @@ def main():
     ap.add_argument("--formats", default=",".join(f for f, _ in FORMATS))
     ap.add_argument("--binary", default=os.path.join(REPO, "target", "release", "goniowatch"))
     ap.add_argument("--cores", type=int, default=os.cpu_count())
+    ap.add_argument("--peer-captures", type=int, default=0, help="run the peer on the first N captures only (0: all)")
     a = ap.parse_args()
     root = os.path.join(REPO, "target", "archive-bench")
     os.makedirs(root, exist_ok=True)
     wanted = a.formats.split(",")
     print(f"{a.captures} captures of {W} × {H} per format, {a.cores} cores, {a.distinct} distinct files hard-linked", file=sys.stderr)
-    print("| format | captures | check s | captures/s | peer s | captures/s | check vs peer | max rel. diff of the means |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| format | check: captures | s | captures/s | peak MB | peer: captures | s | captures/s | check vs peer | max rel. diff of the means |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for fmt, label in FORMATS:
         if fmt not in wanted:
             continue
         folder = build_set(root, fmt, a.captures, a.distinct)
         names = bonn_names(a.captures, ext_of(fmt))
-        t_check, ours, caps = run_check(a.binary, folder, os.path.join(root, fmt + ".check"), a.cores)
+        t_check, ours, caps, rss_mb = run_check(a.binary, folder, os.path.join(root, fmt + ".check"), a.cores)
         bad = [c for c in caps if c["status"] != "ok"]
         if bad:
             raise RuntimeError(f"{fmt}: {len(bad)} captures not ok, e.g. {bad[0]}")
-        t_peer, theirs = run_peer(folder, names, a.cores)
+        peer_names = names[: a.peer_captures] if a.peer_captures > 0 else names
+        t_peer, theirs = run_peer(folder, peer_names, a.cores)
         diff = 0.0
-        for n in names:
+        for n in peer_names:
             for x, y in zip(ours[n], theirs[n]):
                 diff = max(diff, abs(x - y) / max(abs(y), 1e-30))
         print(
-            f"| {label} | {a.captures} | {t_check:.1f} | {a.captures / t_check:.1f} | {t_peer:.1f} | {a.captures / t_peer:.1f} | "
-            f"{t_peer / t_check:.2f}× | {diff:.1e} |",
+            f"| {label} | {a.captures} | {t_check:.1f} | {a.captures / t_check:.1f} | {rss_mb:.0f} | {len(peer_names)} | {t_peer:.1f} | "
+            f"{len(peer_names) / t_peer:.1f} | {(a.captures / t_check) / (len(peer_names) / t_peer):.2f}× | {diff:.1e} |",
             flush=True,
         )
         shutil.rmtree(folder, ignore_errors=True)

@@ -61,6 +61,9 @@ def test_the_same_scenario_through_the_protocol_and_through_the_files_gives_the_
         # the same images, the same times, the same numbers
         assert values(session) == values(live), naming
         assert_replay_identical(session, tmp_path)
+        # a checked set is a session like any other
+        r = subprocess.run([binary(), "report", str(session)], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0 and "report.html" in r.stdout, r.stderr
     # the capture folder was only read
     assert sorted(os.listdir(folder)) == sorted(n for n in os.listdir(folder) if not n.endswith(".check"))
 

@@ -123,6 +123,11 @@ struct LongCodes {
     max_len: u64,
     /// Every code sits in the slot its value gives (checked once when built).
     consecutive: bool,
+    /// Per length, the range of the unread bits, left-justified in 64, that starts with a code
+    /// of that length: `[first << (64 − len), (first + count) << (64 − len) − 1]` (an empty range
+    /// for a length without codes). One compare pair per length decides it.
+    lj_first: [u64; 64],
+    lj_last: [u64; 64],
 }
 
 impl LongCodes {
@@ -170,7 +175,17 @@ impl LongCodes {
         // every slot filled once: the codes of each length are consecutive, and a slot's code is
         // known from its position (no check per lookup)
         let consecutive = filled == total;
-        LongCodes { first, count, start, codes, symbols, min_len, max_len, consecutive }
+        let mut lj_first = [u64::MAX; 64];
+        let mut lj_last = [0_u64; 64];
+        for l in 1..64 {
+            if count[l] > 0 {
+                let shift = 64 - l as u32;
+                lj_first[l] = u64::try_from(u128::from(first[l]) << shift).unwrap_or(u64::MAX);
+                let end = (u128::from(first[l]) + u128::from(count[l])) << shift;
+                lj_last[l] = u64::try_from(end - 1).unwrap_or(u64::MAX);
+            }
+        }
+        LongCodes { first, count, start, codes, symbols, min_len, max_len, consecutive, lj_first, lj_last }
     }
 
     /// The symbol whose code starts the unread bits, reading bytes as far as the code needs;
@@ -182,6 +197,20 @@ impl LongCodes {
         code_bit_count: &mut u64,
         input: &mut &[u8],
     ) -> Result<Option<u32>> {
+        // every length's bits are in the buffer: the same test on the left-justified bits, with
+        // no reads (the first length whose range holds them, as in the loop below)
+        if self.consecutive && *code_bit_count >= self.max_len && *code_bit_count <= 64 {
+            let top = *code_bits << (64 - *code_bit_count);
+            for len in self.min_len..=self.max_len {
+                let l = len as usize;
+                if top >= self.lj_first[l] && top <= self.lj_last[l] {
+                    let offset = (top >> (64 - len)) - self.first[l];
+                    *code_bit_count -= len;
+                    return Ok(self.symbols.get(self.start[l] + offset as usize).copied());
+                }
+            }
+            return Ok(None);
+        }
         for len in self.min_len..=self.max_len {
             let l = len as usize;
             let n = self.count[l];
@@ -209,59 +238,109 @@ impl LongCodes {
     }
 }
 
+/// The next input byte into the bit buffer; at the end of the input, the error a read past the
+/// end gives.
+#[inline]
+fn next_byte(code_bits: &mut u64, code_bit_count: &mut u64, input: &[u8], pos: &mut usize) -> UnitResult {
+    match input.get(*pos) {
+        Some(&byte) => {
+            *code_bits = (*code_bits << 8) | u64::from(byte);
+            *code_bit_count += 8;
+            *pos += 1;
+            Ok(())
+        }
+        None => read_byte(code_bits, code_bit_count, &mut &input[input.len()..]),
+    }
+}
+
+/// As many whole input bytes into the bit buffer as it holds without losing a bit (64 in all),
+/// eight at a time where eight are left.
+#[inline]
+fn refill(code_bits: &mut u64, code_bit_count: &mut u64, input: &[u8], pos: &mut usize) -> UnitResult {
+    if let Some(word) = input.get(*pos..*pos + 8) {
+        let mut bytes = [0_u8; 8];
+        bytes.copy_from_slice(word);
+        let word = u64::from_be_bytes(bytes);
+        let take = 64_u64.saturating_sub(*code_bit_count) / 8;
+        if take >= 8 {
+            *code_bits = word;
+        } else if take > 0 {
+            *code_bits = (*code_bits << (8 * take)) | (word >> (64 - 8 * take));
+        }
+        *code_bit_count += 8 * take;
+        *pos += take as usize;
+    } else {
+        while *code_bit_count <= 56 && *pos < input.len() {
+            next_byte(code_bits, code_bit_count, input, pos)?;
+        }
+    }
+    Ok(())
+}
+
+/// Decode (uncompress) the bit stream with the decoding table and the long codes.
+///
+/// The bits are consumed in the order upstream's byte-at-a-time loop consumes them, so the
+/// output (or the error) is the same; the buffer is refilled with as many whole bytes as it
+/// holds, several at once, and a symbol costs one table load. (goniowatch: this loop is the
+/// patch.)
 fn decode_with_tables(
     decoding_table: &[u32],
     long_codes: &LongCodes,
-    mut input: &[u8],
+    input: &[u8],
     input_bit_count: i32,
     run_length_code: u32,
     expected_output_size: usize,
 ) -> Result<Vec<u16>> {
-    let mut output = Vec::with_capacity(expected_output_size);
+    let decoding_table = <&[u32; DECODING_TABLE_SIZE]>::try_from(decoding_table)
+        .map_err(|_| Error::invalid("huffman decoding table size"))?;
+    let mut output: Vec<u16> = Vec::with_capacity(expected_output_size);
     let mut code_bits = 0_u64;
     let mut code_bit_count = 0_u64;
+    let mut pos = 0_usize;
 
-    while !input.is_empty() {
-        read_byte(&mut code_bits, &mut code_bit_count, &mut input)?;
+    while pos < input.len() {
+        refill(&mut code_bits, &mut code_bit_count, input, &mut pos)?;
 
-        // Access decoding table
         while code_bit_count >= DECODE_BITS {
-            let code_index = (code_bits >> (code_bit_count - DECODE_BITS)) & DECODE_MASK;
-            let entry = decoding_table[u64_to_usize(code_index, "huffman code index")?];
+            let code_index = ((code_bits >> (code_bit_count - DECODE_BITS)) & DECODE_MASK) as usize;
+            let entry = decoding_table[code_index];
             let len = u64::from(entry & ENTRY_LEN_MASK);
 
-            // Get short code
-            if len == u64::from(LONG_ENTRY) {
-                let long_code = long_codes
-                    .find(&mut code_bits, &mut code_bit_count, &mut input)?
-                    .ok_or_else(|| Error::invalid(INVALID_CODE))?;
-
-                read_code_into_vec(
-                    long_code,
-                    run_length_code,
-                    &mut code_bits,
-                    &mut code_bit_count,
-                    &mut input,
-                    &mut output,
-                    expected_output_size,
-                )?;
+            let symbol = if len == u64::from(LONG_ENTRY) {
+                if code_bit_count < long_codes.max_len {
+                    refill(&mut code_bits, &mut code_bit_count, input, &mut pos)?;
+                }
+                let mut rest = &input[pos..];
+                let before = rest.len();
+                let symbol = long_codes.find(&mut code_bits, &mut code_bit_count, &mut rest)?;
+                pos += before - rest.len();
+                symbol.ok_or_else(|| Error::invalid(INVALID_CODE))?
             } else if len != 0 {
                 code_bit_count -= len;
-
-                read_code_into_vec(
-                    entry >> 8,
-                    run_length_code,
-                    &mut code_bits,
-                    &mut code_bit_count,
-                    &mut input,
-                    &mut output,
-                    expected_output_size,
-                )?;
+                entry >> 8
             } else {
                 return Err(Error::invalid(INVALID_CODE));
+            };
+
+            if symbol == run_length_code {
+                if code_bit_count < 8 {
+                    next_byte(&mut code_bits, &mut code_bit_count, input, &mut pos)?;
+                }
+                code_bit_count -= 8;
+                let code_repetitions = usize::from((code_bits >> code_bit_count) as u8);
+                if output.len() + code_repetitions > expected_output_size {
+                    return Err(Error::invalid(TOO_MUCH_DATA));
+                }
+                let repeated_code = *output.last().ok_or_else(|| Error::invalid(NOT_ENOUGH_DATA))?;
+                output.extend(std::iter::repeat(repeated_code).take(code_repetitions));
+            } else if output.len() < expected_output_size {
+                output.push(u16::try_from(symbol)?);
+            } else {
+                return Err(Error::invalid(TOO_MUCH_DATA));
             }
         }
     }
+    let mut input = &input[pos..];
 
     let count = u64::try_from((8 - input_bit_count) & 7)?;
     code_bits >>= count;
