@@ -20,6 +20,7 @@ from .link import Cable
 from .material import PRESETS, REALISM, albedo_texture
 from .render import add_noise, exr_bytes_to_file, hdr_bytes, png_bytes, render, write_atomic
 from .scenario import ONE_SHOT, Scenario
+from .spectral import lamp_colour_matrix
 
 PROTO_VERSION = 1
 TRUTH_ROI_FRACTION = 0.1
@@ -238,6 +239,17 @@ class Controller:
                 g = 0.0
         return g
 
+    def lamp_cct(self, faults) -> float | None:
+        """The lamp's colour temperature (K) under a `lamp-colour-drift` fault, else None (the
+        lamp the camera was white-balanced on). Linear in time from the onset, not below 1000 K."""
+        t_h = self.t / 3600.0
+        for _, f in faults:
+            if f.kind == "lamp-colour-drift":
+                dt = max(0.0, t_h - self.onset_hours(f))
+                start = float(f.p("cct_start_k", 3000.0))
+                return max(1000.0, start + float(f.p("cct_k_per_h", -20.0)) * dt)
+        return None
+
     # -- one capture ---------------------------------------------------------------------------
     def take(self, entry: int, probe: bool = False) -> None:
         sc = self.sc
@@ -281,6 +293,10 @@ class Controller:
         wi, wo = sc.rig.forward(true_pose)
         gain = self.lamp_gain(faults)
         clean = render(self.albedo, wi, wo, self.material, self.realism, gain, self.holder_px)
+        cct = self.lamp_cct(faults)
+        if cct is not None:
+            f = next(f for _, f in faults if f.kind == "lamp-colour-drift")
+            clean = clean @ lamp_colour_matrix(cct, float(f.p("cct_start_k", 3000.0))).T
         img = add_noise(clean, self.rng, sc.photons_per_unit, sc.read_noise) if sc.noise else clean.copy()
         if "nan-pixels" in kinds or "inf-pixels" in kinds:
             for _, f in faults:
@@ -355,6 +371,7 @@ class Controller:
             "substitute_theta_i": sub,
             "true_angles": [ti, pi, to, po],
             "lamp_gain": gain,
+            "lamp_cct_k": cct,
             "faults": sorted(kinds),
             "announced_idx": announced["idx"],
             "boot": self.boot,

@@ -1,5 +1,6 @@
-"""Reciprocal BRDFs (Lambert + GGX microfacet lobe with Smith masking and Schlick Fresnel), the
-paper's four material presets, spatially varying albedo textures, and two independent models of
+"""Reciprocal BRDFs (Lambert + GGX microfacet lobe, isotropic or anisotropic, with Smith masking
+and Schlick Fresnel, and an optional sheen), the paper's four material presets, two anisotropic
+ones, spatially varying albedo textures, and two independent models of
 the non-reciprocal, geometry-dependent deviations of real data: "realistic" (lamp footprint and
 holder bleed) and "realistic-b" (vignetting, an off-centre mount, stray light)."""
 
@@ -20,6 +21,19 @@ class Material:
     ks: float  # specular weight
     roughness: float  # GGX alpha
     f0: float  # Fresnel reflectance at normal incidence
+    # Anisotropy: GGX alpha across the fibres (`roughness` is along them; None: isotropic) and
+    # the fibre direction's azimuth in the sample frame (degrees). A rotation of the sample about
+    # its normal (joint 3) turns the lobe with it.
+    roughness_across: float | None = None
+    fibre_deg: float = 0.0
+    # A sheen lobe (Estevez–Kulla "Charlie" distribution, no masking): the grazing glow of
+    # fabric fibres; weight and roughness.
+    sheen: float = 0.0
+    sheen_roughness: float = 0.5
+
+    @property
+    def isotropic(self) -> bool:
+        return self.roughness_across is None or self.roughness_across == self.roughness
 
 
 # After the paper's four samples (Fig. 1): ceiling, floortile, pinkwall, walkway.
@@ -28,6 +42,16 @@ PRESETS = {
     "floortile": Material("floortile (granite)", (0.36, 0.34, 0.33), 0.45, 23.0, 0.05, 0.30, 0.05),
     "pinkwall": Material("pinkwall (polished ceramic)", (0.70, 0.46, 0.45), 0.10, 5.0, 0.12, 0.08, 0.05),
     "walkway": Material("walkway (plastic with a glossy varnish)", (0.42, 0.36, 0.26), 0.30, 13.0, 0.10, 0.15, 0.045),
+    # anisotropic samples ([sample] isotropic = false in their config)
+    "brushed": Material(
+        "brushed (brushed aluminium: a narrow lobe along the brushing)",
+        (0.30, 0.31, 0.33), 0.15, 31.0, 0.45, 0.08, 0.60, roughness_across=0.40, fibre_deg=30.0,
+    ),
+    "fabric": Material(
+        "fabric (woven cotton twill: a broad anisotropic lobe and a sheen)",
+        (0.28, 0.33, 0.52), 0.35, 17.0, 0.20, 0.15, 0.04, roughness_across=0.60, fibre_deg=-20.0,
+        sheen=0.25, sheen_roughness=0.45,
+    ),
 }
 
 
@@ -42,8 +66,35 @@ def smith_g1(cos_v: float, alpha: float) -> float:
     return 2.0 * cos_v / (cos_v + math.sqrt(a2 + (1.0 - a2) * cos_v * cos_v))
 
 
+def _to_fibre_frame(v: np.ndarray, fibre_deg: float) -> tuple[float, float, float]:
+    """v's components along the fibres, across them, and along the normal."""
+    c, s = math.cos(math.radians(fibre_deg)), math.sin(math.radians(fibre_deg))
+    return c * float(v[0]) + s * float(v[1]), -s * float(v[0]) + c * float(v[1]), float(v[2])
+
+
+def ggx_d_aniso(h: tuple[float, float, float], ax: float, ay: float) -> float:
+    hx, hy, hz = h
+    d = (hx / ax) ** 2 + (hy / ay) ** 2 + hz * hz
+    return 1.0 / (math.pi * ax * ay * d * d)
+
+
+def smith_g1_aniso(v: tuple[float, float, float], ax: float, ay: float) -> float:
+    """Height-correlated Smith's G1 for GGX with the projected roughness of v's azimuth."""
+    vx, vy, vz = v
+    s2 = vx * vx + vy * vy
+    a2 = (vx * vx * ax * ax + vy * vy * ay * ay) / s2 if s2 > 0.0 else ax * ay
+    return 2.0 * vz / (vz + math.sqrt(a2 * s2 + vz * vz))
+
+
+def charlie_d(cos_h: float, roughness: float) -> float:
+    """Estevez and Kulla's sheen distribution ("Production Friendly Microfacet Sheen BRDF")."""
+    inv_r = 1.0 / roughness
+    sin2 = max(0.0, 1.0 - cos_h * cos_h)
+    return (2.0 + inv_r) * sin2 ** (0.5 * inv_r) / (2.0 * math.pi)
+
+
 def specular(wi: np.ndarray, wo: np.ndarray, m: Material) -> float:
-    """The microfacet lobe f_s(wi, wo); symmetric in wi and wo."""
+    """The microfacet lobe f_s(wi, wo) (and the sheen, if any); symmetric in wi and wo."""
     ci, co = float(wi[2]), float(wo[2])
     if ci <= 0.0 or co <= 0.0:
         return 0.0
@@ -55,7 +106,16 @@ def specular(wi: np.ndarray, wo: np.ndarray, m: Material) -> float:
     cos_h = float(h[2])
     cos_d = float(np.dot(h, wi))
     fresnel = m.f0 + (1.0 - m.f0) * (1.0 - cos_d) ** 5
-    return m.ks * ggx_d(cos_h, m.roughness) * smith_g1(ci, m.roughness) * smith_g1(co, m.roughness) * fresnel / (4.0 * ci * co)
+    if m.isotropic:
+        lobe = ggx_d(cos_h, m.roughness) * smith_g1(ci, m.roughness) * smith_g1(co, m.roughness)
+    else:
+        ax, ay = m.roughness, float(m.roughness_across)  # type: ignore[arg-type]
+        hf, wif, wof = (_to_fibre_frame(v, m.fibre_deg) for v in (h, wi, wo))
+        lobe = ggx_d_aniso(hf, ax, ay) * smith_g1_aniso(wif, ax, ay) * smith_g1_aniso(wof, ax, ay)
+    out = m.ks * lobe * fresnel / (4.0 * ci * co)
+    if m.sheen > 0.0:
+        out += m.sheen * charlie_d(cos_h, m.sheen_roughness) / (4.0 * (ci + co - ci * co))
+    return out
 
 
 def albedo_texture(m: Material, height: int, width: int, seed: int) -> np.ndarray:

@@ -17,6 +17,7 @@ FAULT_KINDS = {
     "lamp-decay": {"rate_pct_per_h", "model"},
     "lamp-step": {"step_pct"},
     "lamp-flicker": {"amplitude_pct"},
+    "lamp-colour-drift": {"cct_k_per_h", "cct_start_k"},
     "joint-offset": {"joint", "offset_deg"},
     "wagon-offset": {"offset_deg"},
     "encoder-mismatch": {"joint", "offset_deg"},

@@ -6,6 +6,7 @@ IEC sRGB matrix, as goniowatch applies it to session RGB with rgb_scale 100)."""
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -123,3 +124,31 @@ def spectrum_of_rgb(rgb) -> np.ndarray:
     """A metamer of the linear-sRGB reflectance `rgb` (last axis RGB): Σ_k rgb_k S_k on BANDS_NM,
     with xyz_of_spectrum(spectrum_of_rgb(rgb)) = rgb_to_xyz(rgb)."""
     return np.asarray(rgb, dtype=float) @ _basis().T
+
+
+# Planck's law: the second radiation constant c2 = h·c/k (m·K), CODATA 2018.
+PLANCK_C2_M_K = 1.438776877e-2
+
+
+def planck(wavelength_nm, temperature_k: float) -> np.ndarray:
+    """Relative spectral radiance of a black body at `temperature_k` (the first radiation
+    constant is left out: only ratios are used)."""
+    lam = np.asarray(wavelength_nm, dtype=float) * 1e-9
+    return 1.0 / (lam**5 * np.expm1(PLANCK_C2_M_K / (lam * temperature_k)))
+
+
+def lamp_colour_matrix(cct_k: float, reference_cct_k: float = 3000.0) -> np.ndarray:
+    """The 3×3 matrix C with rendered linear sRGB = C · rgb for a lamp that has moved from
+    `reference_cct_k` (where the camera was white-balanced: C = I) to `cct_k`.
+
+    The lamp's spectrum changes by r(λ) = B(λ, cct) / B(λ, reference), normalised so that a
+    perfect white reflector keeps its luminance. A surface of linear-sRGB reflectance rgb has the
+    metamer Σ_k rgb_k S_k (`spectrum_of_rgb`), the same spectral path as the reference output;
+    under the changed lamp its XYZ is W^T (r ∘ S) rgb, and the camera, calibrated as goniowatch's
+    conversion assumes, reports M⁻¹ XYZ / 100."""
+    if not (math.isfinite(cct_k) and cct_k > 0 and math.isfinite(reference_cct_k) and reference_cct_k > 0):
+        raise ValueError(f"colour temperature must be positive, got {cct_k} K (reference {reference_cct_k} K)")
+    r = planck(BANDS_NM, cct_k) / planck(BANDS_NM, reference_cct_k)
+    r = r * (XYZ_WEIGHTS[:, 1].sum() / (XYZ_WEIGHTS[:, 1] @ r))
+    xyz = XYZ_WEIGHTS.T @ (r[:, None] * _basis())  # (3, 3): XYZ of each unit colour
+    return np.linalg.solve(M, xyz) / 100.0

@@ -10,6 +10,7 @@ from goniosim.controller import Controller
 from goniosim.render import decode_hdr
 
 FAULTS = [
+    {"kind": "lamp-colour-drift", "at_capture": 1, "until_capture": 4, "cct_k_per_h": -36000.0},
     {"kind": "lamp-decay", "at_capture": 5, "until_capture": 10, "rate_pct_per_h": 360.0},
     {"kind": "lamp-decay", "at_capture": 10, "until_capture": 12, "rate_pct_per_h": 360.0, "model": "exponential"},
     {"kind": "lamp-step", "at_capture": 12, "until_capture": 14, "step_pct": -3.0},
@@ -97,6 +98,47 @@ def test_lamp_faults(session):
     # the data shows it: same geometry scaled by the gain
     a = decode_hdr(open(path(sc, truth[12]), "rb").read()).mean()
     assert a > 0
+
+
+def test_lamp_colour_drift_follows_planck_through_the_reference_spectral_path(session):
+    from goniosim.spectral import M, lamp_colour_matrix
+
+    _, truth, _ = session
+    assert truth[0]["lamp_cct_k"] is None and truth[4]["lamp_cct_k"] is None
+    # −36,000 K/h at 7 s per capture: −70 K per capture from 3000 K at the onset
+    for k in range(1, 4):
+        assert truth[k]["lamp_cct_k"] == pytest.approx(3000.0 - 70.0 * (k - 1))
+        assert "lamp-colour-drift" in truth[k]["faults"]
+    # captures 1–4 see the same BRDF (light at the pole, camera at θo = 15° on four azimuths of an
+    # isotropic sample): only the lamp's colour differs
+    ref = np.array(truth[1]["mean_rgb_noiseless_roi"])
+    for k in (2, 3):
+        got = np.array(truth[k]["mean_rgb_noiseless_roi"])
+        assert got == pytest.approx(lamp_colour_matrix(truth[k]["lamp_cct_k"]) @ ref, rel=1e-9)
+        # redder, and the luminance nearly kept
+        assert got[0] / got[2] > ref[0] / ref[2]
+        assert (M @ got)[1] == pytest.approx((M @ ref)[1], rel=5e-3)
+
+
+def test_lamp_colour_matrix():
+    from goniosim.spectral import M, lamp_colour_matrix
+
+    assert lamp_colour_matrix(3000.0) == pytest.approx(np.eye(3), abs=1e-12)
+    assert lamp_colour_matrix(5000.0, 5000.0) == pytest.approx(np.eye(3), abs=1e-12)
+    white = np.ones(3)
+    prev = None
+    for cct in (2600.0, 2800.0, 3000.0, 3200.0, 3400.0):
+        c = lamp_colour_matrix(cct)
+        # a white keeps its luminance (the metamer white is flat within 0.4 %)
+        assert (M @ c @ white)[1] == pytest.approx(1.0, abs=1e-3)
+        # cooler is redder and less blue, monotonically
+        if prev is not None:
+            assert c[0, 0] < prev[0, 0] and c[2, 2] > prev[2, 2]
+        prev = c
+    with pytest.raises(ValueError):
+        lamp_colour_matrix(0.0)
+    with pytest.raises(ValueError):
+        lamp_colour_matrix(float("nan"))
 
 
 def test_positioning_faults(session):

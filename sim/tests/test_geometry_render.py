@@ -183,3 +183,45 @@ def test_png_writer_encodes_srgb_codes_and_clips():
         want = [0.0, 0.5, 1.0, 1.0, 0.0, 0.002]
         tol = 0.004 if bits == 8 else 1e-4
         assert np.allclose(lin, want, atol=tol, rtol=tol), (bits, lin)
+
+
+def _rot_z(v, deg):
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]])
+
+
+@pytest.mark.parametrize("preset", ["brushed", "fabric"])
+def test_anisotropic_presets_turn_with_the_sample_and_stay_reciprocal(preset):
+    from dataclasses import replace
+
+    from goniosim.material import specular
+
+    m = PRESETS[preset]
+    assert not m.isotropic
+    # off the mirror direction, so that the half vector leaves the normal
+    wi, wo = sph_to_vec(45, 10), sph_to_vec(40, 120)
+    # turning the pair about the normal changes the value (the lobe follows the fibres) ...
+    values = [specular(_rot_z(wi, a), _rot_z(wo, a), m) for a in (0, 30, 60, 90)]
+    assert max(values) > 1.5 * min(values), values
+    # ... unless the fibres turn too
+    for a in (30, 60, 90):
+        turned = replace(m, fibre_deg=m.fibre_deg + a)
+        assert specular(_rot_z(wi, a), _rot_z(wo, a), turned) == pytest.approx(values[0], rel=1e-12)
+    # reciprocal everywhere
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        a, b = sph_to_vec(rng.uniform(0, 80), rng.uniform(0, 360)), sph_to_vec(rng.uniform(0, 80), rng.uniform(0, 360))
+        assert specular(a, b, m) == pytest.approx(specular(b, a, m), rel=1e-12)
+    # with equal roughness along and across, the isotropic lobe
+    iso = replace(m, roughness_across=m.roughness, sheen=0.0)
+    iso2 = replace(m, roughness_across=None, sheen=0.0)
+    assert specular(wi, sph_to_vec(30, 100), iso) == pytest.approx(specular(wi, sph_to_vec(30, 100), iso2), rel=1e-12)
+
+
+def test_anisotropic_ggx_matches_the_isotropic_one_when_the_roughnesses_agree():
+    from goniosim.material import ggx_d, ggx_d_aniso, smith_g1, smith_g1_aniso
+
+    for cos_h in (1.0, 0.9, 0.5, 0.1):
+        h = (math.sqrt(1 - cos_h**2) * 0.6, math.sqrt(1 - cos_h**2) * 0.8, cos_h)
+        assert ggx_d_aniso(h, 0.3, 0.3) == pytest.approx(ggx_d(cos_h, 0.3), rel=1e-12)
+        assert smith_g1_aniso(h, 0.3, 0.3) == pytest.approx(smith_g1(cos_h, 0.3), rel=1e-12)
