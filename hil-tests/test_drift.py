@@ -28,6 +28,44 @@ def test_a_lamp_decay_is_caught_from_isotropy_classes(hil, tmp_path):
     assert_replay_identical(session, tmp_path)
 
 
+def test_a_lamp_colour_drift_is_caught_in_kelvin_per_hour_and_divided_out(hil, tmp_path):
+    """A 3000 K lamp cooling by 40 K/h (Planck's law through the simulator's spectral path) on the
+    realistic walkway: one colour-drift alarm with the rate in K/h, no gain alarm (the luminance
+    is kept), the corrected output's chromaticity back near the start's."""
+    needs_simulator()
+    rig = hil("isocolour", [{"kind": "lamp-colour-drift", "at_capture": 0, "cct_k_per_h": -40.0}], captures=2500)
+    session = tmp_path / "isocolour-session"
+    code, out, err = run_daemon(rig, session, daemon_config(tmp_path, "isocolour"), timeout=300)
+    assert code == 0, err[-2000:]
+    alarms = read_jsonl(session / "alarms.jsonl")
+    colour = [a for a in alarms if a["code"] == "colour-drift"]
+    assert len(colour) == 1, alarms
+    ev = colour[0]["evidence"]
+    assert ev["source"] == "isotropy classes" and -50.0 < ev["k_per_h"] < -30.0, ev
+    assert "K/h" in colour[0]["message"] and "redder" in colour[0]["message"]
+    assert not [a for a in alarms if a["code"] in ("gain-drift", "gain-step")], alarms
+    s = json.load(open(session / "summary.json"))
+    c = s["colour_drift"]
+    assert abs(c["k_per_h"] + 40.0) < 10.0 and c["de00_per_h"] > 0, c
+    assert "lamp colour drift from isotropy classes" in out
+    # the chromaticity change divided out of the last capture is the lamp's, within 25 %: the
+    # truth's colour temperature through the simulator's own lamp model, for a white
+    import math
+
+    import numpy as np
+    from goniosim.spectral import M, lamp_colour_matrix  # hil puts sim/ on the path
+
+    last = read_jsonl(session / "captures.jsonl")[-1]
+    cct = rig.truth()[last["idx"]]["lamp_cct_k"]
+    x, y, z = M @ lamp_colour_matrix(cct) @ np.ones(3)
+    x0, y0, z0 = M @ np.ones(3)
+    want = (math.log(x / y) - math.log(x0 / y0), math.log(z / y) - math.log(z0 / y0))
+    got = last["gain_corrected"]["colour"]
+    for g, w in zip(got, want):
+        assert abs(g - w) < 0.25 * abs(w) + 0.002, (got, want, cct)
+    assert_replay_identical(session, tmp_path)
+
+
 def test_an_anisotropic_sample_has_no_isotropy_drift(hil, tmp_path):
     needs_simulator()
     import re
@@ -42,3 +80,11 @@ def test_an_anisotropic_sample_has_no_isotropy_drift(hil, tmp_path):
     assert s["isotropy_drift"] is None and s["checked"]["isotropy_comparisons"] == 0
     assert not (session / "isotropy.jsonl").read_text().strip()
     assert all("gain_corrected" not in c for c in read_jsonl(session / "captures.jsonl"))
+    assert "colour_drift" not in s
+    # said at the start, in the summary and in its printout: nothing watches the lamp, and how to
+    # make it watched
+    blind = {b["what"]: b for b in s["observability"]["blind"]}
+    assert "[probes] every" in blind["the lamp's gain drift (rate and steps)"]["remedy"], blind
+    assert "the lamp's colour drift" in blind
+    assert "not observable in this session: the lamp's gain drift" in err
+    assert "not observable: the lamp's gain drift" in out

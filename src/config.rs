@@ -422,6 +422,9 @@ pub(crate) const KEY_RANGES: &[KeyRange] = &[
     closed("checks.sweeps.min_layer_sweeps", 1.0, 1e4),
     closed("checks.sweeps.min_captures", 4.0, 1e4),
     closed("checks.sweeps.sensitivity_step_deg", 0.01, 10.0),
+    closed("checks.colour_drift.lamp_cct_k", 1000.0, 20_000.0),
+    closed("checks.colour_drift.tolerance_k_per_h", 0.0, 10_000.0),
+    above("checks.colour_drift.z", 0.0, 100.0),
     closed("probes.every", 0.0, 1e6),
     closed("probes.entry", 0.0, 1e6),
     closed("probes.rate_tolerance_pct_per_h", 0.0, 100.0),
@@ -735,6 +738,12 @@ impl Config {
                 "checks.sweeps.sensitivity_step_deg",
                 sw.sensitivity_step_deg,
             ),
+            ("checks.colour_drift.lamp_cct_k", c.colour_drift.lamp_cct_k),
+            (
+                "checks.colour_drift.tolerance_k_per_h",
+                c.colour_drift.tolerance_k_per_h,
+            ),
+            ("checks.colour_drift.z", c.colour_drift.z),
             ("probes.every", p.every as f64),
             (
                 "probes.rate_tolerance_pct_per_h",

@@ -1,73 +1,294 @@
-//! The drift stage (isotropic samples only): the lamp's gain over the run from repeated
-//! geometry. Every capture at its exact pose is compared with the first capture of the same
-//! (θi, θo, |Δφ|), the same geometry at another time, so ln(Y/Y₀) is the gain change; the
+//! The drift stage (isotropic samples only): the lamp's gain and colour over the run from
+//! repeated geometry. Every capture at its exact pose is compared with the first capture of the
+//! same (θi, θo, |Δφ|), the same geometry at another time, so ln(Y/Y₀) is the gain change; the
 //! occlusion substitutes' interpolated pairs join in buckets of their own, weighted by their
 //! spread; gain steps found by the light sweeps enter as step terms. Rate alarms only: see
 //! `measure::drift` for why steps are left to the sweeps and the probes.
+//!
+//! The same comparisons give the lamp's colour: ln(X/Y) and ln(Z/Y) against the first capture
+//! of the geometry move with the lamp's colour temperature and not with its luminance. Each has
+//! a rate fit of its own (the same model as the gain's, geometry buckets as fixed effects); the
+//! two rates become one colour-temperature rate through `measure::lamp`, alarmed as
+//! `colour-drift` in K/h and in ΔE00/h of a white.
 
 use super::pairs::PendingPartner;
 use super::records::{PairRecord, PairStatus};
 use super::{Ctx, GeometryKey, Ledger};
 use crate::measure::alarm::{Alarm, AlarmKind, Severity};
+use crate::measure::colour::{White, Xyz};
 use crate::measure::drift::{
     DriftDetector, DriftEstimate, DriftEvent, DriftSpec, PairObservation, StepEffect,
 };
+use crate::measure::lamp::LampColour;
+use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::collections::HashMap;
 
+/// The colour-drift check (`[checks.colour_drift]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ColourDriftSpec {
+    /// The lamp's colour temperature at the start of the run (K), where the camera was
+    /// white-balanced: the reference of the lamp model.
+    pub lamp_cct_k: f64,
+    /// Alarm when the colour-temperature rate is significant and larger than this (K/h).
+    pub tolerance_k_per_h: f64,
+    /// Two-sided confidence for "significant" (z of the normal distribution).
+    pub z: f64,
+}
+
+impl Default for ColourDriftSpec {
+    fn default() -> Self {
+        ColourDriftSpec {
+            lamp_cct_k: 3000.0,
+            tolerance_k_per_h: 5.0,
+            z: 4.0,
+        }
+    }
+}
+
+/// The lamp's colour drift as estimated from isotropy classes.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ColourDriftEstimate {
+    /// Observations in each of the two rate fits.
+    pub observations: usize,
+    /// The lamp model's reference colour temperature (K).
+    pub lamp_cct_k: f64,
+    /// Colour-temperature rate (K/h; negative: redder) and its standard error.
+    pub k_per_h: f64,
+    pub se_k_per_h: f64,
+    /// ΔE00 per hour of a white surface at that rate.
+    pub de00_per_h: f64,
+    /// The rates of ln(X/Y) and ln(Z/Y) (%/h) with their standard errors.
+    pub x_rate_pct_per_h: f64,
+    pub x_se_pct_per_h: f64,
+    pub z_rate_pct_per_h: f64,
+    pub z_se_pct_per_h: f64,
+}
+
+/// Two rate fits on the log-chromaticities and the alarm state.
+struct ColourStage {
+    spec: ColourDriftSpec,
+    model: LampColour,
+    /// ln(X/Y) and ln(Z/Y).
+    fits: [DriftDetector; 2],
+    estimate: Option<ColourDriftEstimate>,
+    alarm: bool,
+    /// The latest observation's time (hours): the span the rates were observed over.
+    span_h: f64,
+}
+
+/// The drift model shared by the gain and the colour fits: about 6,561 − 1,378 observations in
+/// a UBO run; rate only, because consecutive observations share neighbouring geometry, so
+/// their residuals are correlated and heavy-tailed and the CUSUM's ARL design does not hold
+/// (steps are the sweeps' and the probes' job).
+fn isotropy_drift_spec() -> DriftSpec {
+    DriftSpec {
+        run_pairs: 5200.0,
+        step_detection: false,
+        ..DriftSpec::default()
+    }
+}
+
+impl ColourStage {
+    fn new(spec: ColourDriftSpec) -> Option<Self> {
+        // the config's range check keeps the temperature valid; a model that cannot be built
+        // leaves the colour check out rather than the session
+        let model = LampColour::new(spec.lamp_cct_k).ok()?;
+        let quiet = DriftSpec {
+            // the colour alarm is decided on the combined rate, not by either fit
+            rate_tolerance_pct_per_h: f64::INFINITY,
+            ..isotropy_drift_spec()
+        };
+        Some(ColourStage {
+            spec,
+            model,
+            fits: [DriftDetector::new(quiet.clone()), DriftDetector::new(quiet)],
+            estimate: None,
+            alarm: false,
+            span_h: 0.0,
+        })
+    }
+
+    /// One capture against the first of its geometry (`first` and `now` are (hours, XYZ)).
+    fn observe(
+        &mut self,
+        bucket: (i64, i64),
+        first: (f64, Xyz),
+        now: (f64, Xyz),
+        at: (Option<u64>, Option<f64>),
+        alarms: &mut Vec<Alarm>,
+    ) {
+        let (a, b) = (first.1, now.1);
+        if !(a.iter().chain(&b).all(|v| *v > 0.0 && v.is_finite())) {
+            return;
+        }
+        let d = [
+            (b[0] / b[1]).ln() - (a[0] / a[1]).ln(),
+            (b[2] / b[1]).ln() - (a[2] / a[1]).ln(),
+        ];
+        self.span_h = self.span_h.max(now.0);
+        let before = self.fits[0].estimate().map(|e| e.pairs);
+        for (fit, d) in self.fits.iter_mut().zip(d) {
+            fit.add(PairObservation {
+                t_a_h: first.0,
+                t_b_h: now.0,
+                d,
+                bucket,
+                sigma: 0.0,
+            });
+        }
+        let (Some(u), Some(v)) = (self.fits[0].estimate(), self.fits[1].estimate()) else {
+            return;
+        };
+        if before == Some(u.pairs) {
+            return;
+        }
+        let Some(rate) = self.model.cct_rate(
+            (u.rate_pct_per_h / 100.0, u.se_pct_per_h / 100.0),
+            (v.rate_pct_per_h / 100.0, v.se_pct_per_h / 100.0),
+            self.span_h,
+        ) else {
+            return;
+        };
+        let de00 = White::d65_scaled(100.0)
+            .map(|w| self.model.delta_e00_per_h(rate.k_per_h, w))
+            .unwrap_or(f64::NAN);
+        let e = ColourDriftEstimate {
+            observations: u.pairs,
+            lamp_cct_k: self.model.reference_k(),
+            k_per_h: rate.k_per_h,
+            se_k_per_h: rate.se_k_per_h,
+            de00_per_h: de00,
+            x_rate_pct_per_h: u.rate_pct_per_h,
+            x_se_pct_per_h: u.se_pct_per_h,
+            z_rate_pct_per_h: v.rate_pct_per_h,
+            z_se_pct_per_h: v.se_pct_per_h,
+        };
+        self.estimate = Some(e);
+        let (tol, z) = (self.spec.tolerance_k_per_h, self.spec.z);
+        if !self.alarm && e.k_per_h.abs() - z * e.se_k_per_h > tol {
+            self.alarm = true;
+            alarms.push(colour_alarm(&e, at));
+        } else if self.alarm && e.k_per_h.abs() + z * e.se_k_per_h < tol {
+            self.alarm = false;
+            alarms.push(
+                Alarm::new(
+                    AlarmKind::Drift,
+                    Severity::Info,
+                    "colour-drift-cleared",
+                    format!(
+                        "the lamp's colour drift estimate is back within the tolerance: {:+.1} ± {:.1} K/h (isotropy classes)",
+                        e.k_per_h, e.se_k_per_h
+                    ),
+                )
+                .at(at.0, at.1),
+            );
+        }
+    }
+
+    /// ln(X/Y) and ln(Z/Y) of the lamp's colour change at `t_h` relative to the start: the
+    /// lamp model at the estimated colour temperature then, which follows the curvature of the
+    /// chromaticity in T (ln X/Y turns over near 3500 K) where a straight line per channel
+    /// would not.
+    fn ln_chromaticity_at(&self, t_h: f64) -> Option<[f64; 2]> {
+        let e = self.estimate?;
+        let c = self
+            .model
+            .log_chromaticity(self.model.reference_k() + e.k_per_h * t_h);
+        c.iter().all(|v| v.is_finite()).then_some(c)
+    }
+}
+
+/// The alarm for a significant colour drift.
+fn colour_alarm(e: &ColourDriftEstimate, at: (Option<u64>, Option<f64>)) -> Alarm {
+    Alarm::new(
+        AlarmKind::Drift,
+        Severity::Warning,
+        "colour-drift",
+        format!(
+            "the lamp's colour drifts by {:+.1} K/h (± {:.1} K/h standard error, from {} isotropy comparisons; ΔE00 {:.2}/h on a white): {}; beyond the tolerance. The chromaticity of later captures is off by as much; let the lamp settle or check its supply, and the corrected output divides the drift out",
+            e.k_per_h,
+            e.se_k_per_h,
+            e.observations,
+            e.de00_per_h,
+            if e.k_per_h < 0.0 { "cooler, redder light" } else { "hotter, bluer light" },
+        ),
+    )
+    .at(at.0, at.1)
+    .with(json!({
+        "k_per_h": e.k_per_h,
+        "se_k_per_h": e.se_k_per_h,
+        "de00_per_h": e.de00_per_h,
+        "lamp_cct_k": e.lamp_cct_k,
+        "x_rate_pct_per_h": e.x_rate_pct_per_h,
+        "z_rate_pct_per_h": e.z_rate_pct_per_h,
+        "n": e.observations,
+        "source": "isotropy classes",
+    }))
+}
+
 pub(super) struct DriftStage {
     detector: DriftDetector,
-    /// The first capture of each geometry: (time in hours, Y).
-    first_of_geometry: HashMap<GeometryKey, (f64, f64)>,
+    /// The lamp's colour (None when the lamp model cannot be built).
+    colour: Option<ColourStage>,
+    /// The first capture of each geometry: (time in hours, XYZ).
+    first_of_geometry: HashMap<GeometryKey, (f64, Xyz)>,
     /// Interpolated pairs fed to the fit.
     pub(super) interpolated: u64,
 }
 
 impl DriftStage {
-    pub(super) fn new() -> Self {
+    pub(super) fn new(colour: &ColourDriftSpec) -> Self {
         DriftStage {
-            detector: DriftDetector::new(DriftSpec {
-                // about 6,561 − 1,378 observations in a UBO run
-                run_pairs: 5200.0,
-                // rate only: consecutive observations share neighbouring geometry, so their
-                // residuals are correlated and heavy-tailed and the CUSUM's ARL design does not
-                // hold; steps are the sweeps' and the probes' job
-                step_detection: false,
-                ..DriftSpec::default()
-            }),
+            detector: DriftDetector::new(isotropy_drift_spec()),
+            colour: ColourStage::new(colour.clone()),
             first_of_geometry: HashMap::new(),
             interpolated: 0,
         }
     }
 
-    /// A capture of `key` at time `t_s` with luminance `y`: an observation against the first
-    /// capture of its geometry, or that first capture.
+    /// A capture of `key` at time `t_s` with colour `xyz` (Y > 0): an observation against the
+    /// first capture of its geometry, or that first capture.
     pub(super) fn observe(
         &mut self,
         key: GeometryKey,
         t_s: f64,
-        y: f64,
+        xyz: Xyz,
         at: (Option<u64>, Option<f64>),
         alarms: &mut Vec<Alarm>,
     ) {
         let t_h = t_s / 3600.0;
         match self.first_of_geometry.get(&key) {
-            Some(&(t0, y0)) => {
+            Some(&(t0, xyz0)) => {
                 let obs = PairObservation {
                     t_a_h: t0,
                     t_b_h: t_h,
-                    d: (y / y0).ln(),
+                    d: (xyz[1] / xyz0[1]).ln(),
                     bucket: (key.0, key.1),
                     sigma: 0.0,
                 };
                 for ev in self.detector.add(obs) {
                     alarms.push(drift_alarm(ev, "isotropy classes", at));
                 }
+                if let Some(colour) = self.colour.as_mut() {
+                    colour.observe((key.0, key.1), (t0, xyz0), (t_h, xyz), at, alarms);
+                }
             }
             None => {
-                self.first_of_geometry.insert(key, (t_h, y));
+                self.first_of_geometry.insert(key, (t_h, xyz));
             }
         }
+    }
+
+    /// The lamp's colour drift estimate, once both fits have one.
+    pub(super) fn colour_estimate(&self) -> Option<ColourDriftEstimate> {
+        self.colour.as_ref()?.estimate
+    }
+
+    /// ln(X/Y) and ln(Z/Y) of the lamp's colour change at `t_h`, once estimated.
+    pub(super) fn ln_chromaticity_at(&self, t_h: f64) -> Option<[f64; 2]> {
+        self.colour.as_ref()?.ln_chromaticity_at(t_h)
     }
 
     /// A gain step found by the light sweeps, starting at `t_s`, becomes a step term.

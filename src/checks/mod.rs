@@ -18,6 +18,7 @@
 mod capture;
 mod drift;
 mod isotropy;
+pub mod observability;
 mod pairs;
 pub mod records;
 #[cfg(test)]
@@ -38,6 +39,7 @@ use crate::measure::probes::{ProbeDrift, ProbeSpec};
 use crate::measure::sweeps::{SweepCapture, SweepMonitor, SweepRecord, SweepSpec, SweepSummary};
 use capture::{CaptureStage, Measured, Verdict};
 use drift::{drift_alarm, DriftStage};
+pub use drift::{ColourDriftEstimate, ColourDriftSpec};
 use isotropy::IsotropyStage;
 use pairs::PairStage;
 use serde::{Deserialize, Serialize};
@@ -69,6 +71,8 @@ pub struct CheckSpec {
     pub failures_critical: u32,
     /// Light-sweep checks: gain level shifts and joint offsets (isotropic samples).
     pub sweeps: SweepSpec,
+    /// The lamp's colour drift from isotropy classes (isotropic samples).
+    pub colour_drift: ColourDriftSpec,
 }
 
 impl Default for CheckSpec {
@@ -85,6 +89,7 @@ impl Default for CheckSpec {
             dark_y: 0.5,
             failures_critical: 5,
             sweeps: SweepSpec::default(),
+            colour_drift: ColourDriftSpec::default(),
         }
     }
 }
@@ -268,7 +273,7 @@ impl Checker {
             capture: CaptureStage::default(),
             pairs: PairStage::default(),
             isotropy: isotropic.then(IsotropyStage::default),
-            drift: isotropic.then(DriftStage::new),
+            drift: isotropic.then(|| DriftStage::new(&spec.colour_drift)),
             sweeps,
             probes_enabled: probes.every > 0,
             probes: ProbeDrift::new(probes),
@@ -380,7 +385,7 @@ impl Checker {
             if let Some(drift) = self.drift.as_mut() {
                 let key = ctx.geometry_key(m.light, m.camera);
                 let at = (Some(input.idx), Some(input.t));
-                drift.observe(key, input.t, c.xyz[1], at, &mut out.alarms);
+                drift.observe(key, input.t, c.xyz, at, &mut out.alarms);
                 if let Some(sweeps) = self.sweeps.as_mut() {
                     sweeps.add(SweepCapture {
                         idx: input.idx,
@@ -476,6 +481,21 @@ impl Checker {
         self.sweeps.as_ref().map(|m| m.summary())
     }
 
+    /// What this session's detectors watch and cannot see (sample, order, probes, sweeps).
+    pub fn observability(&self) -> observability::Observability {
+        observability::observability(
+            self.isotropy.is_some(),
+            self.probes_enabled,
+            self.plan.order(),
+            self.spec.sweeps.enabled,
+        )
+    }
+
+    /// The lamp's colour drift from isotropy classes (isotropic samples), once estimated.
+    pub fn colour_drift(&self) -> Option<ColourDriftEstimate> {
+        self.drift.as_ref().and_then(|d| d.colour_estimate())
+    }
+
     /// The gain drift estimate from isotropy classes (isotropic samples), once there are enough.
     pub fn isotropy_drift(&self) -> Option<DriftEstimate> {
         self.drift.as_ref().and_then(|d| d.estimate())
@@ -545,10 +565,19 @@ fn gain_correction(
         let (ln_g, sigma) = drift?.ln_gain_at(t_h)?;
         (ln_g.exp(), sigma, "isotropy classes")
     };
-    (gain > 0.0 && gain.is_finite()).then(|| GainCorrected {
-        xyz: [xyz[0] / gain, xyz[1] / gain, xyz[2] / gain],
+    if !(gain > 0.0 && gain.is_finite()) {
+        return None;
+    }
+    // the lamp's colour, where it is estimated, leaves X and Z as well
+    let colour = drift
+        .and_then(|d| d.ln_chromaticity_at(t_h))
+        .filter(|c| c.iter().all(|v| v.is_finite()));
+    let [cx, cz] = colour.map_or([1.0, 1.0], |[u, v]| [u.exp(), v.exp()]);
+    Some(GainCorrected {
+        xyz: [xyz[0] / gain / cx, xyz[1] / gain, xyz[2] / gain / cz],
         gain,
         sigma_rel,
         source: source.into(),
+        colour,
     })
 }

@@ -347,3 +347,108 @@ fn encoder_episodes_are_kept_per_axis() {
         .collect();
     assert_eq!(open, ["\"joint 1\"", "\"joint 2\""]);
 }
+
+/// The UBO session under a lamp whose colour temperature moves by `k_per_h` from 3000 K (the
+/// lamp model's chromaticity change applied in XYZ, the luminance kept).
+fn colour_drift_session(upto: usize, k_per_h: f64) -> Vec<CaptureInput> {
+    use crate::measure::colour::{RgbPrimaries, RgbToXyz};
+    use crate::measure::lamp::LampColour;
+    use nalgebra::Matrix3;
+    let model = LampColour::new(3000.0).unwrap();
+    let m = Matrix3::from_row_slice(&RgbToXyz::new(RgbPrimaries::default()).matrix().concat());
+    let inv = m.try_inverse().unwrap();
+    let mut v = ubo_session(upto, |_| 1.0);
+    for input in &mut v {
+        let [du, dv] = model.log_chromaticity(3000.0 + k_per_h * input.t / 3600.0);
+        let d = Matrix3::from_diagonal(&nalgebra::Vector3::new(du.exp(), 1.0, dv.exp()));
+        let t = inv * d * m;
+        if let Outcome::Ok { stats, .. } = &mut input.outcome {
+            let rgb = t * nalgebra::Vector3::from(stats.mean_rgb);
+            stats.mean_rgb = [rgb[0], rgb[1], rgb[2]];
+        }
+    }
+    v
+}
+
+#[test]
+fn isotropy_classes_give_the_lamp_colour_drift_in_kelvin_per_hour_and_the_corrected_colour() {
+    // −20 K/h from 3000 K over 3,000 captures (5.8 h)
+    let mut ch = checker();
+    let (mut colour, mut gain) = (Vec::new(), 0);
+    let mut last = None;
+    for input in colour_drift_session(3000, -20.0) {
+        let out = ch.check(&input);
+        for a in out.alarms {
+            match a.code.as_str() {
+                "colour-drift" => colour.push(a),
+                "gain-drift" | "gain-step" => gain += 1,
+                _ => {}
+            }
+        }
+        last = out.capture;
+    }
+    let e = ch.colour_drift().unwrap();
+    // the fit is linear in time, the model's chromaticity slightly curved: within 3 %
+    assert!((e.k_per_h + 20.0).abs() < 0.6, "{e:?}");
+    assert!(e.se_k_per_h > 0.0 && e.se_k_per_h < 1.0, "{e:?}");
+    assert!(e.de00_per_h > 0.0 && e.x_rate_pct_per_h > 0.0 && e.z_rate_pct_per_h < 0.0);
+    assert_eq!(colour.len(), 1, "{colour:?}");
+    assert!(colour[0].message.contains("K/h") && colour[0].message.contains("redder"));
+    // the lamp's luminance did not move: no gain alarm
+    assert_eq!(gain, 0);
+    assert!(ch.isotropy_drift().unwrap().rate_pct_per_h.abs() < 0.05);
+    // the last capture with the colour divided out is the undrifted one
+    let c = last.unwrap();
+    let g = c.gain_corrected.unwrap();
+    assert!(g.colour.is_some());
+    let undrifted = ubo_session(3000, |_| 1.0).pop().unwrap();
+    let want = ubo_checker_xyz(&undrifted);
+    for k in 0..3 {
+        assert!(
+            (g.xyz[k] / want[k] - 1.0).abs() < 0.005,
+            "{k}: {:?} vs {want:?}",
+            g.xyz
+        );
+    }
+    // and the uncorrected colour is visibly off
+    let raw = c.xyz.unwrap();
+    assert!((raw[2] / want[2] - 1.0).abs() > 0.02, "{raw:?} vs {want:?}");
+}
+
+/// The XYZ the checker computes for an input (the fixture's colour settings).
+fn ubo_checker_xyz(input: &CaptureInput) -> [f64; 3] {
+    let mut ch = checker();
+    ch.check(input).capture.unwrap().xyz.unwrap()
+}
+
+#[test]
+fn a_steady_lamp_or_a_luminance_decay_raises_no_colour_drift() {
+    for gain in [0.0, -0.01] {
+        let mut ch = checker();
+        let mut n = 0;
+        for input in ubo_session(3000, |t| (gain * t).exp()) {
+            n += ch
+                .check(&input)
+                .alarms
+                .iter()
+                .filter(|a| a.code.starts_with("colour-drift"))
+                .count();
+        }
+        assert_eq!(n, 0);
+        let e = ch.colour_drift().unwrap();
+        assert!(e.k_per_h.abs() < 0.5, "{gain}: {e:?}");
+    }
+    // an anisotropic sample has no isotropy classes: no colour estimate
+    let mut ch = Checker::new(
+        SamplingPlan::ubo(),
+        Rig::new(RigSpec::default()).unwrap(),
+        crate::fixtures::ubo_colour(),
+        CheckSpec::default(),
+        false,
+        crate::measure::probes::ProbeSpec::default(),
+    );
+    for input in colour_drift_session(1000, -50.0) {
+        ch.check(&input);
+    }
+    assert!(ch.colour_drift().is_none());
+}

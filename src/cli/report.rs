@@ -464,6 +464,62 @@ fn drift_plot(inp: &ReportInputs) -> String {
     p.finish()
 }
 
+/// The lamp's chromaticity change as known at each capture's time (what the corrected output
+/// divides out): (hours, ln X/Y, ln Z/Y), thinned to about 400 points.
+fn colour_curve(inp: &ReportInputs) -> Vec<(f64, f64, f64)> {
+    let all: Vec<(f64, f64, f64)> = inp
+        .captures
+        .iter()
+        .filter(|c| !c.probe)
+        .filter_map(|c| {
+            let [u, v] = c.gain_corrected.as_ref()?.colour?;
+            (u.is_finite() && v.is_finite()).then_some((c.t / 3600.0, u, v))
+        })
+        .collect();
+    thin(all, 400)
+}
+
+/// The chromaticity drift over the run: ln(X/Y) (red) and ln(Z/Y) (blue) of the lamp against
+/// the start, in %, with the alarms on the time axis.
+fn colour_plot(inp: &ReportInputs) -> String {
+    let pts = colour_curve(inp);
+    let t_end = end_hours(inp);
+    let lo = pts.iter().flat_map(|p| [p.1, p.2]).fold(0.0f64, f64::min) * 100.0;
+    let hi = pts.iter().flat_map(|p| [p.1, p.2]).fold(0.0f64, f64::max) * 100.0;
+    let pad = ((hi - lo) * 0.1).max(0.2);
+    let mut p = Plot::new(
+        720.0,
+        220.0,
+        (0.0, t_end),
+        (lo - pad, hi + pad),
+        "controller time [h]",
+        "chromaticity change [%]",
+    );
+    for (k, colour, what) in [(1, "#c62828", "ln X/Y"), (2, "#1f5fa8", "ln Z/Y")] {
+        let line: Vec<String> = pts
+            .iter()
+            .map(|q| {
+                let v = if k == 1 { q.1 } else { q.2 };
+                format!("{:.1},{:.1}", p.sx(q.0), p.sy(100.0 * v))
+            })
+            .collect();
+        let _ = write!(
+            p.svg,
+            r##"<polyline points="{}" fill="none" stroke="{colour}" stroke-width="2"><title>{what} of the lamp against the start, as known at each capture</title></polyline>"##,
+            line.join(" ")
+        );
+    }
+    let y0 = p.sy(0.0);
+    let _ = write!(
+        p.svg,
+        r##"<line x1="{:.1}" y1="{y0:.1}" x2="{:.1}" y2="{y0:.1}" stroke="#8a96a3" stroke-dasharray="4 3"/>"##,
+        p.sx(0.0),
+        p.sx(t_end)
+    );
+    alarm_ticks(&mut p, inp.alarms.iter());
+    p.finish()
+}
+
 /// A tick per alarm on a time plot's axis (controller hours), coloured by severity, with the
 /// message as its tooltip.
 fn alarm_ticks<'a>(p: &mut Plot, alarms: impl Iterator<Item = &'a Alarm>) {
@@ -709,6 +765,19 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
     h.push_str("<h3>Distribution</h3><p class=muted>Bars: exact pairs; orange marks: substitutes against their interpolated partner.</p>");
     h.push_str(&histogram(inp));
 
+    if !s.observability.blind.is_empty() {
+        h.push_str("<h2>What this session could not see</h2><ul>");
+        for b in &s.observability.blind {
+            let _ = write!(
+                h,
+                "<li><b>{}</b>: {}. To observe it: {}.</li>",
+                esc(&b.what),
+                esc(&b.why),
+                esc(&b.remedy)
+            );
+        }
+        h.push_str("</ul>");
+    }
     let _ = write!(h, "<h2>Gain drift</h2>");
     if let Some(d) = &s.isotropy_drift {
         let _ = write!(h, "<p>From {} isotropy comparisons (each capture against the first capture of the same geometry): <b>{:+.3} ± {:.3} %/h</b> (standard error; a rate over the whole run: steps are not in it). captures.csv carries every capture's colour with the drift known at its time divided out.</p>", d.pairs, d.rate_pct_per_h, d.se_pct_per_h);
@@ -721,6 +790,12 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
         None => h.push_str("<p>No gain estimate: drift probes were off (`[probes] every`) or too few, and the isotropy classes gave none (they need an isotropic sample and repeated geometries). Ticks on the time axis are the alarms.</p>"),
     }
     h.push_str(&drift_plot(inp));
+
+    if let Some(c) = &s.colour_drift {
+        let _ = write!(h, "<h2>Lamp colour</h2><p>From {} isotropy comparisons, the chromaticity of the same geometry over time (ln X/Y and ln Z/Y, each a rate fit like the gain's), read through a black-body lamp at {:.0} K: <b>{:+.1} ± {:.1} K/h</b> (standard error; negative is redder), ΔE00 {:.3} per hour on a white. The corrected colours in captures.csv have this drift divided out of X and Z. The lines are the chromaticity change as known at each capture's time (red ln X/Y, blue ln Z/Y); ticks are the alarms.</p>",
+            c.observations, c.lamp_cct_k, c.k_per_h, c.se_k_per_h, c.de00_per_h);
+        h.push_str(&colour_plot(inp));
+    }
 
     if !inp.sweeps.is_empty() {
         let last = inp.sweeps.last();

@@ -79,6 +79,20 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
             )?;
         }
     }
+    for b in &s.observability.blind {
+        writeln!(
+            out,
+            "not observable: {} ({}); to observe it: {}",
+            b.what, b.why, b.remedy
+        )?;
+    }
+    if let Some(c) = &s.colour_drift {
+        writeln!(
+            out,
+            "lamp colour drift from isotropy classes: {:+.1} K/h ± {:.1} (standard error; ΔE00 {:.3}/h on a white; lamp at {:.0} K, {} comparisons)",
+            c.k_per_h, c.se_k_per_h, c.de00_per_h, c.lamp_cct_k, c.observations
+        )?;
+    }
     if let Some(sw) = &s.sweeps {
         match &sw.last {
             Some(r) => {

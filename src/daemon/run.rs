@@ -330,6 +330,14 @@ async fn start(
     } else {
         crate::engine::Engine::from_config(cfg)?
     };
+    // what no detector of this session looks at, said before the run, not after it
+    for b in engine.summary().observability.blind {
+        tracing::warn!(what = %b.what, "not observable in this session: {}; {}", b.why, b.remedy);
+        eprintln!(
+            "goniowatch: not observable in this session: {} ({}); to observe it: {}",
+            b.what, b.why, b.remedy
+        );
+    }
     let results = Results::open(&session.dir, !session.resumed)?;
     let journal = JsonlFile::append(&session.dir.join("journal.jsonl"))?;
 

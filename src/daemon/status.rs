@@ -342,6 +342,23 @@ pub fn metrics(s: &Snapshot) -> String {
             d.se_pct_per_h,
         );
     }
+    if let Some(c) = &s.summary.colour_drift {
+        g(
+            "colour_drift_k_per_h",
+            "The lamp's colour-temperature drift estimated from isotropy classes (K/h).",
+            c.k_per_h,
+        );
+        g(
+            "colour_drift_se_k_per_h",
+            "Standard error of that rate (K/h).",
+            c.se_k_per_h,
+        );
+        g(
+            "colour_drift_de00_per_h",
+            "ΔE00 per hour of a white surface at that rate.",
+            c.de00_per_h,
+        );
+    }
     if let Some(sw) = &s.summary.sweeps {
         g(
             "sweeps_tested",

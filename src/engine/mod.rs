@@ -96,6 +96,12 @@ pub struct Summary {
     /// Gain drift estimate from isotropy classes (isotropic samples).
     #[serde(default)]
     pub isotropy_drift: Option<crate::measure::drift::DriftEstimate>,
+    /// The lamp's colour drift from isotropy classes (isotropic samples).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub colour_drift: Option<crate::checks::ColourDriftEstimate>,
+    /// What the session's detectors watch and cannot see, with remedies.
+    #[serde(default)]
+    pub observability: crate::checks::observability::Observability,
     /// Gain steps the light sweeps found, as fitted in the isotropy drift model.
     #[serde(default)]
     pub isotropy_steps: Vec<crate::measure::drift::StepEffect>,
@@ -270,6 +276,8 @@ impl Engine {
             interpolated: self.checker.interpolated_table().clone(),
             probe_drift: self.checker.probe_drift(),
             isotropy_drift: self.checker.isotropy_drift(),
+            colour_drift: self.checker.colour_drift(),
+            observability: self.checker.observability(),
             isotropy_steps: self.checker.isotropy_steps(),
             sweeps: self.checker.sweeps(),
             alarms: self.alarm_book.counts().clone(),

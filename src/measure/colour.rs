@@ -65,6 +65,8 @@ pub enum ColourError {
     SingularMatrix,
     #[error("chromaticity must satisfy 0 < y and x + y ≤ 1, got ({x}, {y})")]
     BadChromaticity { x: f64, y: f64 },
+    #[error("a lamp colour temperature of {kelvin} K is outside 1000–20,000 K")]
+    BadTemperature { kelvin: f64 },
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -12,6 +12,7 @@ pub mod crossval;
 pub mod drift;
 pub mod geometry;
 pub mod kinematics;
+pub mod lamp;
 pub mod plan;
 pub mod probes;
 pub mod reciprocity;

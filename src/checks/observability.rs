@@ -1,0 +1,162 @@
+//! What the checks can and cannot see for a session's sample, plan and probes: a pure function
+//! of the configuration, said at the start (the daemon's log), in the summary, on the status page
+//! and in the report, each blind spot with why and what would make it observable. An operator
+//! must not read "no alarm" as "no drift" where no detector looks.
+
+use crate::measure::plan::AcquisitionOrder;
+use serde::{Deserialize, Serialize};
+
+/// A drift or fault the session cannot observe.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BlindSpot {
+    pub what: String,
+    pub why: String,
+    /// What would make it observable.
+    pub remedy: String,
+}
+
+/// The session's detectors and blind spots.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Observability {
+    /// What is watched, and from what.
+    pub watched: Vec<String>,
+    pub blind: Vec<BlindSpot>,
+}
+
+fn blind(what: &str, why: &str, remedy: &str) -> BlindSpot {
+    BlindSpot {
+        what: what.into(),
+        why: why.into(),
+        remedy: remedy.into(),
+    }
+}
+
+/// The detectors a session runs and what they cannot see: `isotropic` as declared in
+/// `[sample]`, `probes` whether drift probes are enabled, `sweeps` whether the light-sweep
+/// checks are enabled in the config.
+pub fn observability(
+    isotropic: bool,
+    probes: bool,
+    order: AcquisitionOrder,
+    sweeps: bool,
+) -> Observability {
+    let light_outer = !matches!(order, AcquisitionOrder::CameraOuter);
+    let sweeps_run = isotropic && sweeps && light_outer;
+    let mut o = Observability::default();
+    o.watched.push(
+        "each capture's pose: encoders against the command and the plan, on every axis".into(),
+    );
+    o.watched
+        .push("reciprocity of every exact pair (Table 2) and capture quality".into());
+    if probes {
+        o.watched
+            .push("the lamp's gain: rate and steps, from the drift probes".into());
+    }
+    if isotropic {
+        o.watched.push(
+            "the lamp's gain rate and colour (K/h), from isotropy classes (the same geometry at other times)"
+                .into(),
+        );
+    }
+    if sweeps_run {
+        o.watched.push(
+            "gain steps and arm joints 1 and 2, from the light sweeps (each light direction against the earlier ones)"
+                .into(),
+        );
+    }
+    let probes_remedy =
+        "enable drift probes ([probes] every = N): a re-capture of one pose every N captures";
+    if !isotropic {
+        let why = "the sample is declared anisotropic ([sample] isotropic = false): it has no isotropy classes, and in a light-outer order a linear drift is confounded with the per-direction non-reciprocity of reciprocal pairs (measure::drift)";
+        if !probes {
+            o.blind.push(blind(
+                "the lamp's gain drift (rate and steps)",
+                why,
+                probes_remedy,
+            ));
+        }
+        o.blind.push(blind(
+            "the lamp's colour drift",
+            why,
+            if probes {
+                "the probes watch luminance only; a colour reference (a white tile in the field of view) would show it"
+            } else {
+                "drift probes watch the gain; a colour reference (a white tile in the field of view) would show the colour"
+            },
+        ));
+        o.blind.push(blind(
+            "arm joints 1, 2 and 3 slipping without the encoders seeing it",
+            "the light sweeps compare repeated geometry, which an anisotropic sample does not have",
+            "none from the images alone; check the sample's mount and the encoders",
+        ));
+    } else {
+        // (arm joint 3 turns an isotropic sample about its normal, which does not change its
+        // data: not a blind spot that matters)
+        if !sweeps_run {
+            o.blind.push(blind(
+                "gain steps and arm joints 1 and 2 slipping without the encoders seeing it",
+                if light_outer {
+                    "the light-sweep checks are off ([checks.sweeps] enabled = false)"
+                } else {
+                    "the light sweeps need a light-outer acquisition order"
+                },
+                if probes {
+                    "the probes still see gain steps; for the joints, a light-outer order with the sweeps on"
+                } else {
+                    "a light-outer order with the sweeps on, or drift probes for the gain steps"
+                },
+            ));
+        }
+        if !probes && !sweeps_run {
+            o.blind.push(blind(
+                "lamp gain steps",
+                "isotropy classes give a rate only (their observations are too correlated in time for a step test)",
+                probes_remedy,
+            ));
+        }
+    }
+    o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_isotropic_light_outer_session_has_no_blind_spot() {
+        let o = observability(true, false, AcquisitionOrder::LightOuter, true);
+        assert!(o.blind.is_empty(), "{o:?}");
+        assert!(o.watched.iter().any(|w| w.contains("colour")));
+        assert!(o.watched.iter().any(|w| w.contains("joints 1 and 2")));
+    }
+
+    #[test]
+    fn an_anisotropic_sample_without_probes_says_the_lamp_is_unwatched_and_how_to_watch_it() {
+        let o = observability(false, false, AcquisitionOrder::LightOuter, true);
+        let gain = o
+            .blind
+            .iter()
+            .find(|b| b.what.contains("gain drift"))
+            .unwrap();
+        assert!(gain.remedy.contains("[probes] every"));
+        assert!(o.blind.iter().any(|b| b.what.contains("colour")));
+        assert!(!o.watched.iter().any(|w| w.contains("lamp")));
+        // with probes the gain is watched, the colour still not
+        let o = observability(false, true, AcquisitionOrder::LightOuter, true);
+        assert!(!o.blind.iter().any(|b| b.what.contains("gain drift")));
+        assert!(o.blind.iter().any(|b| b.what.contains("colour")));
+        assert!(o.watched.iter().any(|w| w.contains("probes")));
+    }
+
+    #[test]
+    fn a_camera_outer_order_loses_the_sweeps() {
+        let o = observability(true, false, AcquisitionOrder::CameraOuter, true);
+        assert!(o
+            .blind
+            .iter()
+            .any(|b| b.what.contains("joints 1 and 2") && b.why.contains("light-outer")));
+        assert!(o.blind.iter().any(|b| b.what == "lamp gain steps"));
+        let o = observability(true, true, AcquisitionOrder::CameraOuter, true);
+        assert!(!o.blind.iter().any(|b| b.what == "lamp gain steps"));
+    }
+}
