@@ -47,7 +47,7 @@ def test_a_lamp_colour_drift_is_caught_in_kelvin_per_hour_and_divided_out(hil, t
     s = json.load(open(session / "summary.json"))
     c = s["colour_drift"]
     assert abs(c["k_per_h"] + 40.0) < 10.0 and c["de00_per_h"] > 0, c
-    assert "lamp colour drift from isotropy classes" in out
+    assert c["source"] == "isotropy classes" and "lamp colour drift from isotropy classes" in out
     # the chromaticity change divided out of the last capture is the lamp's, within 25 %: the
     # truth's colour temperature through the simulator's own lamp model, for a white
     import math

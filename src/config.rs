@@ -1133,7 +1133,12 @@ mod tests {
 
     #[test]
     fn the_shipped_configs_parse_and_keep_the_sweep_defaults() {
-        for name in ["ubo.toml", "sim.toml", "archive.toml"] {
+        for name in [
+            "ubo.toml",
+            "sim.toml",
+            "archive.toml",
+            "sim-anisotropic.toml",
+        ] {
             let path = format!("{}/config/{name}", env!("CARGO_MANIFEST_DIR"));
             let c = Config::from_toml_str(&std::fs::read_to_string(path).unwrap()).unwrap();
             assert_eq!(c.checks.sweeps, Default::default(), "{name}");

@@ -47,9 +47,11 @@ impl Default for ColourDriftSpec {
     }
 }
 
-/// The lamp's colour drift as estimated from isotropy classes.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// The lamp's colour drift as estimated from isotropy classes or probes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ColourDriftEstimate {
+    /// `isotropy classes` or `probes`.
+    pub source: String,
     /// Observations in each of the two rate fits.
     pub observations: usize,
     /// The lamp model's reference colour temperature (K).
@@ -66,8 +68,9 @@ pub struct ColourDriftEstimate {
     pub z_se_pct_per_h: f64,
 }
 
-/// Two rate fits on the log-chromaticities and the alarm state.
-struct ColourStage {
+/// Two rate fits on the log-chromaticities and the alarm state, for one source.
+pub(super) struct ColourStage {
+    source: &'static str,
     spec: ColourDriftSpec,
     model: LampColour,
     /// ln(X/Y) and ln(Z/Y).
@@ -91,16 +94,18 @@ fn isotropy_drift_spec() -> DriftSpec {
 }
 
 impl ColourStage {
-    fn new(spec: ColourDriftSpec) -> Option<Self> {
+    /// The colour fits for `source`, with the fits' model `fits` (its own rate alarm is
+    /// switched off: the colour alarm is decided on the combined rate).
+    fn new(source: &'static str, spec: ColourDriftSpec, fits: DriftSpec) -> Option<Self> {
         // the config's range check keeps the temperature valid; a model that cannot be built
         // leaves the colour check out rather than the session
         let model = LampColour::new(spec.lamp_cct_k).ok()?;
         let quiet = DriftSpec {
-            // the colour alarm is decided on the combined rate, not by either fit
             rate_tolerance_pct_per_h: f64::INFINITY,
-            ..isotropy_drift_spec()
+            ..fits
         };
         Some(ColourStage {
+            source,
             spec,
             model,
             fits: [DriftDetector::new(quiet.clone()), DriftDetector::new(quiet)],
@@ -110,8 +115,28 @@ impl ColourStage {
         })
     }
 
-    /// One capture against the first of its geometry (`first` and `now` are (hours, XYZ)).
-    fn observe(
+    /// The colour fits of the drift probes: one geometry (the probe pose), so one bucket, a
+    /// refit at every probe once there are `min_probes`.
+    pub(super) fn probes(spec: &ColourDriftSpec, min_probes: usize) -> Option<Self> {
+        Self::new(
+            "probes",
+            spec.clone(),
+            DriftSpec {
+                min_pairs: min_probes.max(3),
+                refit_every: 1,
+                step_detection: false,
+                ..DriftSpec::default()
+            },
+        )
+    }
+
+    pub(super) fn estimate(&self) -> Option<ColourDriftEstimate> {
+        self.estimate.clone()
+    }
+
+    /// One capture against an earlier one of the same geometry (`first` and `now` are (hours,
+    /// XYZ)).
+    pub(super) fn observe(
         &mut self,
         bucket: (i64, i64),
         first: (f64, Xyz),
@@ -155,6 +180,7 @@ impl ColourStage {
             .map(|w| self.model.delta_e00_per_h(rate.k_per_h, w))
             .unwrap_or(f64::NAN);
         let e = ColourDriftEstimate {
+            source: self.source.into(),
             observations: u.pairs,
             lamp_cct_k: self.model.reference_k(),
             k_per_h: rate.k_per_h,
@@ -165,7 +191,7 @@ impl ColourStage {
             z_rate_pct_per_h: v.rate_pct_per_h,
             z_se_pct_per_h: v.se_pct_per_h,
         };
-        self.estimate = Some(e);
+        self.estimate = Some(e.clone());
         let (tol, z) = (self.spec.tolerance_k_per_h, self.spec.z);
         if !self.alarm && e.k_per_h.abs() - z * e.se_k_per_h > tol {
             self.alarm = true;
@@ -178,8 +204,8 @@ impl ColourStage {
                     Severity::Info,
                     "colour-drift-cleared",
                     format!(
-                        "the lamp's colour drift estimate is back within the tolerance: {:+.1} ± {:.1} K/h (isotropy classes)",
-                        e.k_per_h, e.se_k_per_h
+                        "the lamp's colour drift estimate is back within the tolerance: {:+.1} ± {:.1} K/h ({})",
+                        e.k_per_h, e.se_k_per_h, e.source
                     ),
                 )
                 .at(at.0, at.1),
@@ -191,8 +217,8 @@ impl ColourStage {
     /// lamp model at the estimated colour temperature then, which follows the curvature of the
     /// chromaticity in T (ln X/Y turns over near 3500 K) where a straight line per channel
     /// would not.
-    fn ln_chromaticity_at(&self, t_h: f64) -> Option<[f64; 2]> {
-        let e = self.estimate?;
+    pub(super) fn ln_chromaticity_at(&self, t_h: f64) -> Option<[f64; 2]> {
+        let e = self.estimate.as_ref()?;
         let c = self
             .model
             .log_chromaticity(self.model.reference_k() + e.k_per_h * t_h);
@@ -207,10 +233,11 @@ fn colour_alarm(e: &ColourDriftEstimate, at: (Option<u64>, Option<f64>)) -> Alar
         Severity::Warning,
         "colour-drift",
         format!(
-            "the lamp's colour drifts by {:+.1} K/h (± {:.1} K/h standard error, from {} isotropy comparisons; ΔE00 {:.2}/h on a white): {}; beyond the tolerance. The chromaticity of later captures is off by as much; let the lamp settle or check its supply, and the corrected output divides the drift out",
+            "the lamp's colour drifts by {:+.1} K/h (± {:.1} K/h standard error, from {} {}; ΔE00 {:.2}/h on a white): {}; beyond the tolerance. The chromaticity of later captures is off by as much; let the lamp settle or check its supply, and the corrected output divides the drift out",
             e.k_per_h,
             e.se_k_per_h,
             e.observations,
+            if e.source == "probes" { "probes" } else { "isotropy comparisons" },
             e.de00_per_h,
             if e.k_per_h < 0.0 { "cooler, redder light" } else { "hotter, bluer light" },
         ),
@@ -224,7 +251,7 @@ fn colour_alarm(e: &ColourDriftEstimate, at: (Option<u64>, Option<f64>)) -> Alar
         "x_rate_pct_per_h": e.x_rate_pct_per_h,
         "z_rate_pct_per_h": e.z_rate_pct_per_h,
         "n": e.observations,
-        "source": "isotropy classes",
+        "source": e.source,
     }))
 }
 
@@ -242,7 +269,7 @@ impl DriftStage {
     pub(super) fn new(colour: &ColourDriftSpec) -> Self {
         DriftStage {
             detector: DriftDetector::new(isotropy_drift_spec()),
-            colour: ColourStage::new(colour.clone()),
+            colour: ColourStage::new("isotropy classes", colour.clone(), isotropy_drift_spec()),
             first_of_geometry: HashMap::new(),
             interpolated: 0,
         }
@@ -283,7 +310,7 @@ impl DriftStage {
 
     /// The lamp's colour drift estimate, once both fits have one.
     pub(super) fn colour_estimate(&self) -> Option<ColourDriftEstimate> {
-        self.colour.as_ref()?.estimate
+        self.colour.as_ref()?.estimate()
     }
 
     /// ln(X/Y) and ln(Z/Y) of the lamp's colour change at `t_h`, once estimated.

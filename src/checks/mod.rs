@@ -251,6 +251,8 @@ pub struct Checker {
     /// Isotropic samples in a light-outer order only.
     sweeps: Option<SweepMonitor>,
     probes: ProbeDrift,
+    /// The lamp's colour from the probes (probes enabled).
+    probe_colour: Option<drift::ColourStage>,
     /// With drift probes enabled the sweeps' level test is left out: the probes see steps.
     probes_enabled: bool,
     alarms: u64,
@@ -276,6 +278,9 @@ impl Checker {
             drift: isotropic.then(|| DriftStage::new(&spec.colour_drift)),
             sweeps,
             probes_enabled: probes.every > 0,
+            probe_colour: (probes.every > 0)
+                .then(|| drift::ColourStage::probes(&spec.colour_drift, probes.min_probes))
+                .flatten(),
             probes: ProbeDrift::new(probes),
             plan,
             rig,
@@ -302,6 +307,7 @@ impl Checker {
                     &self.probes,
                     self.capture.probes,
                     self.drift.as_ref(),
+                    self.probe_colour.as_ref(),
                     input.t / 3600.0,
                     m.checked.xyz,
                 );
@@ -349,6 +355,15 @@ impl Checker {
                 .add(t0 / 3600.0, y0, input.t / 3600.0, m.checked.xyz[1])
             {
                 out.alarms.push(drift_alarm(ev, "probes", at));
+            }
+            if let Some(colour) = self.probe_colour.as_mut() {
+                colour.observe(
+                    (0, 0),
+                    (t0 / 3600.0, orig.xyz),
+                    (input.t / 3600.0, m.checked.xyz),
+                    at,
+                    &mut out.alarms,
+                );
             }
         }
     }
@@ -491,9 +506,13 @@ impl Checker {
         )
     }
 
-    /// The lamp's colour drift from isotropy classes (isotropic samples), once estimated.
+    /// The lamp's colour drift, once estimated: from isotropy classes (isotropic samples), else
+    /// from the probes.
     pub fn colour_drift(&self) -> Option<ColourDriftEstimate> {
-        self.drift.as_ref().and_then(|d| d.colour_estimate())
+        self.drift
+            .as_ref()
+            .and_then(|d| d.colour_estimate())
+            .or_else(|| self.probe_colour.as_ref().and_then(|c| c.estimate()))
     }
 
     /// The gain drift estimate from isotropy classes (isotropic samples), once there are enough.
@@ -552,6 +571,7 @@ fn gain_correction(
     probes: &ProbeDrift,
     probes_taken: u64,
     drift: Option<&DriftStage>,
+    probe_colour: Option<&drift::ColourStage>,
     t_h: f64,
     xyz: Xyz,
 ) -> Option<GainCorrected> {
@@ -571,6 +591,7 @@ fn gain_correction(
     // the lamp's colour, where it is estimated, leaves X and Z as well
     let colour = drift
         .and_then(|d| d.ln_chromaticity_at(t_h))
+        .or_else(|| probe_colour.and_then(|c| c.ln_chromaticity_at(t_h)))
         .filter(|c| c.iter().all(|v| v.is_finite()));
     let [cx, cz] = colour.map_or([1.0, 1.0], |[u, v]| [u.exp(), v.exp()]);
     Some(GainCorrected {

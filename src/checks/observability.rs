@@ -49,8 +49,9 @@ pub fn observability(
     o.watched
         .push("reciprocity of every exact pair (Table 2) and capture quality".into());
     if probes {
-        o.watched
-            .push("the lamp's gain: rate and steps, from the drift probes".into());
+        o.watched.push(
+            "the lamp's gain (rate and steps) and colour (K/h), from the drift probes".into(),
+        );
     }
     if isotropic {
         o.watched.push(
@@ -75,15 +76,10 @@ pub fn observability(
                 probes_remedy,
             ));
         }
-        o.blind.push(blind(
-            "the lamp's colour drift",
-            why,
-            if probes {
-                "the probes watch luminance only; a colour reference (a white tile in the field of view) would show it"
-            } else {
-                "drift probes watch the gain; a colour reference (a white tile in the field of view) would show the colour"
-            },
-        ));
+        if !probes {
+            o.blind
+                .push(blind("the lamp's colour drift", why, probes_remedy));
+        }
         o.blind.push(blind(
             "arm joints 1, 2 and 3 slipping without the encoders seeing it",
             "the light sweeps compare repeated geometry, which an anisotropic sample does not have",
@@ -141,11 +137,15 @@ mod tests {
         assert!(gain.remedy.contains("[probes] every"));
         assert!(o.blind.iter().any(|b| b.what.contains("colour")));
         assert!(!o.watched.iter().any(|w| w.contains("lamp")));
-        // with probes the gain is watched, the colour still not
+        // with probes the gain and the colour are watched; the joints still not
         let o = observability(false, true, AcquisitionOrder::LightOuter, true);
         assert!(!o.blind.iter().any(|b| b.what.contains("gain drift")));
-        assert!(o.blind.iter().any(|b| b.what.contains("colour")));
-        assert!(o.watched.iter().any(|w| w.contains("probes")));
+        assert!(!o.blind.iter().any(|b| b.what.contains("colour")));
+        assert!(o.blind.iter().any(|b| b.what.contains("joints 1, 2 and 3")));
+        assert!(o
+            .watched
+            .iter()
+            .any(|w| w.contains("probes") && w.contains("colour")));
     }
 
     #[test]

@@ -351,21 +351,9 @@ fn encoder_episodes_are_kept_per_axis() {
 /// The UBO session under a lamp whose colour temperature moves by `k_per_h` from 3000 K (the
 /// lamp model's chromaticity change applied in XYZ, the luminance kept).
 fn colour_drift_session(upto: usize, k_per_h: f64) -> Vec<CaptureInput> {
-    use crate::measure::colour::{RgbPrimaries, RgbToXyz};
-    use crate::measure::lamp::LampColour;
-    use nalgebra::Matrix3;
-    let model = LampColour::new(3000.0).unwrap();
-    let m = Matrix3::from_row_slice(&RgbToXyz::new(RgbPrimaries::default()).matrix().concat());
-    let inv = m.try_inverse().unwrap();
     let mut v = ubo_session(upto, |_| 1.0);
     for input in &mut v {
-        let [du, dv] = model.log_chromaticity(3000.0 + k_per_h * input.t / 3600.0);
-        let d = Matrix3::from_diagonal(&nalgebra::Vector3::new(du.exp(), 1.0, dv.exp()));
-        let t = inv * d * m;
-        if let Outcome::Ok { stats, .. } = &mut input.outcome {
-            let rgb = t * nalgebra::Vector3::from(stats.mean_rgb);
-            stats.mean_rgb = [rgb[0], rgb[1], rgb[2]];
-        }
+        input.outcome = recolour(input, input.t, k_per_h);
     }
     v
 }
@@ -451,4 +439,70 @@ fn a_steady_lamp_or_a_luminance_decay_raises_no_colour_drift() {
         ch.check(&input);
     }
     assert!(ch.colour_drift().is_none());
+}
+
+#[test]
+fn probes_give_the_lamp_colour_drift_on_an_anisotropic_sample() {
+    // an anisotropic sample (no isotropy classes) with a probe of entry 50 after every 100
+    // captures, the lamp cooling by 40 K/h
+    let probes = crate::measure::probes::ProbeSpec {
+        every: 100,
+        ..Default::default()
+    };
+    let mut ch = Checker::new(
+        SamplingPlan::ubo(),
+        Rig::new(RigSpec::default()).unwrap(),
+        crate::fixtures::ubo_colour(),
+        CheckSpec::default(),
+        false,
+        probes,
+    );
+    let regular = colour_drift_session(3000, -40.0);
+    // the probe's reading at time t is entry 50's reading under the lamp then
+    let undrifted = ubo_session(51, |_| 1.0).pop().unwrap();
+    let (mut idx, mut alarms) = (0_u64, Vec::new());
+    for (k, mut input) in regular.into_iter().enumerate() {
+        input.idx = idx;
+        idx += 1;
+        alarms.extend(ch.check(&input).alarms);
+        if k > 50 && k % 100 == 0 {
+            let mut p = undrifted.clone();
+            p.idx = idx;
+            p.t = input.t + 3.0;
+            p.probe = true;
+            p.outcome = recolour(&undrifted, p.t, -40.0);
+            idx += 1;
+            alarms.extend(ch.check(&p).alarms);
+        }
+    }
+    assert!(ch.isotropy_drift().is_none());
+    let e = ch.colour_drift().unwrap();
+    assert_eq!(e.source, "probes");
+    assert!((e.k_per_h + 40.0).abs() < 4.0, "{e:?}");
+    let colour: Vec<_> = alarms.iter().filter(|a| a.code == "colour-drift").collect();
+    assert_eq!(colour.len(), 1, "{colour:?}");
+    assert!(colour[0].message.contains("probes"));
+    assert!(!ch
+        .observability()
+        .blind
+        .iter()
+        .any(|b| b.what.contains("colour")));
+}
+
+/// The outcome of `input` under a lamp moving by `k_per_h` from 3000 K, at time `t_s`: the lamp
+/// model's chromaticity change applied in XYZ, the luminance kept.
+fn recolour(input: &CaptureInput, t_s: f64, k_per_h: f64) -> Outcome {
+    use crate::measure::colour::{RgbPrimaries, RgbToXyz};
+    use nalgebra::{Matrix3, Vector3};
+    let model = crate::measure::lamp::LampColour::new(3000.0).unwrap();
+    let m = Matrix3::from_row_slice(&RgbToXyz::new(RgbPrimaries::default()).matrix().concat());
+    let [du, dv] = model.log_chromaticity(3000.0 + k_per_h * t_s / 3600.0);
+    let d = Matrix3::from_diagonal(&Vector3::new(du.exp(), 1.0, dv.exp()));
+    let t = m.try_inverse().unwrap() * d * m;
+    let mut outcome = input.outcome.clone();
+    if let Outcome::Ok { stats, .. } = &mut outcome {
+        let rgb = t * Vector3::from(stats.mean_rgb);
+        stats.mean_rgb = [rgb[0], rgb[1], rgb[2]];
+    }
+    outcome
 }

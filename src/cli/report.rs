@@ -792,8 +792,8 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
     h.push_str(&drift_plot(inp));
 
     if let Some(c) = &s.colour_drift {
-        let _ = write!(h, "<h2>Lamp colour</h2><p>From {} isotropy comparisons, the chromaticity of the same geometry over time (ln X/Y and ln Z/Y, each a rate fit like the gain's), read through a black-body lamp at {:.0} K: <b>{:+.1} ± {:.1} K/h</b> (standard error; negative is redder), ΔE00 {:.3} per hour on a white. The corrected colours in captures.csv have this drift divided out of X and Z. The lines are the chromaticity change as known at each capture's time (red ln X/Y, blue ln Z/Y); ticks are the alarms.</p>",
-            c.observations, c.lamp_cct_k, c.k_per_h, c.se_k_per_h, c.de00_per_h);
+        let _ = write!(h, "<h2>Lamp colour</h2><p>From {} observations ({}: the same geometry at other times), the chromaticity over time (ln X/Y and ln Z/Y, each a rate fit like the gain's), read through a black-body lamp at {:.0} K: <b>{:+.1} ± {:.1} K/h</b> (standard error; negative is redder), ΔE00 {:.3} per hour on a white. The corrected colours in captures.csv have this drift divided out of X and Z. The lines are the chromaticity change as known at each capture's time (red ln X/Y, blue ln Z/Y); ticks are the alarms.</p>",
+            c.observations, esc(&c.source), c.lamp_cct_k, c.k_per_h, c.se_k_per_h, c.de00_per_h);
         h.push_str(&colour_plot(inp));
     }
 

@@ -89,8 +89,8 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
     if let Some(c) = &s.colour_drift {
         writeln!(
             out,
-            "lamp colour drift from isotropy classes: {:+.1} K/h ± {:.1} (standard error; ΔE00 {:.3}/h on a white; lamp at {:.0} K, {} comparisons)",
-            c.k_per_h, c.se_k_per_h, c.de00_per_h, c.lamp_cct_k, c.observations
+            "lamp colour drift from {}: {:+.1} K/h ± {:.1} (standard error; ΔE00 {:.3}/h on a white; lamp at {:.0} K, {} observations)",
+            c.source, c.k_per_h, c.se_k_per_h, c.de00_per_h, c.lamp_cct_k, c.observations
         )?;
     }
     if let Some(sw) = &s.sweeps {
