@@ -114,6 +114,73 @@ pub struct PlanSummary {
     pub substitutes: Vec<SubstituteRecord>,
     /// Plan entries the rig cannot take at all (no substitute); empty on a sane rig.
     pub unreachable: Vec<(usize, String)>,
+    /// What reciprocal pairs alone tell about the lamp's drift, per acquisition order (the
+    /// configured one first), at 7 s per capture.
+    pub drift_from_pairs: Vec<OrderIdentifiability>,
+}
+
+/// `measure::identifiability` for one acquisition order.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OrderIdentifiability {
+    pub order: String,
+    /// Whether the config offers it (`[plan] order`).
+    pub configurable: bool,
+    #[serde(flatten)]
+    pub pairs: crate::measure::identifiability::PairIdentifiability,
+}
+
+/// The capture interval the identifiability figures assume (the UBO rig's, 7 s).
+const SECONDS_PER_CAPTURE: f64 = 7.0;
+
+/// Identifiability of the drift from the plan's reciprocal pairs under each order: the
+/// config's three and a light-outer order whose camera sweep starts at the light's own
+/// direction (a design that breaks the per-direction form of the pairs' time differences at no
+/// cost in wagon travel: one jump per sweep, as now).
+fn drift_from_pairs(
+    spec: &crate::measure::plan::PlanSpec,
+) -> Result<Vec<OrderIdentifiability>, crate::measure::plan::PlanError> {
+    use crate::measure::identifiability::pair_identifiability;
+    use crate::measure::plan::{AcquisitionOrder, PlanSpec, SamplingPlan};
+    let steps = [0.1, 0.25, 0.5, 0.75, 0.9];
+    let t = SECONDS_PER_CAPTURE / 3600.0;
+    let mut orders = vec![spec.order];
+    for o in [
+        AcquisitionOrder::LightOuter,
+        AcquisitionOrder::LightOuterSerpentine,
+        AcquisitionOrder::CameraOuter,
+    ] {
+        if !orders.contains(&o) {
+            orders.push(o);
+        }
+    }
+    let mut out = Vec::new();
+    for order in orders {
+        let plan = SamplingPlan::new(&PlanSpec {
+            order,
+            ..spec.clone()
+        })?;
+        out.push(OrderIdentifiability {
+            order: format!("{order:?}"),
+            configurable: true,
+            pairs: pair_identifiability(&plan, |i| i as f64 * t, &steps),
+        });
+    }
+    let lo = SamplingPlan::new(&PlanSpec {
+        order: AcquisitionOrder::LightOuter,
+        ..spec.clone()
+    })?;
+    let n = lo.direction_count();
+    let rotated = |i: usize| {
+        lo.entry(i)
+            .map(|e| (e.light * n + (e.camera + n - e.light) % n) as f64 * t)
+            .unwrap_or(f64::NAN)
+    };
+    out.push(OrderIdentifiability {
+        order: "LightOuterRotated".into(),
+        configurable: false,
+        pairs: pair_identifiability(&lo, rotated, &steps),
+    });
+    Ok(out)
 }
 
 pub fn plan_summary(cfg: &Config) -> Result<PlanSummary, crate::config::ConfigError> {
@@ -158,5 +225,6 @@ pub fn plan_summary(cfg: &Config) -> Result<PlanSummary, crate::config::ConfigEr
         table1,
         substitutes,
         unreachable,
+        drift_from_pairs: drift_from_pairs(&cfg.plan)?,
     })
 }

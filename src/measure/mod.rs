@@ -11,6 +11,7 @@ pub mod colour;
 pub mod crossval;
 pub mod drift;
 pub mod geometry;
+pub mod identifiability;
 pub mod kinematics;
 pub mod lamp;
 pub mod plan;
