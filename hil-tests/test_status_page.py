@@ -89,6 +89,9 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
             page.wait_for_function("document.querySelectorAll('#resid circle').length > 0", timeout=30000)
             page.wait_for_function("document.querySelectorAll('#drift polygon').length === 1", timeout=60000)
             assert "%/h" in page.text_content("#driftnow")
+            # the lamp colour estimate and its plot (isotropy classes)
+            page.wait_for_function("document.querySelectorAll('#colourplot polygon').length === 1", timeout=60000)
+            assert "K/h" in page.text_content("#colournow")
             # the injected dark frame appears as an alarm with its message
             page.wait_for_selector('#alarms li[data-code="dark-capture"]', timeout=60000)
             text = page.text_content('#alarms li[data-code="dark-capture"]')
@@ -127,6 +130,7 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
         metrics = urllib.request.urlopen(url + "metrics", timeout=10).read().decode()
         assert re.search(r"^goniowatch_captures_checked \d+", metrics, re.M), metrics[:500]
         assert "# TYPE goniowatch_alarms_total gauge" in metrics
+        assert re.search(r"^goniowatch_colour_drift_k_per_h ", metrics, re.M), metrics[:2000]
         daemon.wait(timeout=120)
         assert daemon.returncode == 0
         for s in stuck:

@@ -38,6 +38,14 @@ pub struct DriftPoint {
     pub se_pct_per_h: f64,
 }
 
+/// The lamp's colour-temperature drift estimate at a point of the run.
+#[derive(Debug, Clone, Serialize)]
+pub struct ColourPoint {
+    pub t_h: f64,
+    pub k_per_h: f64,
+    pub se_k_per_h: f64,
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct GainPoint {
     pub t_h: f64,
@@ -66,6 +74,7 @@ pub struct Snapshot {
     pub recent_pairs: Vec<RecentPair>,
     pub alarms: Vec<Alarm>,
     pub drift: Vec<DriftPoint>,
+    pub colour: Vec<ColourPoint>,
     pub gain: Vec<GainPoint>,
 }
 
@@ -78,9 +87,11 @@ pub(crate) struct StatusModel {
     recent_pairs: VecDeque<RecentPair>,
     alarms: VecDeque<Alarm>,
     drift: Vec<DriftPoint>,
+    colour: Vec<ColourPoint>,
     gain: Vec<GainPoint>,
     last_t: f64,
     last_drift_n: usize,
+    last_colour_n: usize,
     /// (wall seconds, captures checked) samples for the rate.
     rate_window: VecDeque<(f64, u64)>,
 }
@@ -104,9 +115,11 @@ impl StatusModel {
             recent_pairs: VecDeque::new(),
             alarms: VecDeque::new(),
             drift: Vec::new(),
+            colour: Vec::new(),
             gain: Vec::new(),
             last_t: 0.0,
             last_drift_n: 0,
+            last_colour_n: 0,
             rate_window: VecDeque::new(),
         }
     }
@@ -190,6 +203,16 @@ impl StatusModel {
                 });
             }
         }
+        if let Some(c) = &summary.colour_drift {
+            if c.observations != self.last_colour_n {
+                self.last_colour_n = c.observations;
+                self.colour.push(ColourPoint {
+                    t_h: self.last_t / 3600.0,
+                    k_per_h: c.k_per_h,
+                    se_k_per_h: c.se_k_per_h,
+                });
+            }
+        }
         self.rate_window.push_back((wall_s, checked));
         while self
             .rate_window
@@ -226,6 +249,7 @@ impl StatusModel {
             recent_pairs: self.recent_pairs.iter().cloned().collect(),
             alarms: self.alarms.iter().cloned().collect(),
             drift: self.drift.clone(),
+            colour: self.colour.clone(),
             gain: self.gain.clone(),
         }
     }
