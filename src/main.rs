@@ -462,7 +462,8 @@ fn plan_command(args: PlanArgs, out: &mut impl Write) -> Result<ExitCode> {
         }
         writeln!(
             out,
-            "\nDrift from reciprocal pairs alone (no probes, no isotropy classes), 7 s per capture:\nstandard errors per 1 % of pair noise, the 80 per-direction non-reciprocities fitted"
+            "\nDrift from reciprocal pairs alone (no probes, no isotropy classes), 7 s per capture:\nstandard errors per 1 % of pair noise, the {} free per-direction non-reciprocities fitted",
+            s.directions.saturating_sub(1)
         )?;
         writeln!(
             out,

@@ -79,7 +79,8 @@ def ggx_d_aniso(h: tuple[float, float, float], ax: float, ay: float) -> float:
 
 
 def smith_g1_aniso(v: tuple[float, float, float], ax: float, ay: float) -> float:
-    """Height-correlated Smith's G1 for GGX with the projected roughness of v's azimuth."""
+    """Smith's G1 for anisotropic GGX, with the roughness projected on v's azimuth (used as the
+    separable product G1(wi)·G1(wo))."""
     vx, vy, vz = v
     s2 = vx * vx + vy * vy
     a2 = (vx * vx * ax * ax + vy * vy * ay * ay) / s2 if s2 > 0.0 else ax * ay

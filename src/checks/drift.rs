@@ -233,7 +233,7 @@ fn colour_alarm(e: &ColourDriftEstimate, at: (Option<u64>, Option<f64>)) -> Alar
         Severity::Warning,
         "colour-drift",
         format!(
-            "the lamp's colour drifts by {:+.1} K/h (± {:.1} K/h standard error, from {} {}; ΔE00 {:.2}/h on a white): {}; beyond the tolerance. The chromaticity of later captures is off by as much; let the lamp settle or check its supply, and the corrected output divides the drift out",
+            "the lamp's colour drifts by {:+.1} K/h (± {:.1} K/h standard error, from {} {}; ΔE00 {:.2}/h on a white): {}; beyond the tolerance. Every later capture's chromaticity moves with the lamp; let the lamp settle or check its supply (a colour drift with a steady luminance is the lamp's temperature, not its output); the corrected output divides the drift out",
             e.k_per_h,
             e.se_k_per_h,
             e.observations,

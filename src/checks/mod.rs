@@ -71,7 +71,7 @@ pub struct CheckSpec {
     pub failures_critical: u32,
     /// Light-sweep checks: gain level shifts and joint offsets (isotropic samples).
     pub sweeps: SweepSpec,
-    /// The lamp's colour drift from isotropy classes (isotropic samples).
+    /// The lamp's colour drift (from isotropy classes and from the probes).
     pub colour_drift: ColourDriftSpec,
 }
 

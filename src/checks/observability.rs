@@ -60,9 +60,14 @@ pub fn observability(
         );
     }
     if sweeps_run {
+        // with probes the sweeps leave the gain level to them
         o.watched.push(
-            "gain steps and arm joints 1 and 2, from the light sweeps (each light direction against the earlier ones)"
-                .into(),
+            if probes {
+                "arm joints 1 and 2, from the light sweeps (each light direction against the earlier ones)"
+            } else {
+                "gain steps and arm joints 1 and 2, from the light sweeps (each light direction against the earlier ones)"
+            }
+            .into(),
         );
     }
     let probes_remedy =

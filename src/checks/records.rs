@@ -143,8 +143,8 @@ pub struct GainCorrected {
     pub sigma_rel: f64,
     /// `probes` or `isotropy classes`.
     pub source: String,
-    /// The lamp's colour change divided out of X and Z as well (isotropy classes): ln(X/Y) and
-    /// ln(Z/Y) relative to the start.
+    /// The lamp's colour change divided out of X and Z as well (from isotropy classes, else the
+    /// probes): ln(X/Y) and ln(Z/Y) relative to the start.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub colour: Option<[f64; 2]>,
 }

@@ -369,7 +369,7 @@ pub fn metrics(s: &Snapshot) -> String {
     if let Some(c) = &s.summary.colour_drift {
         g(
             "colour_drift_k_per_h",
-            "The lamp's colour-temperature drift estimated from isotropy classes (K/h).",
+            "The lamp's colour-temperature drift (K/h), from isotropy classes or else the probes (status.json names the source).",
             c.k_per_h,
         );
         g(

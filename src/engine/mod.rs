@@ -96,7 +96,7 @@ pub struct Summary {
     /// Gain drift estimate from isotropy classes (isotropic samples).
     #[serde(default)]
     pub isotropy_drift: Option<crate::measure::drift::DriftEstimate>,
-    /// The lamp's colour drift from isotropy classes (isotropic samples).
+    /// The lamp's colour drift: from isotropy classes (isotropic samples), else from the probes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub colour_drift: Option<crate::checks::ColourDriftEstimate>,
     /// What the session's detectors watch and cannot see, with remedies.

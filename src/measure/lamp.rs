@@ -74,6 +74,13 @@ impl LampColour {
     /// XYZ of a perfect white (Y = 100) lit by the lamp at `t_k`, white-balanced at the
     /// reference.
     pub fn white_at(&self, t_k: f64) -> Xyz {
+        // the model holds for lamps, not for any number an estimate can reach: a temperature
+        // outside 500–50,000 K (a rate extrapolated from a short span) is taken at the bound
+        let t_k = if t_k.is_nan() {
+            self.reference_k
+        } else {
+            t_k.clamp(500.0, 50_000.0)
+        };
         let r: Vec<f64> = self
             .wavelengths
             .iter()
@@ -128,11 +135,17 @@ impl LampColour {
     /// the rate), over the span; the standard error propagated through the sensitivity at the
     /// middle of the span. `None` without finite inputs.
     pub fn cct_rate(&self, u: (f64, f64), v: (f64, f64), span_h: f64) -> Option<CctRate> {
-        // weights 1/se² (a floor keeps a perfect channel from dividing by zero)
-        let w = [1.0 / u.1.max(1e-12).powi(2), 1.0 / v.1.max(1e-12).powi(2)];
-        if !(span_h > 0.0 && span_h.is_finite() && u.0.is_finite() && v.0.is_finite()) {
+        if !(span_h > 0.0
+            && span_h.is_finite()
+            && u.0.is_finite()
+            && v.0.is_finite()
+            && u.1 >= 0.0
+            && v.1 >= 0.0)
+        {
             return None;
         }
+        // weights 1/se² (a floor keeps a perfect channel from dividing by zero)
+        let w = [1.0 / u.1.max(1e-12).powi(2), 1.0 / v.1.max(1e-12).powi(2)];
         let t_end = self.cct_of([u.0 * span_h, v.0 * span_h], w);
         let k = (t_end - self.reference_k) / span_h;
         let s = self.sensitivity_at(0.5 * (self.reference_k + t_end));
@@ -143,8 +156,8 @@ impl LampColour {
         })
     }
 
-    /// ΔE00 of a white surface over one hour of a `k_per_h` drift from the reference, in the
-    /// session's white `white` (a D65 white scaled to the session's Y).
+    /// ΔE00 of a white surface over one hour of a `k_per_h` drift from the reference. L\*a\*b\*
+    /// is relative to `white`, so any white gives the same figure for a white surface.
     pub fn delta_e00_per_h(&self, k_per_h: f64, white: White) -> f64 {
         let w = white.xyz();
         let d = self.log_chromaticity(self.reference_k + k_per_h);
@@ -218,6 +231,12 @@ mod tests {
             .unwrap();
         assert!((r.k_per_h + 20.0).abs() < 0.05, "{r:?}");
         assert!(m.cct_rate((f64::NAN, 1.0), (0.0, 1.0), 1.0).is_none());
+        assert!(m.cct_rate((0.0, f64::NAN), (0.0, 1.0), 1.0).is_none());
+        // an absurd rate over a short span stays finite: the model is taken at its bounds
+        let r = m.cct_rate((5.0, 1e-3), (-50.0, 1e-3), 0.1).unwrap();
+        let white = White::d65_scaled(100.0).unwrap();
+        assert!(m.delta_e00_per_h(r.k_per_h, white).is_finite(), "{r:?}");
+        assert!(m.log_chromaticity(-400.0).iter().all(|v| v.is_finite()));
         assert!(m.cct_rate((0.0, 1.0), (0.0, 1.0), 0.0).is_none());
     }
 
