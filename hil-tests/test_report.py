@@ -31,11 +31,11 @@ def test_report_of_a_session_and_of_its_replay_are_identical(hil, tmp_path):
     assert r.returncode == 0, r.stderr
     run("compare", session, ref)
     listed = run("report", session).split()
-    assert listed[0].endswith("report.html") and len(listed) == 8, listed  # + sweeps.csv, table3.csv
+    assert listed[0].endswith("report.html") and len(listed) == 9, listed  # + sweeps.csv, table3.csv
 
     html = (session / "report" / "report.html").read_text()
     for needle in ["Table 2", "Table 3", "Residual per light direction", "Gain drift", "Capture quality", "Link", "Configuration",
-                   "dark-capture", "gain-step", "<svg", "[probes]", "Light sweeps"]:
+                   "dark-capture", "gain-step", "<svg", "[probes]", "Light sweeps", "Retake list"]:
         assert needle in html, needle
     # self-contained: nothing loaded from anywhere
     assert "http://" not in html.replace('xmlns="http://www.w3.org/2000/svg"', "") and "<script" not in html
@@ -48,6 +48,9 @@ def test_report_of_a_session_and_of_its_replay_are_identical(hil, tmp_path):
     assert any(a["code"] == "dark-capture" and a["idx"] == "300" for a in alarms)
     t3 = list(csv.DictReader(io.StringIO((session / "report" / "table3.csv").read_text())))
     assert {r["table"] for r in t3} == {"as measured", "gain-corrected"}
+    # the dark frame is the one capture to take again (the lamp step is corrected, not retaken)
+    retakes = list(csv.DictReader(io.StringIO((session / "report" / "retakes.csv").read_text())))
+    assert [(r["idx"], r["why"]) for r in retakes] == [("300", "dark capture")], retakes
     sweeps = list(csv.DictReader(io.StringIO((session / "report" / "sweeps.csv").read_text())))
     assert len(sweeps) == len(read_jsonl(session / "sweeps.jsonl")) > 10
     assert {"light", "level_pct", "joint1_offset_deg", "joint2_se_deg"} <= set(sweeps[0])
@@ -57,7 +60,7 @@ def test_report_of_a_session_and_of_its_replay_are_identical(hil, tmp_path):
     run("replay", session, "--out", replayed, "--quiet", timeout=300)
     run("compare", replayed, ref)
     run("report", replayed)
-    for name in ["report.html", "captures.csv", "pairs.csv", "alarms.csv", "table2.csv", "light_residuals.csv", "sweeps.csv", "table3.csv"]:
+    for name in ["report.html", "captures.csv", "pairs.csv", "alarms.csv", "table2.csv", "light_residuals.csv", "retakes.csv", "sweeps.csv", "table3.csv"]:
         assert (session / "report" / name).read_bytes() == (replayed / "report" / name).read_bytes(), name
 
 

@@ -21,6 +21,7 @@ mod isotropy;
 pub mod observability;
 mod pairs;
 pub mod records;
+pub mod retakes;
 #[cfg(test)]
 mod tests;
 

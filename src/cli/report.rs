@@ -887,7 +887,44 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
         "<h2>Configuration</h2><pre>{}</pre>",
         esc(&inp.config_text)
     );
-    h.push_str("<p class=muted>Tables as CSV beside this file: captures.csv, pairs.csv, alarms.csv, table2.csv, light_residuals.csv, sweeps.csv (isotropic samples) and table3.csv (after a cross-validation).</p></body></html>\n");
+    // the retake list ends the report: what to take again, and why
+    let retakes = crate::checks::retakes::retakes(&inp.captures, &inp.alarms);
+    h.push_str("<h2>Retake list</h2>");
+    if retakes.is_empty() {
+        h.push_str("<p>No capture needs taking again: none failed, went missing, was dark or had bad pixels, was taken off the plan, or came after a slipped joint. (Lamp drift is not a reason: the corrected colours divide it out.)</p>");
+    } else {
+        let plan = inp.config.plan().ok();
+        let _ = write!(h, "<p><b>{} captures</b> should be taken again (retakes.csv has them all; lamp drift is not a reason, the corrected colours divide it out):</p><table><tr><th>capture</th><th>plan entry</th><th>light (θ, φ)</th><th>camera (θ, φ)</th><th>why</th></tr>", retakes.len());
+        let dir = |k: usize| {
+            plan.as_ref()
+                .and_then(|p| {
+                    p.directions()
+                        .get(k)
+                        .map(|d| format!("{}°, {}°", d.theta_deg, d.phi_deg))
+                })
+                .unwrap_or_else(|| k.to_string())
+        };
+        for r in retakes.iter().take(300) {
+            let _ = write!(
+                h,
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                r.idx,
+                r.entry,
+                dir(r.light),
+                dir(r.camera),
+                esc(&r.why)
+            );
+        }
+        h.push_str("</table>");
+        if retakes.len() > 300 {
+            let _ = write!(
+                h,
+                "<p class=muted>… and {} more in retakes.csv.</p>",
+                retakes.len() - 300
+            );
+        }
+    }
+    h.push_str("<p class=muted>Tables as CSV beside this file: captures.csv, pairs.csv, alarms.csv, table2.csv, light_residuals.csv, retakes.csv, sweeps.csv (isotropic samples) and table3.csv (after a cross-validation).</p></body></html>\n");
     Ok(h)
 }
 
@@ -1042,6 +1079,23 @@ impl CsvRow for SweepRecord {
     }
 }
 
+/// retakes.csv: one row per capture to take again.
+fn retakes_csv(inp: &ReportInputs) -> String {
+    let mut out = String::from("idx,entry,light,camera,why\n");
+    for r in crate::checks::retakes::retakes(&inp.captures, &inp.alarms) {
+        let _ = writeln!(
+            out,
+            "{},{},{},{},{}",
+            r.idx,
+            r.entry,
+            r.light,
+            r.camera,
+            csv_field(&r.why)
+        );
+    }
+    out
+}
+
 pub(crate) fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
     let plan = inp.config.plan().context("the session's plan")?;
     let s = &inp.summary;
@@ -1092,6 +1146,7 @@ pub(crate) fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, Strin
         ("alarms.csv", csv_table(&inp.alarms)),
         ("table2.csv", t2),
         ("light_residuals.csv", lights),
+        ("retakes.csv", retakes_csv(inp)),
     ];
     if !inp.sweeps.is_empty() {
         out.push(("sweeps.csv", csv_table(&inp.sweeps)));

@@ -1,0 +1,200 @@
+//! The retake list: which captures of a session hold data the operator should take again, and
+//! why, from its result records and alarms. A pure function of them, so the report and a
+//! replay agree.
+//!
+//! A capture is listed when its data is wrong and nothing in the output corrects it: it failed
+//! or never appeared; it is dark, has non-finite or clipped pixels beyond the limits; the
+//! encoder pose was off the plan (the whole episode); or an arm joint was found to have slipped
+//! (every capture since the slip, to the end of the session). Lamp drift and steps are not
+//! listed: the corrected colours divide them out. An entry taken again later, usable and
+//! outside every listed episode, is not listed.
+
+use super::records::{CaptureRecord, CaptureStatus};
+use crate::measure::alarm::Alarm;
+use serde::Serialize;
+use std::collections::{BTreeMap, BTreeSet};
+
+/// One capture to take again.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Retake {
+    pub idx: u64,
+    pub entry: usize,
+    pub light: usize,
+    pub camera: usize,
+    /// Why, most specific first, joined by "; ".
+    pub why: String,
+}
+
+/// The retake list of a session, in capture order.
+pub fn retakes(captures: &[CaptureRecord], alarms: &[Alarm]) -> Vec<Retake> {
+    let last = captures.iter().map(|c| c.idx).max();
+    let mut why: BTreeMap<u64, Vec<String>> = BTreeMap::new();
+    let mut add = |idx: u64, reason: String| {
+        let v = why.entry(idx).or_default();
+        if !v.contains(&reason) {
+            v.push(reason);
+        }
+    };
+    for c in captures.iter().filter(|c| !c.probe) {
+        match c.status {
+            CaptureStatus::Failed => add(
+                c.idx,
+                format!("failed: {}", c.error.as_deref().unwrap_or("unreadable")),
+            ),
+            CaptureStatus::Missing => add(c.idx, "missing: announced, never written".into()),
+            CaptureStatus::Ok => {}
+        }
+    }
+    // episodes of the pose off the plan: closed ones carry their range; one still open at the
+    // end runs from its opening capture to the last
+    let mut open_pose: Option<u64> = None;
+    for a in alarms {
+        let ev = &a.evidence;
+        let range = |from: Option<u64>, to: Option<u64>| from.zip(to).map(|(f, t)| f..=t);
+        match a.code.as_str() {
+            "dark-capture" | "non-finite-pixels" | "clipped-pixels" => {
+                if let Some(i) = a.idx {
+                    add(i, a.code.replace('-', " "));
+                }
+            }
+            "pose-off-plan" => {
+                if open_pose.is_none() {
+                    open_pose = a.idx;
+                }
+            }
+            "pose-off-plan-cleared" => {
+                let r = range(
+                    ev.get("first_idx").and_then(|v| v.as_u64()),
+                    ev.get("last_idx").and_then(|v| v.as_u64()),
+                );
+                for i in r.into_iter().flatten() {
+                    add(i, "the encoder pose was off the plan".into());
+                }
+                open_pose = None;
+            }
+            "joint-offset-suspected" => {
+                let joint = ev.get("joint").and_then(|v| v.as_u64()).unwrap_or(0);
+                let offset = ev
+                    .get("offset_deg")
+                    .and_then(|v| v.as_f64())
+                    .unwrap_or(f64::NAN);
+                let since = ev.get("since_idx").and_then(|v| v.as_u64()).or(a.idx);
+                for i in range(since, last).into_iter().flatten() {
+                    add(
+                        i,
+                        format!(
+                            "arm joint {joint} slipped by about {offset:+.2}° (since capture {})",
+                            since.unwrap_or(i)
+                        ),
+                    );
+                }
+            }
+            _ => {}
+        }
+    }
+    if let Some(from) = open_pose {
+        for i in (from..=last.unwrap_or(from)).filter(|i| *i >= from) {
+            add(i, "the encoder pose was off the plan".into());
+        }
+    }
+    // an entry taken again later, usable and not listed itself, needs no retake
+    let redone: BTreeSet<usize> = captures
+        .iter()
+        .filter(|c| !c.probe && c.status == CaptureStatus::Ok && !why.contains_key(&c.idx))
+        .map(|c| c.entry)
+        .collect();
+    let by_idx: BTreeMap<u64, &CaptureRecord> = captures.iter().map(|c| (c.idx, c)).collect();
+    why.into_iter()
+        .filter_map(|(idx, reasons)| {
+            let c = by_idx.get(&idx)?;
+            if c.probe || redone.contains(&c.entry) {
+                return None;
+            }
+            Some(Retake {
+                idx,
+                entry: c.entry,
+                light: c.light,
+                camera: c.camera,
+                why: reasons.join("; "),
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measure::alarm::{AlarmKind, Severity};
+    use serde_json::json;
+
+    fn cap(idx: u64, entry: usize, status: CaptureStatus) -> CaptureRecord {
+        let v = json!({
+            "idx": idx, "entry": entry, "light": entry / 81, "camera": entry % 81, "probe": false,
+            "t": idx as f64 * 7.0, "file": format!("c{idx}.hdr"), "status": status.as_str(),
+            "error": if status == CaptureStatus::Failed { Some("truncated") } else { None },
+            "mean_rgb": null, "xyz": null, "lab": null, "pixels": null, "nonfinite": null,
+            "clipped": null, "negative": null, "angles": null, "substitute": null,
+            "pose_error_deg": null
+        });
+        serde_json::from_value(v).unwrap()
+    }
+
+    fn alarm(code: &str, idx: u64, evidence: serde_json::Value) -> Alarm {
+        Alarm::new(
+            AlarmKind::Positioning,
+            Severity::Warning,
+            code,
+            String::new(),
+        )
+        .at(Some(idx), None)
+        .with(evidence)
+    }
+
+    #[test]
+    fn failures_episodes_and_slips_are_listed_with_why_and_retaken_entries_are_not() {
+        let mut caps: Vec<CaptureRecord> = (0..100)
+            .map(|i| cap(i, i as usize, CaptureStatus::Ok))
+            .collect();
+        caps[3] = cap(3, 3, CaptureStatus::Failed);
+        caps[4] = cap(4, 4, CaptureStatus::Missing);
+        caps[5] = cap(5, 5, CaptureStatus::Failed);
+        // entry 5 was taken again later and is fine (before the slip)
+        caps[60] = cap(60, 5, CaptureStatus::Ok);
+        let alarms = vec![
+            alarm("dark-capture", 7, json!({})),
+            alarm("pose-off-plan", 20, json!({})),
+            alarm(
+                "pose-off-plan-cleared",
+                23,
+                json!({"first_idx": 20, "last_idx": 22}),
+            ),
+            alarm(
+                "joint-offset-suspected",
+                95,
+                json!({"joint": 2, "offset_deg": 1.1, "since_idx": 90}),
+            ),
+        ];
+        let r = retakes(&caps, &alarms);
+        let idx: Vec<u64> = r.iter().map(|x| x.idx).collect();
+        assert_eq!(
+            idx,
+            vec![3, 4, 7, 20, 21, 22, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99]
+        );
+        assert!(r[0].why.starts_with("failed: truncated"));
+        assert!(r[1].why.starts_with("missing"));
+        assert_eq!(r[2].why, "dark capture");
+        assert!(r[3].why.contains("off the plan"));
+        assert!(r[6].why.contains("joint 2") && r[6].why.contains("+1.10°"));
+    }
+
+    #[test]
+    fn an_episode_open_at_the_end_runs_to_the_last_capture_and_a_clean_session_has_none() {
+        let caps: Vec<CaptureRecord> = (0..10)
+            .map(|i| cap(i, i as usize, CaptureStatus::Ok))
+            .collect();
+        assert!(retakes(&caps, &[]).is_empty());
+        let r = retakes(&caps, &[alarm("pose-off-plan", 7, json!({}))]);
+        assert_eq!(r.iter().map(|x| x.idx).collect::<Vec<_>>(), vec![7, 8, 9]);
+        assert!(retakes(&[], &[alarm("pose-off-plan", 7, json!({}))]).is_empty());
+    }
+}
