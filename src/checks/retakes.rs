@@ -57,11 +57,7 @@ pub fn retakes(captures: &[CaptureRecord], alarms: &[Alarm]) -> Vec<Retake> {
                     add(i, a.code.replace('-', " "));
                 }
             }
-            "pose-off-plan" => {
-                if open_pose.is_none() {
-                    open_pose = a.idx;
-                }
-            }
+            "pose-off-plan" if open_pose.is_none() => open_pose = a.idx,
             "pose-off-plan-cleared" => {
                 let r = range(
                     ev.get("first_idx").and_then(|v| v.as_u64()),
