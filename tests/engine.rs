@@ -890,3 +890,54 @@ fn an_announced_exposure_is_divided_out_and_a_bad_one_is_refused() {
         );
     }
 }
+
+#[test]
+fn a_daemon_behind_a_finished_controller_catches_up_without_asking_and_finishes() {
+    // the controller announces three captures and says it is done; the daemon's outcomes come
+    // later (it is behind): the quiet link's idle ticks must not send RESYNCs whose answers
+    // would queue behind the outcomes, and the session finishes with the last outcome even if
+    // the controller is gone by then
+    let (mut e, mut c) = (engine(), Controller::default());
+    connected(&mut e, &mut c);
+    e.handle(&c.line(
+        "ACK",
+        &[
+            ("ref", "2".into()),
+            ("count", "0".into()),
+            ("next", "0".into()),
+        ],
+    ));
+    let pose = "0,0,0,0";
+    for idx in 0..3 {
+        e.handle(&capture_at(&mut c, idx, idx as usize, pose, false));
+    }
+    let out = e.handle(&c.line(
+        "STATUS",
+        &[
+            ("state", "done".into()),
+            ("t", "21".into()),
+            ("next", "3".into()),
+        ],
+    ));
+    assert!(sent(&out).is_empty(), "{:?}", sent(&out));
+    for _ in 0..5 {
+        let out = e.handle(&Input::Idle);
+        assert!(sent(&out).is_empty(), "{:?}", sent(&out));
+    }
+    e.handle(&Input::Outcome {
+        idx: 0,
+        outcome: ok_outcome(),
+    });
+    e.handle(&Input::Outcome {
+        idx: 1,
+        outcome: ok_outcome(),
+    });
+    e.handle(&Input::Disconnected {
+        reason: "end of stream".into(),
+    });
+    let out = e.handle(&Input::Outcome {
+        idx: 2,
+        outcome: ok_outcome(),
+    });
+    assert!(out.contains(&Output::Finished));
+}

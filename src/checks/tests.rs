@@ -147,16 +147,7 @@ fn isotropy_classes_give_the_drift_rate_and_the_corrected_colour() {
 
     // no drift: an estimate near 0, no alarm
     let mut quiet = checker();
-    let mut n = 0;
-    for input in session(3000) {
-        n += quiet
-            .check(&input)
-            .alarms
-            .iter()
-            .filter(|a| a.code.starts_with("gain"))
-            .count();
-    }
-    assert_eq!(n, 0);
+    assert_eq!(count_alarms(&mut quiet, session(3000), "gain"), 0);
     assert!(quiet.isotropy_drift().unwrap().rate_pct_per_h.abs() < 0.01);
 }
 
@@ -409,32 +400,47 @@ fn ubo_checker_xyz(input: &CaptureInput) -> [f64; 3] {
     ch.check(input).capture.unwrap().xyz.unwrap()
 }
 
-#[test]
-fn a_steady_lamp_or_a_luminance_decay_raises_no_colour_drift() {
-    for gain in [0.0, -0.01] {
-        let mut ch = checker();
-        let mut n = 0;
-        for input in ubo_session(3000, |t| (gain * t).exp()) {
-            n += ch
-                .check(&input)
-                .alarms
-                .iter()
-                .filter(|a| a.code.starts_with("colour-drift"))
-                .count();
-        }
-        assert_eq!(n, 0);
-        let e = ch.colour_drift().unwrap();
-        assert!(e.k_per_h.abs() < 0.5, "{gain}: {e:?}");
-    }
-    // an anisotropic sample has no isotropy classes: no colour estimate
-    let mut ch = Checker::new(
+/// The UBO checker of an anisotropic sample (no isotropy classes) with these probes.
+fn anisotropic_checker(probes: crate::measure::probes::ProbeSpec) -> Checker {
+    Checker::new(
         SamplingPlan::ubo(),
         Rig::new(RigSpec::default()).unwrap(),
         crate::fixtures::ubo_colour(),
         CheckSpec::default(),
         false,
-        crate::measure::probes::ProbeSpec::default(),
-    );
+        probes,
+    )
+}
+
+/// The alarms whose code starts with `prefix` that `inputs` raise in `ch`.
+fn count_alarms(ch: &mut Checker, inputs: Vec<CaptureInput>, prefix: &str) -> usize {
+    inputs
+        .iter()
+        .map(|i| {
+            ch.check(i)
+                .alarms
+                .iter()
+                .filter(|a| a.code.starts_with(prefix))
+                .count()
+        })
+        .sum()
+}
+
+#[test]
+fn a_steady_lamp_or_a_luminance_decay_raises_no_colour_drift() {
+    for gain in [0.0, -0.01] {
+        let mut ch = checker();
+        let n = count_alarms(
+            &mut ch,
+            ubo_session(3000, |t| (gain * t).exp()),
+            "colour-drift",
+        );
+        assert_eq!(n, 0);
+        let e = ch.colour_drift().unwrap();
+        assert!(e.k_per_h.abs() < 0.5, "{gain}: {e:?}");
+    }
+    // an anisotropic sample has no isotropy classes: no colour estimate
+    let mut ch = anisotropic_checker(crate::measure::probes::ProbeSpec::default());
     for input in colour_drift_session(1000, -50.0) {
         ch.check(&input);
     }
@@ -445,18 +451,10 @@ fn a_steady_lamp_or_a_luminance_decay_raises_no_colour_drift() {
 fn probes_give_the_lamp_colour_drift_on_an_anisotropic_sample() {
     // an anisotropic sample (no isotropy classes) with a probe of entry 50 after every 100
     // captures, the lamp cooling by 40 K/h
-    let probes = crate::measure::probes::ProbeSpec {
+    let mut ch = anisotropic_checker(crate::measure::probes::ProbeSpec {
         every: 100,
         ..Default::default()
-    };
-    let mut ch = Checker::new(
-        SamplingPlan::ubo(),
-        Rig::new(RigSpec::default()).unwrap(),
-        crate::fixtures::ubo_colour(),
-        CheckSpec::default(),
-        false,
-        probes,
-    );
+    });
     let regular = colour_drift_session(3000, -40.0);
     // the probe's reading at time t is entry 50's reading under the lamp then
     let undrifted = ubo_session(51, |_| 1.0).pop().unwrap();

@@ -491,7 +491,16 @@ impl Engine {
                 }
             }
             Input::Idle => {
-                if self.link.is_connected() && !self.finished && !self.link.version_refused {
+                // a controller that said it is done, with nothing announced that is unseen,
+                // has nothing more to tell: the quiet is the daemon catching up on its own
+                // outcomes, and a RESYNC then would only queue answers behind them
+                let caught_up_with_controller =
+                    self.done && self.lowest_unseen() >= self.ledger.controller_next;
+                if self.link.is_connected()
+                    && !self.finished
+                    && !self.link.version_refused
+                    && !caught_up_with_controller
+                {
                     if self.link.is_subscribed() {
                         self.link.resync.outstanding = None;
                         self.resync(&mut out, true);
