@@ -27,19 +27,76 @@ pub struct PairIdentifiability {
     pub step_se_pct: Vec<(f64, Option<f64>)>,
 }
 
-/// A column's part that the columns `x` cannot explain, by least squares through the SVD (the
-/// columns may be dependent: in light-outer order the time differences are themselves a
-/// combination of the direction columns, so a normal-equations solve would fail exactly where
-/// it matters). Returns the residual's norm and the column's.
-fn residual_norm(x: &DMatrix<f64>, col: &DVector<f64>) -> (f64, f64) {
-    let svd = x.clone().svd(true, true);
-    // singular values below this (relative to the largest) are the design's null space
-    let eps = 1e-9 * svd.singular_values.max();
-    let res = match svd.solve(col, eps) {
-        Ok(beta) => col - x * beta,
-        Err(_) => col.clone(),
-    };
-    (res.norm(), col.norm())
+/// The design of a drift question over the pairs: the direction-effect columns of each pair
+/// (+1 at the earlier capture's camera, −1 at its light; direction 0 fixed), kept sparse, and
+/// any dense extra columns.
+struct Design<'a> {
+    /// Per pair: (camera column, light column), `None` for the fixed direction 0.
+    dirs: &'a [(Option<usize>, Option<usize>)],
+    n_dirs: usize,
+    extra: Vec<&'a DVector<f64>>,
+}
+
+impl Design<'_> {
+    /// Xᵀv for the design X.
+    fn xt(&self, v: &DVector<f64>) -> DVector<f64> {
+        let p = self.n_dirs + self.extra.len();
+        let mut out = DVector::zeros(p);
+        for (r, &(c, l)) in self.dirs.iter().enumerate() {
+            if let Some(c) = c {
+                out[c] += v[r];
+            }
+            if let Some(l) = l {
+                out[l] -= v[r];
+            }
+        }
+        for (k, e) in self.extra.iter().enumerate() {
+            out[self.n_dirs + k] = e.dot(v);
+        }
+        out
+    }
+
+    /// XᵀX, built from the sparse rows in one pass.
+    fn gram(&self) -> DMatrix<f64> {
+        let p = self.n_dirs + self.extra.len();
+        let mut g = DMatrix::zeros(p, p);
+        for &(c, l) in self.dirs {
+            if let Some(c) = c {
+                g[(c, c)] += 1.0;
+            }
+            if let Some(l) = l {
+                g[(l, l)] += 1.0;
+            }
+            if let (Some(c), Some(l)) = (c, l) {
+                g[(c, l)] -= 1.0;
+                g[(l, c)] -= 1.0;
+            }
+        }
+        for (k, e) in self.extra.iter().enumerate() {
+            let col = self.xt(e);
+            for j in 0..p {
+                g[(self.n_dirs + k, j)] = col[j];
+                g[(j, self.n_dirs + k)] = col[j];
+            }
+        }
+        g
+    }
+
+    /// For each column: the norm of its part the design cannot explain (least squares through
+    /// the pseudo-inverse of XᵀX: the design may be rank-deficient, and in light-outer order it
+    /// is, by construction), and the column's norm.
+    fn residual_norms(&self, cols: &[DVector<f64>]) -> Vec<(f64, f64)> {
+        let svd = self.gram().svd(true, true);
+        let eps = 1e-9 * svd.singular_values.max();
+        cols.iter()
+            .map(|col| {
+                let b = self.xt(col);
+                let explained = svd.solve(&b, eps).map(|beta| beta.dot(&b)).unwrap_or(0.0);
+                let total = col.dot(col);
+                ((total - explained).max(0.0).sqrt(), total.sqrt())
+            })
+            .collect()
+    }
 }
 
 /// Identifiability of the drift from the reciprocal pairs of `plan`, each capture at
@@ -66,37 +123,46 @@ pub fn pair_identifiability(
         .map(&hours_of)
         .fold(0.0_f64, f64::max);
     // direction effects: +1 at the earlier capture's camera, −1 at its light; direction 0 fixed
-    let mut x = DMatrix::<f64>::zeros(m, n.saturating_sub(1));
-    for (r, &(_, _, l, c)) in pairs.iter().enumerate() {
-        if c > 0 {
-            x[(r, c - 1)] += 1.0;
-        }
-        if l > 0 {
-            x[(r, l - 1)] -= 1.0;
-        }
-    }
+    let dirs: Vec<(Option<usize>, Option<usize>)> = pairs
+        .iter()
+        .map(|&(_, _, l, c)| (c.checked_sub(1), l.checked_sub(1)))
+        .collect();
     let dt = DVector::from_iterator(m, pairs.iter().map(|p| p.1 - p.0));
-    // a column is identifiable when more than 1e-6 of its norm is left after the projection
-    let identifiable = |(res, norm): (f64, f64)| (norm > 0.0 && res > 1e-6 * norm).then_some(res);
+    // a column is identifiable when more than 1e-4 of its norm is left after the projection
+    // (through the Gram matrix a column in the span keeps only rounding, about 1e-8 of it)
+    let identifiable = |(res, norm): (f64, f64)| (norm > 0.0 && res > 1e-4 * norm).then_some(res);
+    let directions = Design {
+        dirs: &dirs,
+        n_dirs: n.saturating_sub(1),
+        extra: Vec::new(),
+    };
     // per 1 % of noise (0.01 in ln) a rate in ln/h has SE 0.01/‖r‖, i.e. 1/‖r‖ in %/h
-    let rate_se_pct_per_h = identifiable(residual_norm(&x, &dt)).map(|r| 1.0 / r);
-    let mut with_rate = x.clone().insert_column(x.ncols(), 0.0);
-    with_rate.set_column(x.ncols(), &dt);
-    let step_se_pct = step_fractions
+    let rate_se_pct_per_h = directions
+        .residual_norms(std::slice::from_ref(&dt))
+        .first()
+        .and_then(|r| identifiable(*r))
+        .map(|r| 1.0 / r);
+    let steps: Vec<DVector<f64>> = step_fractions
         .iter()
         .map(|&f| {
             let tau = f * end;
-            let s = DVector::from_iterator(
+            DVector::from_iterator(
                 m,
                 pairs
                     .iter()
                     .map(|p| if p.0 < tau && tau <= p.1 { 1.0 } else { 0.0 }),
-            );
-            (
-                f,
-                identifiable(residual_norm(&with_rate, &s)).map(|r| 1.0 / r),
             )
         })
+        .collect();
+    let with_rate = Design {
+        dirs: &dirs,
+        n_dirs: n.saturating_sub(1),
+        extra: vec![&dt],
+    };
+    let step_se_pct = step_fractions
+        .iter()
+        .zip(with_rate.residual_norms(&steps))
+        .map(|(&f, r)| (f, identifiable(r).map(|r| 1.0 / r)))
         .collect();
     PairIdentifiability {
         rate_se_pct_per_h,
