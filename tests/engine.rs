@@ -892,52 +892,71 @@ fn an_announced_exposure_is_divided_out_and_a_bad_one_is_refused() {
 }
 
 #[test]
-fn a_daemon_behind_a_finished_controller_catches_up_without_asking_and_finishes() {
+fn a_daemon_behind_a_finished_controller_finishes_on_late_answers_or_without_the_link() {
     // the controller announces three captures and says it is done; the daemon's outcomes come
-    // later (it is behind): the quiet link's idle ticks must not send RESYNCs whose answers
-    // would queue behind the outcomes, and the session finishes with the last outcome even if
-    // the controller is gone by then
-    let (mut e, mut c) = (engine(), Controller::default());
-    connected(&mut e, &mut c);
-    e.handle(&c.line(
-        "ACK",
-        &[
-            ("ref", "2".into()),
-            ("count", "0".into()),
-            ("next", "0".into()),
-        ],
-    ));
-    let pose = "0,0,0,0";
-    for idx in 0..3 {
-        e.handle(&capture_at(&mut c, idx, idx as usize, pose, false));
+    // later (it is behind), the quiet link's idle ticks send RESYNCs, and their ACKs arrive
+    // late, all at once, after a newer RESYNC replaced the ones they answer
+    for lose_the_link in [false, true] {
+        let (mut e, mut c) = (engine(), Controller::default());
+        connected(&mut e, &mut c);
+        e.handle(&c.line(
+            "ACK",
+            &[
+                ("ref", "2".into()),
+                ("count", "0".into()),
+                ("next", "0".into()),
+            ],
+        ));
+        for idx in 0..3 {
+            e.handle(&capture_at(&mut c, idx, idx as usize, "0,0,0,0", false));
+        }
+        e.handle(&c.line(
+            "STATUS",
+            &[
+                ("state", "done".into()),
+                ("t", "21".into()),
+                ("next", "3".into()),
+            ],
+        ));
+        let mut refs = Vec::new();
+        for _ in 0..4 {
+            for l in sent(&e.handle(&Input::Idle)) {
+                assert!(l.starts_with("RESYNC"), "{l}");
+                refs.push(l);
+            }
+        }
+        assert!(refs.len() >= 2, "{refs:?}");
+        for idx in 0..2 {
+            e.handle(&Input::Outcome {
+                idx,
+                outcome: ok_outcome(),
+            });
+        }
+        if lose_the_link {
+            // the controller leaves before answering: the link is no reason to wait
+            e.handle(&Input::Disconnected {
+                reason: "end of stream".into(),
+            });
+        } else {
+            // the answer to the first idle RESYNC (sequence 3 after HELLO, SUBSCRIBE, RESYNC)
+            e.handle(&c.line(
+                "ACK",
+                &[
+                    ("ref", "3".into()),
+                    ("count", "0".into()),
+                    ("next", "3".into()),
+                    ("state", "done".into()),
+                ],
+            ));
+        }
+        assert!(!e.is_finished());
+        let out = e.handle(&Input::Outcome {
+            idx: 2,
+            outcome: ok_outcome(),
+        });
+        assert!(
+            out.contains(&Output::Finished),
+            "lose the link: {lose_the_link}"
+        );
     }
-    let out = e.handle(&c.line(
-        "STATUS",
-        &[
-            ("state", "done".into()),
-            ("t", "21".into()),
-            ("next", "3".into()),
-        ],
-    ));
-    assert!(sent(&out).is_empty(), "{:?}", sent(&out));
-    for _ in 0..5 {
-        let out = e.handle(&Input::Idle);
-        assert!(sent(&out).is_empty(), "{:?}", sent(&out));
-    }
-    e.handle(&Input::Outcome {
-        idx: 0,
-        outcome: ok_outcome(),
-    });
-    e.handle(&Input::Outcome {
-        idx: 1,
-        outcome: ok_outcome(),
-    });
-    e.handle(&Input::Disconnected {
-        reason: "end of stream".into(),
-    });
-    let out = e.handle(&Input::Outcome {
-        idx: 2,
-        outcome: ok_outcome(),
-    });
-    assert!(out.contains(&Output::Finished));
 }

@@ -33,6 +33,33 @@ pub(super) struct Resync {
     pub(super) lines_since: u64,
     /// The `from` of the last RESYNC sent, and how many times in a row it was sent.
     pub(super) last: Option<(u64, u32)>,
+    /// The RESYNCs sent on this connection since one was answered (at most `UNANSWERED_MAX`,
+    /// the latest): an ACK of any of them answers.
+    pub(super) unanswered: Vec<u32>,
+}
+
+/// RESYNCs remembered as unanswered, at most.
+const UNANSWERED_MAX: usize = 64;
+
+impl Resync {
+    /// A RESYNC was sent with sequence number `seq`.
+    pub(super) fn note_sent(&mut self, seq: u32) {
+        self.unanswered.push(seq);
+        if self.unanswered.len() > UNANSWERED_MAX {
+            self.unanswered.remove(0);
+        }
+    }
+
+    /// Whether an ACK of `reference` answers a RESYNC of this connection.
+    pub(super) fn answers(&self, reference: u32) -> bool {
+        self.outstanding == Some(reference) || self.unanswered.contains(&reference)
+    }
+
+    /// A new conversation or none: earlier sequence numbers mean nothing.
+    fn forget(&mut self) {
+        self.outstanding = None;
+        self.unanswered.clear();
+    }
 }
 
 /// Which of the latest lines were corrupt, and whether the CRC alarm is raised.
@@ -99,21 +126,21 @@ impl Link {
         self.state = LinkState::Greeting;
         self.stats.connects += 1;
         self.expect_seq = None;
-        self.resync.outstanding = None;
+        self.resync.forget();
         self.tx_seq = 0;
     }
 
     /// The port was lost.
     pub(super) fn lost(&mut self) {
         self.state = LinkState::Down;
-        self.resync.outstanding = None;
+        self.resync.forget();
     }
 
     /// The daemon restarted on the session: no port, no conversation.
     pub(super) fn restarted(&mut self) {
         self.stats.restarts += 1;
         self.state = LinkState::Down;
-        self.resync.outstanding = None;
+        self.resync.forget();
         self.expect_seq = None;
     }
 

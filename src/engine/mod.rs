@@ -370,6 +370,7 @@ impl Engine {
         self.link.resync.gap_during = false;
         let seq = self.send(out, "RESYNC", &[("from", from.to_string())]);
         self.link.resync.outstanding = Some(seq);
+        self.link.resync.note_sent(seq);
         self.link.resync.age = 0;
         self.link.resync.lines_since = 0;
         self.link.resync.last = Some((from, repeats.saturating_add(1).min(32)));
@@ -463,6 +464,9 @@ impl Engine {
                     );
                 }
                 self.link.lost();
+                // a controller that said it is done and whose captures are all checked needs
+                // no link to finish the session
+                self.drain(&mut out);
             }
             Input::Restart => {
                 self.link.restarted();
@@ -491,16 +495,7 @@ impl Engine {
                 }
             }
             Input::Idle => {
-                // a controller that said it is done, with nothing announced that is unseen,
-                // has nothing more to tell: the quiet is the daemon catching up on its own
-                // outcomes, and a RESYNC then would only queue answers behind them
-                let caught_up_with_controller =
-                    self.done && self.lowest_unseen() >= self.ledger.controller_next;
-                if self.link.is_connected()
-                    && !self.finished
-                    && !self.link.version_refused
-                    && !caught_up_with_controller
-                {
+                if self.link.is_connected() && !self.finished && !self.link.version_refused {
                     if self.link.is_subscribed() {
                         self.link.resync.outstanding = None;
                         self.resync(&mut out, true);
@@ -651,10 +646,16 @@ impl Engine {
     }
 
     fn ack(&mut self, out: &mut Vec<Output>, a: &Ack) {
-        if a.reference.is_none() || a.reference != self.link.resync.outstanding {
+        // the answer to the RESYNC outstanding, or to an earlier one it replaced: an answer can
+        // come late (the daemon busy, the controller slow), and it tells the same
+        let Some(r) = a.reference else {
+            return;
+        };
+        if !self.link.resync.answers(r) {
             return;
         }
         self.link.resync.outstanding = None;
+        self.link.resync.unanswered.clear();
         if a.state.as_deref() == Some("done") {
             self.done = true;
         }
