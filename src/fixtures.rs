@@ -13,33 +13,9 @@ use crate::measure::kinematics::{Rig, RigSpec};
 use crate::measure::plan::SamplingPlan;
 use crate::measure::probes::ProbeSpec;
 
-/// SplitMix64: a small deterministic generator, so tests need no RNG crate and every run draws
-/// the same numbers.
-#[derive(Debug, Clone)]
-pub struct Rng(pub u64);
-
-impl Rng {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    /// Uniform in [lo, hi).
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-    /// Standard normal (Box–Muller).
-    pub fn gauss(&mut self) -> f64 {
-        let (u, v) = (self.uniform().max(1e-300), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
-    }
-}
+/// SplitMix64 (the core's generator), so tests need no RNG crate and every run draws the same
+/// numbers.
+pub use crate::measure::stats::SplitMix64 as Rng;
 
 /// Knuth's MMIX linear congruential generator: the draws behind the benchmarks' published
 /// figures and several unit tests' data, kept so that they stay reproducible.

@@ -2,6 +2,35 @@
 //! design. Every detector uses these, so a statistic means the same thing everywhere.
 //! (Hand-written: a few lines each, and their exact arithmetic is part of byte-identical replay.)
 
+/// SplitMix64: a small deterministic generator. The core's Monte Carlo designs (and the test
+/// fixtures) draw from it so that the same seed gives the same numbers on every machine and
+/// with every crate version (a generator crate may change its streams between releases).
+#[derive(Debug, Clone)]
+pub struct SplitMix64(pub u64);
+
+impl SplitMix64 {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// Uniform in [lo, hi).
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.uniform()
+    }
+    /// Standard normal (Box–Muller).
+    pub fn gauss(&mut self) -> f64 {
+        let (u, v) = (self.uniform().max(1e-300), self.uniform());
+        (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+    }
+}
+
 /// The factor that makes the median absolute deviation a consistent estimate of a normal σ.
 pub(crate) const MAD_TO_SIGMA: f64 = 1.4826;
 
