@@ -89,7 +89,7 @@ def replay(keep, name, material, preset, seed):
     return r.returncode, alarms, summary, cpu, pts
 
 
-def run(tmp, name, material, preset, faults, seed, every, keep=None):
+def run(tmp, name, material, preset, faults, seed, every, keep=None, config="sim.toml"):
     d = os.path.join(keep or tmp, run_name(name, material, preset, seed))
     if keep:
         shutil.rmtree(d, ignore_errors=True)
@@ -103,7 +103,7 @@ def run(tmp, name, material, preset, faults, seed, every, keep=None):
         lines += [f"{k} = {json.dumps(v)}" for k, v in f.items()]
     open(sc, "w").write("\n".join(lines) + "\n")
     cfg = os.path.join(d, "cfg.toml")
-    text = open(os.path.join(REPO, "config", "sim.toml")).read()
+    text = open(os.path.join(REPO, "config", config)).read()
     open(cfg, "w").write(re.sub(r"(?m)^every = 0$", f"every = {every}", text))
     sim = subprocess.Popen([sys.executable, "-m", "goniosim", "run", sc, "--linger", "60"], cwd=os.path.join(REPO, "sim"),
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

@@ -661,7 +661,7 @@ impl Config {
                 });
             }
         }
-        if self.probes.every > 0 {
+        if self.probes.every > 0 && self.probes.entry.is_some() {
             self.probe_entry()?;
         }
         if self.source.kind == crate::archive::SourceKind::Files {

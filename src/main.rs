@@ -2,9 +2,10 @@
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use goniowatch::cli::commands::{average_file, plan_summary, AverageOutcome};
+use goniowatch::cli::commands::{average_file, plan_summary, AverageOutcome, ProbePlanSummary};
 use goniowatch::config::Config;
 use goniowatch::measure::averaging::Roi;
+use goniowatch::measure::probe_plan::{CadenceFigures, DetectionTarget, ProbePlan};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -170,6 +171,25 @@ struct PlanArgs {
     config: Option<PathBuf>,
     #[arg(long)]
     json: bool,
+    /// The scatter of one probe against its original capture, % SD (measure it: the probes'
+    /// `residual_scale` in a session's summary.json, × 100).
+    #[arg(long, default_value_t = 0.3)]
+    probe_scatter_pct: f64,
+    /// Target: a linear gain decay of this size (%/h) ...
+    #[arg(long, default_value_t = 1.0)]
+    target_decay_pct_per_h: f64,
+    /// ... flagged before this fraction of the run.
+    #[arg(long, default_value_t = 0.25)]
+    target_decay_by: f64,
+    /// Target: a gain step of this size (%, negative: darker) ...
+    #[arg(long, default_value_t = -2.0, allow_hyphen_values = true)]
+    target_step_pct: f64,
+    /// ... flagged within this many captures.
+    #[arg(long, default_value_t = 300)]
+    target_step_within: u64,
+    /// Target: fault-free runs with a probe alarm, at most this share.
+    #[arg(long, default_value_t = 0.05)]
+    target_false_alarms: f64,
 }
 
 /// Exit codes (documented in README.md).
@@ -226,6 +246,8 @@ fn main() -> ExitCode {
                     || c.downcast_ref::<goniowatch::reference::ReferenceError>()
                         .is_some()
                     || c.downcast_ref::<UsageError>().is_some()
+                    || c.downcast_ref::<goniowatch::measure::probe_plan::ProbePlanError>()
+                        .is_some()
             });
             ExitCode::from(if usage { 2 } else { 3 })
         }
@@ -425,9 +447,26 @@ fn report_command(args: ReportArgs, out: &mut impl Write) -> Result<ExitCode> {
 }
 
 fn plan_command(args: PlanArgs, out: &mut impl Write) -> Result<ExitCode> {
-    let PlanArgs { config, json } = args;
+    let PlanArgs {
+        config,
+        json,
+        probe_scatter_pct,
+        target_decay_pct_per_h,
+        target_decay_by,
+        target_step_pct,
+        target_step_within,
+        target_false_alarms,
+    } = args;
     let cfg = load_config(config.as_deref())?;
-    let s = plan_summary(&cfg)?;
+    let target = DetectionTarget {
+        decay_pct_per_h: target_decay_pct_per_h,
+        decay_by_fraction: target_decay_by,
+        step_pct: target_step_pct,
+        step_within_captures: target_step_within,
+        false_alarms_per_run: target_false_alarms,
+        ..DetectionTarget::default()
+    };
+    let s = plan_summary(&cfg, probe_scatter_pct, &target)?;
     if json {
         writeln!(out, "{}", serde_json::to_string_pretty(&s)?)?;
     } else {
@@ -487,9 +526,97 @@ fn plan_command(args: PlanArgs, out: &mut impl Write) -> Result<ExitCode> {
                 }
             )?;
         }
+        print_probe_plan(&s.probes, &cfg.probes, out)?;
     }
 
     Ok(ExitCode::SUCCESS)
+}
+
+/// `plan`'s drift-probe section: the target, every cadence tried, and the recommendation or why
+/// there is none.
+fn print_probe_plan(
+    p: &ProbePlanSummary,
+    spec: &goniowatch::measure::probes::ProbeSpec,
+    out: &mut impl Write,
+) -> Result<()> {
+    let t = &p.target;
+    let pose = match spec.entry {
+        Some(e) => format!("plan entry {e}"),
+        None => format!(
+            "a pose the daemon chooses after {} captures, plan entry {} standing in",
+            p.session.probes_from, p.session.anchor
+        ),
+    };
+    writeln!(
+        out,
+        "\nDrift probes: a re-capture every N captures of {pose}; {} s each; probe scatter {} %",
+        p.session.seconds_per_probe, p.session.scatter_pct
+    )?;
+    writeln!(
+        out,
+        "target: a {} %/h decay flagged before {:.0} % of the run and a {:+} % step within {} captures, each in {:.0} % of runs; at most {:.0} false alarms in 100 runs ({} simulated runs per cadence through the daemon's probe detector: z = {}, step_sigmas = {}, step_pct = {})",
+        t.decay_pct_per_h,
+        100.0 * t.decay_by_fraction,
+        t.step_pct,
+        t.step_within_captures,
+        100.0 * t.power,
+        100.0 * t.false_alarms_per_run,
+        goniowatch::measure::probe_plan::RUNS,
+        spec.z,
+        spec.step_sigmas,
+        spec.step_pct
+    )?;
+    writeln!(
+        out,
+        "  every   probes   run time +   false alarms/run   decay in time (median at)   step in time (median delay)"
+    )?;
+    let row = |c: &CadenceFigures| {
+        format!(
+            "  {:>5}   {:>6}   {:>4.2} h {:>4.1} %   {:>16.3}   {:>5.0} % ({:>5})            {:>5.0} % ({:>5})  {}",
+            c.every,
+            c.probes_per_run,
+            c.overhead_h,
+            c.overhead_pct,
+            c.false_alarms_per_run,
+            100.0 * c.decay_in_time,
+            c.decay_median_fraction
+                .map_or("–".to_string(), |f| format!("{:.0} %", 100.0 * f)),
+            100.0 * c.step_in_time,
+            c.step_median_delay.map_or("–".to_string(), |d| format!("{d:.0}")),
+            if c.meets { "meets" } else { "" }
+        )
+    };
+    let tried = match &p.design {
+        ProbePlan::Recommended { tried, .. } | ProbePlan::Unreachable { tried, .. } => tried,
+    };
+    for c in tried {
+        writeln!(out, "{}", row(c))?;
+    }
+    match &p.design {
+        ProbePlan::Recommended { cadence, .. } => writeln!(
+            out,
+            "recommended: [probes] every = {} (adds {:.2} h, {:.1} % of the run)",
+            cadence.every, cadence.overhead_h, cadence.overhead_pct
+        )?,
+        ProbePlan::Unreachable { reason, .. } => {
+            writeln!(out, "NO CADENCE MEETS THE TARGET: {reason}")?
+        }
+    }
+    if let Some(c) = &p.configured {
+        writeln!(out, "configured:\n{}", row(c))?;
+    }
+    if p.isotropic_sample {
+        writeln!(
+            out,
+            "(an isotropic sample: its isotropy classes and light sweeps watch the lamp without probes)"
+        )?;
+    } else {
+        writeln!(
+            out,
+            "(an anisotropic sample: without probes nothing watches the lamp's rate or colour)"
+        )?;
+    }
+    Ok(())
 }
 
 /// The built-in config of `check` without --config.

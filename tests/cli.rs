@@ -109,6 +109,44 @@ fn plan_json_has_the_ubo_counts() {
 }
 
 #[test]
+fn plan_designs_the_probe_cadence_or_says_why_no_cadence_can() {
+    let out = bin().args(["plan", "--json"]).output().unwrap();
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let design = &v["probes"]["design"];
+    assert_eq!(design["outcome"], "recommended", "{design}");
+    // a −2 % step must be seen within 300 captures: a probe at least every 300
+    assert!(
+        design["cadence"]["every"].as_u64().unwrap() <= 300,
+        "{design}"
+    );
+    assert!(design["cadence"]["meets"].as_bool().unwrap());
+    assert_eq!(
+        v["probes"]["configured"],
+        serde_json::Value::Null,
+        "probes are off"
+    );
+
+    // a probe pose that scatters by 2 % cannot show a 2 % step
+    let out = bin()
+        .args(["plan", "--probe-scatter-pct", "2"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("NO CADENCE MEETS THE TARGET"), "{text}");
+    assert!(text.contains("the probe scatter (2 %)"), "{text}");
+
+    // a target the flags make impossible to state is a usage error naming the value
+    let out = bin()
+        .args(["plan", "--probe-scatter-pct", "0"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("scatter_pct"));
+}
+
+#[test]
 fn bad_config_names_the_field_and_exits_2() {
     let dir = std::env::temp_dir().join(format!("gw-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

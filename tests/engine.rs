@@ -521,7 +521,12 @@ fn a_retaken_entry_is_not_paired_twice() {
 fn probes_are_requested_only_when_enabled() {
     let text =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
-    let cfg = Config::from_toml_str(&text.replace("every = 0", "every = 2")).unwrap();
+    let cfg = Config::from_toml_str(
+        &text
+            .replace("every = 0", "every = 2")
+            .replace("# entry = 19", "entry = 19"),
+    )
+    .unwrap();
     let entry = cfg.probe_entry().unwrap();
     let plan = cfg.plan().unwrap();
     let e0 = plan.entry(entry).unwrap();
@@ -566,6 +571,69 @@ fn probes_are_requested_only_when_enabled() {
             .replace("# entry = 19", "entry = 99999"),
     );
     assert!(bad.is_err_and(|e| e.to_string().contains("probes.entry")));
+}
+
+#[test]
+fn without_a_configured_entry_the_probe_pose_is_chosen_after_a_sweep_and_then_probed() {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
+    let cfg = Config::from_toml_str(&text.replace("every = 0", "every = 10")).unwrap();
+    assert_eq!(cfg.probes.entry, None);
+    let mut e = Engine::from_config(&cfg).unwrap();
+    let mut c = Controller::default();
+    connected(&mut e, &mut c);
+    e.handle(&c.line(
+        "ACK",
+        &[
+            ("ref", "2".into()),
+            ("next", "0".into()),
+            ("state", "running".into()),
+        ],
+    ));
+    let pose = |p: [f64; 4]| p.map(|v| v.to_string()).join(",");
+    let mut out = Vec::new();
+    // the first 100 captures of the plan: the pole light's sweep (81) and 19 more
+    for ci in fixtures::ubo_session(100, |_| 1.0) {
+        let mut f = vec![
+            ("idx", ci.idx.to_string()),
+            ("entry", ci.entry.to_string()),
+            ("file", ci.file.clone()),
+            ("t", ci.t.to_string()),
+            ("cmd", pose(ci.cmd)),
+            ("enc", pose(ci.enc)),
+            ("exp", "x".into()),
+        ];
+        if let Some(sub) = ci.substitute {
+            f.push(("sub", sub.to_string()));
+        }
+        out.extend(e.handle(&c.line("CAPTURE", &f)));
+        out.extend(e.handle(&Input::Outcome {
+            idx: ci.idx,
+            outcome: ci.outcome,
+        }));
+    }
+    let chosen: Vec<_> = out
+        .iter()
+        .filter_map(|o| match o {
+            Output::ProbePose(p) => Some(*p),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(chosen.len(), 1, "chosen once");
+    let p = chosen[0];
+    // from the pole light's sweep: off grazing and off the mirror direction
+    assert!(p.entry < 81 && p.theta_i_deg < 1e-6, "{p:?}");
+    assert!(
+        p.theta_o_deg <= 45.0 + 1e-9 && p.specular_distance_deg >= 25.0,
+        "{p:?}"
+    );
+    // no probe before a sweep's worth was checked: the first at 90 captures, then at 100
+    let probes: Vec<String> = sent(&out)
+        .into_iter()
+        .filter(|s| s.starts_with("PROBE"))
+        .collect();
+    assert_eq!(probes, vec![format!("PROBE entry={}", p.entry); 2]);
+    assert_eq!(e.summary().probe_pose, Some(p));
 }
 
 /// The RESYNCs an engine sent.

@@ -36,7 +36,7 @@ use crate::measure::drift::{DriftEstimate, StepEffect};
 use crate::measure::geometry::{azimuth_difference_deg, Vec3};
 use crate::measure::kinematics::Rig;
 use crate::measure::plan::{AcquisitionOrder, SamplingPlan};
-use crate::measure::probes::{ProbeDrift, ProbeSpec};
+use crate::measure::probes::{choose_probe_pose, PoseSample, ProbeDrift, ProbePose, ProbeSpec};
 use crate::measure::sweeps::{SweepCapture, SweepMonitor, SweepRecord, SweepSpec, SweepSummary};
 use capture::{CaptureStage, Measured, Verdict};
 use drift::{drift_alarm, DriftStage};
@@ -477,6 +477,29 @@ impl Checker {
             }
             out.pairs.push(pair);
         }
+    }
+
+    /// The probe pose chosen from the captures checked so far (`measure::probes`): usable
+    /// captures at their exact pose, neither dark nor occlusion substitutes.
+    pub(crate) fn choose_probe_pose(&self) -> Option<ProbePose> {
+        let samples: Vec<PoseSample> = (0..self.plan.capture_count())
+            .filter_map(|e| {
+                let c = self.ledger.get(e)?;
+                if !c.exact_pose || c.dark || c.substitute {
+                    return None;
+                }
+                let pe = self.plan.entry(e).ok()?;
+                Some(PoseSample {
+                    entry: e,
+                    light: pe.light,
+                    camera: pe.camera,
+                    omega_i: c.omega_i,
+                    omega_o: c.omega_o,
+                    y: c.xyz[1],
+                })
+            })
+            .collect();
+        choose_probe_pose(&samples)
     }
 
     /// The gain drift estimate from the probes, once there are enough.

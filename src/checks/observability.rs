@@ -71,7 +71,7 @@ pub fn observability(
         );
     }
     let probes_remedy =
-        "enable drift probes ([probes] every = N): a re-capture of one pose every N captures";
+        "enable drift probes ([probes] every = N): a re-capture of one pose every N captures; `goniowatch plan` prints the N that meets the detection target";
     if !isotropic {
         let why = "the sample is declared anisotropic ([sample] isotropic = false): it has no isotropy classes, and in a light-outer order a linear drift is confounded with the per-direction non-reciprocity of reciprocal pairs (measure::drift)";
         if !probes {

@@ -117,6 +117,19 @@ pub struct PlanSummary {
     /// What reciprocal pairs alone tell about the lamp's drift, per acquisition order (the
     /// configured one first), at 7 s per capture.
     pub drift_from_pairs: Vec<OrderIdentifiability>,
+    /// The probe cadence that meets the detection target (`measure::probe_plan`).
+    pub probes: ProbePlanSummary,
+}
+
+/// `measure::probe_plan` for the config's sample, order and probe settings.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ProbePlanSummary {
+    pub isotropic_sample: bool,
+    pub session: crate::measure::probe_plan::ProbeSession,
+    pub target: crate::measure::probe_plan::DetectionTarget,
+    /// The configured cadence's figures (`[probes] every`), when probes are on.
+    pub configured: Option<crate::measure::probe_plan::CadenceFigures>,
+    pub design: crate::measure::probe_plan::ProbePlan,
 }
 
 /// `measure::identifiability` for one acquisition order.
@@ -183,7 +196,51 @@ fn drift_from_pairs(
     Ok(out)
 }
 
-pub fn plan_summary(cfg: &Config) -> Result<PlanSummary, crate::config::ConfigError> {
+/// The probe plan: the design over the candidate cadences and the configured cadence's figures.
+fn probe_plan(
+    cfg: &Config,
+    scatter_pct: f64,
+    target: &crate::measure::probe_plan::DetectionTarget,
+) -> anyhow::Result<ProbePlanSummary> {
+    use crate::measure::probe_plan::{cadence_figures, design, ProbeSession};
+    use anyhow::Context;
+    let plan = cfg.plan()?;
+    let session = ProbeSession {
+        captures: plan.capture_count() as u64,
+        seconds_per_capture: SECONDS_PER_CAPTURE,
+        seconds_per_probe: SECONDS_PER_CAPTURE,
+        // a pose the daemon chooses is among the first sweep's captures: the default pose, or
+        // the middle of the first sweep, stands in for it
+        anchor: match cfg.probes.entry {
+            Some(_) => cfg.probe_entry()? as u64,
+            None => cfg.probe_entry().unwrap_or(plan.direction_count() / 2) as u64,
+        },
+        probes_from: if cfg.probes.entry.is_some() {
+            0
+        } else {
+            plan.direction_count() as u64
+        },
+        scatter_pct,
+    };
+    let design = design(&session, &cfg.probes, target)
+        .context("cannot design the drift probes (--probe-scatter-pct, --target-…)")?;
+    let every = cfg.probes.every;
+    let configured = (every > 0 && every < session.captures)
+        .then(|| cadence_figures(&session, &cfg.probes, target, every));
+    Ok(ProbePlanSummary {
+        isotropic_sample: cfg.sample.isotropic,
+        session,
+        target: *target,
+        configured,
+        design,
+    })
+}
+
+pub fn plan_summary(
+    cfg: &Config,
+    probe_scatter_pct: f64,
+    target: &crate::measure::probe_plan::DetectionTarget,
+) -> anyhow::Result<PlanSummary> {
     let plan = cfg.plan()?;
     let rig = cfg.rig()?;
     let dirs = plan.directions();
@@ -226,5 +283,6 @@ pub fn plan_summary(cfg: &Config) -> Result<PlanSummary, crate::config::ConfigEr
         substitutes,
         unreachable,
         drift_from_pairs: drift_from_pairs(&cfg.plan)?,
+        probes: probe_plan(cfg, probe_scatter_pct, target)?,
     })
 }

@@ -122,6 +122,13 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
             d.rate_pct_per_h, d.se_pct_per_h, d.pairs
         )?;
     }
+    if let Some(p) = &s.probe_pose {
+        writeln!(
+            out,
+            "probe pose (chosen): plan entry {}, θi {:.0}°, θo {:.0}°, {:.0}° from the mirror direction, {:.2} %/° to a pose error",
+            p.entry, p.theta_i_deg, p.theta_o_deg, p.specular_distance_deg, p.sensitivity_pct_per_deg
+        )?;
+    }
     let alarms: Vec<String> = s.alarms.iter().map(|(k, v)| format!("{k} {v}")).collect();
     writeln!(
         out,

@@ -147,6 +147,14 @@ impl Live {
                     self.submit_pending();
                 }
                 Output::Finished => self.finished = true,
+                Output::ProbePose(p) => tracing::info!(
+                    "drift probes: plan entry {} (θi {:.0}°, θo {:.0}°, {:.0}° from the mirror direction, {:.2} %/° to a pose error)",
+                    p.entry,
+                    p.theta_i_deg,
+                    p.theta_o_deg,
+                    p.specular_distance_deg,
+                    p.sensitivity_pct_per_deg
+                ),
                 Output::Alarm(a) => {
                     log_alarm(a, self.bar.as_ref(), false);
                     self.hooks.retain(|h| !h.is_finished());

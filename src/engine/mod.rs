@@ -73,6 +73,8 @@ pub enum Output {
     Sweep(crate::measure::sweeps::SweepRecord),
     Alarm(Alarm),
     Manifest(ManifestRecord),
+    /// The drift probes' pose was chosen (no `[probes] entry` configured); probes follow.
+    ProbePose(crate::measure::probes::ProbePose),
     /// Every capture the controller announced as taken is checked and the run is done.
     Finished,
 }
@@ -93,6 +95,9 @@ pub struct Summary {
     pub interpolated: Table2,
     /// Gain drift estimate from the probes (%/h), when probes are enabled.
     pub probe_drift: Option<crate::measure::drift::DriftEstimate>,
+    /// The pose the daemon chose for the probes (none configured), once chosen.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe_pose: Option<crate::measure::probes::ProbePose>,
     /// Gain drift estimate from isotropy classes (isotropic samples).
     #[serde(default)]
     pub isotropy_drift: Option<crate::measure::drift::DriftEstimate>,
@@ -127,7 +132,10 @@ pub struct Engine {
     captures_planned: u64,
     /// Ask for a probe of `probe_entry` every this many regular captures checked (0: never).
     probe_every: u64,
-    probe_entry: usize,
+    /// The configured probe entry, or the chosen one; None until it is chosen.
+    probe_entry: Option<usize>,
+    /// The pose chosen for the probes (no entry configured).
+    probe_pose: Option<crate::measure::probes::ProbePose>,
     regular_checked: u64,
     /// Inputs handled so far (the alarm aggregation's clock).
     inputs: u64,
@@ -160,7 +168,11 @@ impl Engine {
         );
         let mut engine = Engine::new(checker, cfg.alarms.clone());
         if cfg.probes.every > 0 {
-            engine.set_probes(cfg.probes.every, cfg.probe_entry()?);
+            let entry = match cfg.probes.entry {
+                Some(_) => Some(cfg.probe_entry()?),
+                None => None,
+            };
+            engine.set_probes(cfg.probes.every, entry);
         }
         Ok(engine)
     }
@@ -179,14 +191,16 @@ impl Engine {
             paused_for: BTreeSet::new(),
             captures_planned,
             probe_every: 0,
-            probe_entry: 0,
+            probe_entry: None,
+            probe_pose: None,
             regular_checked: 0,
             inputs: 0,
         }
     }
 
-    /// Enable drift probes (operator action): a `PROBE entry=…` every `every` regular captures.
-    pub(crate) fn set_probes(&mut self, every: u64, entry: usize) {
+    /// Enable drift probes (operator action): a `PROBE entry=…` every `every` regular captures,
+    /// of `entry`, or (None) of a pose chosen once a light sweep's worth of captures is checked.
+    pub(crate) fn set_probes(&mut self, every: u64, entry: Option<usize>) {
         self.probe_every = every;
         self.probe_entry = entry;
     }
@@ -275,6 +289,7 @@ impl Engine {
             isotropy: self.checker.isotropy_table().clone(),
             interpolated: self.checker.interpolated_table().clone(),
             probe_drift: self.checker.probe_drift(),
+            probe_pose: self.probe_pose,
             isotropy_drift: self.checker.isotropy_drift(),
             colour_drift: self.checker.colour_drift(),
             observability: self.checker.observability(),
@@ -948,14 +963,41 @@ impl Engine {
                 self.ledger.next_check += 1;
                 if !input.probe {
                     self.regular_checked += 1;
+                    // The pose is chosen once a light sweep's worth of captures is checked, and
+                    // tried again after each further one while none qualifies. The choice
+                    // depends on the captures checked only (not on the link), so a replay or a
+                    // resume makes the same one.
+                    let sweep = self.checker.plan().direction_count().max(1) as u64;
                     if self.probe_every > 0
-                        && self.regular_checked.is_multiple_of(self.probe_every)
-                        && self.link.is_connected()
-                        && self.link.is_subscribed()
-                        && !self.done
+                        && self.probe_entry.is_none()
+                        && self.regular_checked.is_multiple_of(sweep)
                     {
-                        let entry = self.probe_entry.to_string();
-                        self.send(out, "PROBE", &[("entry", entry)]);
+                        match self.checker.choose_probe_pose() {
+                            Some(pose) => {
+                                self.probe_entry = Some(pose.entry);
+                                self.probe_pose = Some(pose);
+                                out.push(Output::ProbePose(pose));
+                            }
+                            None if self.regular_checked == sweep => {
+                                let a = Alarm::new(
+                                    AlarmKind::Drift,
+                                    Severity::Warning,
+                                    "probe-pose-unavailable",
+                                    "no checked capture qualifies as the drift probes' pose (off grazing, off the mirror direction, not dark, with neighbours); no probe is asked for until one does: set [probes] entry to choose one".into(),
+                                )
+                                .at(Some(input.idx), Some(input.t));
+                                self.alarm(out, a);
+                            }
+                            None => {}
+                        }
+                    }
+                    if self.probe_every > 0 && self.regular_checked.is_multiple_of(self.probe_every)
+                    {
+                        if let Some(entry) = self.probe_entry {
+                            if self.link.is_connected() && self.link.is_subscribed() && !self.done {
+                                self.send(out, "PROBE", &[("entry", entry.to_string())]);
+                            }
+                        }
                     }
                 }
             } else if self.ledger.missing.contains(&i) {

@@ -15,6 +15,7 @@ pub mod identifiability;
 pub mod kinematics;
 pub mod lamp;
 pub mod plan;
+pub mod probe_plan;
 pub mod probes;
 pub mod reciprocity;
 pub mod resample;

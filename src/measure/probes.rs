@@ -10,6 +10,7 @@
 //! standard deviations and `step_pct`; the segment then restarts at that probe.
 
 use super::drift::{DriftEstimate, DriftEvent};
+use super::geometry::{angle_between, mirror, Vec3};
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -18,8 +19,8 @@ pub struct ProbeSpec {
     /// Ask for a probe every this many checked captures; 0 = never (the default: probes move the
     /// rig, so the operator must enable them, and the rig may refuse).
     pub every: u64,
-    /// The plan entry to re-capture (default: lamp at the pole, camera at 45°, azimuth 0: a
-    /// diffuse geometry, far from the specular peak and from grazing).
+    /// The plan entry to re-capture; unset, the daemon chooses it (`choose_probe_pose`) once a
+    /// light sweep's worth of captures is checked.
     pub entry: Option<usize>,
     pub rate_tolerance_pct_per_h: f64,
     pub z: f64,
@@ -42,6 +43,130 @@ impl Default for ProbeSpec {
             step_pct: 1.0,
         }
     }
+}
+
+/// A checked capture offered to the probe-pose choice: its plan entry, its light and camera
+/// direction indices, both directions in the sample frame, and its luminance.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PoseSample {
+    pub entry: usize,
+    pub light: usize,
+    pub camera: usize,
+    pub omega_i: Vec3,
+    pub omega_o: Vec3,
+    pub y: f64,
+}
+
+/// The chosen probe pose, with the figures it was chosen by.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ProbePose {
+    pub entry: usize,
+    pub theta_i_deg: f64,
+    pub theta_o_deg: f64,
+    /// Angle between the camera and the light's mirror direction (°).
+    pub specular_distance_deg: f64,
+    /// Its luminance at the original capture.
+    pub luminance: f64,
+    /// The change of its luminance per degree of pose error (%/°): the steepest slope of ln Y to
+    /// a neighbouring capture within `PROBE_NEIGHBOUR_DEG` (same light, camera moved; or same
+    /// camera, light moved), plus the cosine term's 100·tan θi·π/180 when no light-side
+    /// neighbour was measured.
+    pub sensitivity_pct_per_deg: f64,
+}
+
+/// A probe pose is far from grazing: θi at most this ...
+pub const PROBE_MAX_THETA_I_DEG: f64 = 30.0;
+/// ... and θo at most this.
+pub const PROBE_MAX_THETA_O_DEG: f64 = 45.0;
+/// It is off the specular peak (where a pose error changes the luminance most) by at least this.
+pub const PROBE_MIN_SPECULAR_DEG: f64 = 25.0;
+/// Neighbours within this angle measure its sensitivity to a pose error.
+pub const PROBE_NEIGHBOUR_DEG: f64 = 25.0;
+/// Any candidate at most this sensitive (%/°) is quiet enough to be chosen for its brightness.
+pub const PROBE_QUIET_PCT_PER_DEG: f64 = 0.5;
+
+/// Chooses the probe pose among checked captures (pass them in entry order): far from grazing
+/// and off the specular peak (the limits above), with at least two neighbours to measure its
+/// sensitivity to a pose error (a slipped joint moves the probe as much as any capture), the
+/// brightest of those whose sensitivity is at most twice the least one's, or
+/// `PROBE_QUIET_PCT_PER_DEG`, whichever is larger. Brightness keeps the probe's own noise low
+/// (camera noise and quantisation are relative to the signal); the sensitivity bound keeps a
+/// joint's slip from looking like a lamp step. Ties go to the lower entry; None when no capture
+/// qualifies.
+pub(crate) fn choose_probe_pose(samples: &[PoseSample]) -> Option<ProbePose> {
+    let usable = |s: &PoseSample| s.y > 0.0 && s.y.is_finite();
+    let theta = |v: &Vec3| v.z.clamp(-1.0, 1.0).acos().to_degrees();
+    // neighbours share the light or the camera: index both ways (a session has thousands)
+    let mut by_light: std::collections::BTreeMap<usize, Vec<&PoseSample>> = Default::default();
+    let mut by_camera: std::collections::BTreeMap<usize, Vec<&PoseSample>> = Default::default();
+    for s in samples.iter().filter(|s| usable(s)) {
+        by_light.entry(s.light).or_default().push(s);
+        by_camera.entry(s.camera).or_default().push(s);
+    }
+    let mut candidates = Vec::new();
+    for s in samples.iter().filter(|s| usable(s)) {
+        let (ti, to) = (theta(&s.omega_i), theta(&s.omega_o));
+        let spec = angle_between(&mirror(&s.omega_i), &s.omega_o).to_degrees();
+        // the limits hold to a micro-degree: poses from the kinematics are not exact
+        let eps = 1e-6;
+        if !(ti <= PROBE_MAX_THETA_I_DEG + eps
+            && to <= PROBE_MAX_THETA_O_DEG + eps
+            && spec >= PROBE_MIN_SPECULAR_DEG - eps)
+        {
+            continue;
+        }
+        let mut slope: f64 = 0.0;
+        let mut neighbours = 0usize;
+        let mut light_side = false;
+        let camera_moved = by_light
+            .get(&s.light)
+            .into_iter()
+            .flatten()
+            .map(|n| (n, angle_between(&s.omega_o, &n.omega_o), false));
+        let light_moved = by_camera
+            .get(&s.camera)
+            .into_iter()
+            .flatten()
+            .filter(|n| n.light != s.light)
+            .map(|n| (n, angle_between(&s.omega_i, &n.omega_i), true));
+        for (n, moved, light) in camera_moved.chain(light_moved) {
+            let moved = moved.to_degrees();
+            if n.entry != s.entry && moved > 1e-6 && moved <= PROBE_NEIGHBOUR_DEG {
+                slope = slope.max(100.0 * (n.y / s.y).ln().abs() / moved);
+                neighbours += 1;
+                light_side |= light;
+            }
+        }
+        if neighbours < 2 {
+            continue;
+        }
+        if !light_side {
+            slope += 100.0 * ti.to_radians().tan() * std::f64::consts::PI / 180.0;
+        }
+        candidates.push(ProbePose {
+            entry: s.entry,
+            theta_i_deg: ti,
+            theta_o_deg: to,
+            specular_distance_deg: spec,
+            luminance: s.y,
+            sensitivity_pct_per_deg: slope,
+        });
+    }
+    let least = candidates
+        .iter()
+        .map(|p| p.sensitivity_pct_per_deg)
+        .fold(f64::INFINITY, f64::min);
+    let bound = (2.0 * least).max(PROBE_QUIET_PCT_PER_DEG);
+    let mut best: Option<ProbePose> = None;
+    for p in candidates
+        .into_iter()
+        .filter(|p| p.sensitivity_pct_per_deg <= bound)
+    {
+        if best.is_none_or(|b| p.luminance > b.luminance) {
+            best = Some(p);
+        }
+    }
+    best
 }
 
 #[derive(Debug, Clone)]
@@ -225,6 +350,96 @@ mod tests {
         for seed in 0..20 {
             assert!(run(0.0, None, 0.002, seed).is_empty(), "seed {seed}");
         }
+    }
+
+    /// One sweep of a lamp at `light` over the UBO directions, on a BRDF `f(ωi, ωo)`.
+    fn sweep(
+        light: usize,
+        f: impl Fn(&Vec3, &Vec3) -> f64,
+    ) -> (Vec<PoseSample>, Vec<crate::measure::plan::PlanDirection>) {
+        let plan = crate::measure::plan::SamplingPlan::ubo();
+        let dirs = plan.directions().to_vec();
+        let wi = dirs[light].spherical().to_vector();
+        let samples = dirs
+            .iter()
+            .enumerate()
+            .map(|(c, d)| {
+                let wo = d.spherical().to_vector();
+                PoseSample {
+                    entry: light * dirs.len() + c,
+                    light,
+                    camera: c,
+                    omega_i: wi,
+                    omega_o: wo,
+                    y: f(&wi, &wo) * wi.z,
+                }
+            })
+            .collect();
+        (samples, dirs)
+    }
+
+    #[test]
+    fn a_lambertian_sample_is_probed_off_grazing_and_off_the_mirror() {
+        let (s, _) = sweep(0, |_, _| 0.3);
+        let p = choose_probe_pose(&s).unwrap();
+        assert_eq!(p.theta_i_deg, 0.0);
+        assert!(
+            p.theta_o_deg <= 45.0 + 1e-9 && p.specular_distance_deg >= 25.0,
+            "{p:?}"
+        );
+        // every qualifying capture is equally bright and flat: the first one wins
+        assert!(p.sensitivity_pct_per_deg < 1e-9, "{p:?}");
+        assert_eq!(p, choose_probe_pose(&s).unwrap(), "deterministic");
+    }
+
+    #[test]
+    fn a_glossy_sample_is_probed_where_it_is_bright_but_not_on_the_lobe_flank() {
+        // a smooth base, brighter towards the normal, and a narrow lobe about the mirror
+        // direction of the pole light: the θo = 30° captures are the brightest that qualify, but
+        // their θo = 15° neighbours are on the lobe
+        let brdf = |wi: &Vec3, wo: &Vec3| {
+            let a = angle_between(&mirror(wi), wo).to_degrees();
+            0.2 * (1.0 + 0.3 * wo.z) + 50.0 * (-(a / 8.0).powi(2)).exp()
+        };
+        let (s, _) = sweep(0, brdf);
+        let p = choose_probe_pose(&s).unwrap();
+        assert!((p.theta_o_deg - 45.0).abs() < 1e-9, "{p:?}");
+        assert!(
+            p.sensitivity_pct_per_deg <= PROBE_QUIET_PCT_PER_DEG,
+            "{p:?}"
+        );
+        let flank: Vec<_> = s
+            .iter()
+            .filter(|x| (x.omega_o.z.acos().to_degrees() - 30.0).abs() < 1e-6)
+            .collect();
+        assert_eq!(flank.len(), 12);
+        assert!(
+            flank.iter().all(|x| x.y > p.luminance),
+            "the flank is brighter, and refused"
+        );
+    }
+
+    #[test]
+    fn nothing_qualifies_without_neighbours_or_off_grazing_captures() {
+        let (s, _) = sweep(0, |_, _| 0.3);
+        assert!(
+            choose_probe_pose(&s[..2]).is_none(),
+            "too few to measure a slope"
+        );
+        // a lamp at 75° is grazing
+        let plan = crate::measure::plan::SamplingPlan::ubo();
+        let grazing = plan
+            .directions()
+            .iter()
+            .position(|d| d.theta_deg == 75.0)
+            .unwrap();
+        let (s, _) = sweep(grazing, |_, _| 0.3);
+        assert!(choose_probe_pose(&s).is_none());
+        let mut bad = sweep(0, |_, _| 0.3).0;
+        for x in &mut bad {
+            x.y = f64::NAN;
+        }
+        assert!(choose_probe_pose(&bad).is_none());
     }
 
     #[test]

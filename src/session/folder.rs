@@ -134,7 +134,10 @@ impl Results {
             Output::Sweep(r) => self.sweeps.write(r),
             Output::Alarm(a) => self.alarms.write(a),
             Output::Manifest(m) => self.manifest.write(m),
-            Output::Send(_) | Output::Ingest { .. } | Output::Finished => Ok(()),
+            // the summary carries the probe pose
+            Output::Send(_) | Output::Ingest { .. } | Output::ProbePose(_) | Output::Finished => {
+                Ok(())
+            }
         }
     }
 
