@@ -517,6 +517,29 @@ fn a_retaken_entry_is_not_paired_twice() {
     assert!(alarms(&out).contains(&"entry-repeated".to_string()));
 }
 
+/// A connected engine whose RESYNC the controller answered: running, next capture 0.
+fn connected_and_running(e: &mut Engine) -> Controller {
+    let mut c = Controller::default();
+    connected(e, &mut c);
+    e.handle(&c.line(
+        "ACK",
+        &[
+            ("ref", "2".into()),
+            ("next", "0".into()),
+            ("state", "running".into()),
+        ],
+    ));
+    c
+}
+
+/// The PROBE lines an engine sent.
+fn probes_sent(out: &[Output]) -> Vec<String> {
+    sent(out)
+        .into_iter()
+        .filter(|s| s.starts_with("PROBE"))
+        .collect()
+}
+
 #[test]
 fn probes_are_requested_only_when_enabled() {
     let text =
@@ -538,16 +561,7 @@ fn probes_are_requested_only_when_enabled() {
         } else {
             engine()
         };
-        let mut c = Controller::default();
-        connected(&mut e, &mut c);
-        e.handle(&c.line(
-            "ACK",
-            &[
-                ("ref", "2".into()),
-                ("next", "0".into()),
-                ("state", "running".into()),
-            ],
-        ));
+        let mut c = connected_and_running(&mut e);
         let mut out = Vec::new();
         for i in 0..2 {
             out.extend(e.handle(&c.capture(i)));
@@ -556,10 +570,7 @@ fn probes_are_requested_only_when_enabled() {
                 outcome: ok_outcome(),
             }));
         }
-        let probes: Vec<String> = sent(&out)
-            .into_iter()
-            .filter(|s| s.starts_with("PROBE"))
-            .collect();
+        let probes = probes_sent(&out);
         assert_eq!(probes.len(), want, "every {every}");
         if want > 0 {
             assert_eq!(probes[0], format!("PROBE entry={entry}"));
@@ -580,16 +591,7 @@ fn without_a_configured_entry_the_probe_pose_is_chosen_after_a_sweep_and_then_pr
     let cfg = Config::from_toml_str(&text.replace("every = 0", "every = 10")).unwrap();
     assert_eq!(cfg.probes.entry, None);
     let mut e = Engine::from_config(&cfg).unwrap();
-    let mut c = Controller::default();
-    connected(&mut e, &mut c);
-    e.handle(&c.line(
-        "ACK",
-        &[
-            ("ref", "2".into()),
-            ("next", "0".into()),
-            ("state", "running".into()),
-        ],
-    ));
+    let mut c = connected_and_running(&mut e);
     let pose = |p: [f64; 4]| p.map(|v| v.to_string()).join(",");
     let mut out = Vec::new();
     // the first 100 captures of the plan: the pole light's sweep (81) and 19 more
@@ -628,11 +630,10 @@ fn without_a_configured_entry_the_probe_pose_is_chosen_after_a_sweep_and_then_pr
         "{p:?}"
     );
     // no probe before a sweep's worth was checked: the first at 90 captures, then at 100
-    let probes: Vec<String> = sent(&out)
-        .into_iter()
-        .filter(|s| s.starts_with("PROBE"))
-        .collect();
-    assert_eq!(probes, vec![format!("PROBE entry={}", p.entry); 2]);
+    assert_eq!(
+        probes_sent(&out),
+        vec![format!("PROBE entry={}", p.entry); 2]
+    );
     assert_eq!(e.summary().probe_pose, Some(p));
 }
 

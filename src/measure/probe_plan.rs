@@ -439,14 +439,19 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_quiet_probe_pose_gets_a_sparse_cadence_that_meets_the_default_target() {
-        let plan = design(
-            &ubo(0.3),
+    /// The design for the UBO session at this scatter, with the default settings and target.
+    fn default_design(scatter_pct: f64) -> ProbePlan {
+        design(
+            &ubo(scatter_pct),
             &ProbeSpec::default(),
             &DetectionTarget::default(),
         )
-        .unwrap();
+        .unwrap()
+    }
+
+    #[test]
+    fn a_quiet_probe_pose_gets_a_sparse_cadence_that_meets_the_default_target() {
+        let plan = default_design(0.3);
         let ProbePlan::Recommended { cadence, tried } = plan else {
             panic!("{plan:?}");
         };
@@ -468,12 +473,7 @@ mod tests {
 
     #[test]
     fn a_noisy_probe_pose_cannot_meet_the_target_and_says_why() {
-        let plan = design(
-            &ubo(2.0),
-            &ProbeSpec::default(),
-            &DetectionTarget::default(),
-        )
-        .unwrap();
+        let plan = default_design(2.0);
         let ProbePlan::Unreachable { reason, tried } = plan else {
             panic!("{plan:?}");
         };
