@@ -637,6 +637,31 @@ fn without_a_configured_entry_the_probe_pose_is_chosen_after_a_sweep_and_then_pr
     assert_eq!(e.summary().probe_pose, Some(p));
 }
 
+#[test]
+fn a_probe_pose_that_cannot_be_chosen_is_said_once_and_no_probe_is_asked_for() {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
+    let cfg = Config::from_toml_str(&text.replace("every = 0", "every = 10")).unwrap();
+    let mut e = Engine::from_config(&cfg).unwrap();
+    let mut c = connected_and_running(&mut e);
+    let mut out = Vec::new();
+    // every capture at the same pose, off its plan entry's: none can be a probe pose
+    for i in 0..170 {
+        out.extend(e.handle(&c.capture(i)));
+        out.extend(e.handle(&Input::Outcome {
+            idx: i,
+            outcome: ok_outcome(),
+        }));
+    }
+    let said = alarms(&out)
+        .iter()
+        .filter(|a| *a == "probe-pose-unavailable")
+        .count();
+    assert_eq!(said, 1, "{:?}", alarms(&out));
+    assert!(probes_sent(&out).is_empty());
+    assert_eq!(e.summary().probe_pose, None);
+}
+
 /// The RESYNCs an engine sent.
 fn resyncs(out: &[Output]) -> usize {
     sent(out).iter().filter(|l| l.starts_with("RESYNC")).count()
