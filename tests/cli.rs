@@ -300,3 +300,48 @@ fn the_report_plots_the_isotropy_gain_estimate_when_there_are_no_probes() {
         std::fs::remove_dir_all(&dir).ok();
     }
 }
+
+#[test]
+fn the_report_says_what_to_do_about_each_alarm_and_which_captures_it_affects() {
+    // joint 2 slipped at capture 2,000 of the joint-slip session
+    let dir = corpus_results("joint-slip");
+    let r = bin().arg("report").arg(&dir).output().unwrap();
+    assert_eq!(
+        r.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
+    let html = std::fs::read_to_string(dir.join("report/report.html")).unwrap();
+    assert!(
+        html.contains("<th>what to do</th><th>captures affected</th>"),
+        "no advice columns"
+    );
+    assert!(html.contains("check the sample clamp and arm joint 2"));
+    let csv = std::fs::read_to_string(dir.join("report/alarms.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some("idx,t_s,severity,kind,code,message,action,affects")
+    );
+    let slip = lines
+        .find(|l| l.contains("joint-offset-suspected"))
+        .expect("the slip's row");
+    // the affected captures start at or before the slip, and the retake list agrees
+    let from: u64 = slip
+        .rsplit("captures ")
+        .next()
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("{slip}"));
+    assert!(slip.ends_with(" on: retake"), "{slip}");
+    assert!((1900..=2000).contains(&from), "{slip}");
+    let retakes = std::fs::read_to_string(dir.join("report/retakes.csv")).unwrap();
+    let first_slipped = retakes
+        .lines()
+        .find(|l| l.contains("joint 2"))
+        .and_then(|l| l.split(',').next())
+        .and_then(|s| s.parse::<u64>().ok());
+    assert_eq!(first_slipped, Some(from), "{retakes}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -5,7 +5,7 @@
 
 use super::records::{CaptureInput, CaptureRecord, CaptureStatus, Outcome};
 use super::{Checked, Ctx};
-use crate::measure::alarm::{Alarm, AlarmKind, Severity};
+use crate::measure::alarm::{Affects, Alarm, AlarmKind, Handling, Severity};
 use crate::measure::colour::xyz_to_lab;
 use crate::measure::geometry::{angle_between, Spherical};
 use crate::measure::kinematics::{Incidence, Pose};
@@ -52,6 +52,24 @@ pub(super) struct CaptureStage {
 
 /// The encoder axes, in the order of `enc` and `cmd`.
 const AXES: [&str; 4] = ["joint 1", "joint 2", "joint 3", "wagon"];
+
+/// What the operator can do when the encoders put a capture off the plan.
+const POSE_OFF_PLAN_ACTION: &str = "Check the arm and the wagon for a collision, a stall or lost steps and re-home them; the captures of the episode are on the retake list.";
+
+/// What the operator can do about an encoder that disagrees with its command on `axis`.
+fn encoder_action(axis: &str) -> String {
+    format!("Check the {axis} encoder, motor and coupling. If the images agree with the commanded pose (a constant encoder offset), re-home or recalibrate the encoder; meanwhile the captures are placed by the encoder pose, so look at their pairs before trusting them.")
+}
+
+/// What the output does about a pose episode's captures: off the plan they are wrong and
+/// retaken; with only an encoder disagreeing the images may be right.
+fn episode_handling(code: &str) -> Handling {
+    if code == "pose-off-plan" {
+        Handling::Retake
+    } else {
+        Handling::Inspect
+    }
+}
 
 /// A pose condition that holds over consecutive captures: raised once when it starts, cleared
 /// once when it ends, counted in between (a constant offset would otherwise raise an alarm on
@@ -123,7 +141,12 @@ impl Episode {
                 "first_idx": e.first_idx,
                 "last_idx": e.last_idx,
                 "worst_deg": e.worst_deg,
-            })),
+            }))
+            .affecting(Affects::Between {
+                from_idx: e.first_idx,
+                to_idx: e.last_idx,
+                handling: episode_handling(code),
+            }),
         )
     }
 }
@@ -160,6 +183,14 @@ impl CaptureStage {
                     "last_idx": e.last_idx,
                     "worst_deg": e.worst_deg,
                 }))
+                .advise(
+                    &if code == "pose-off-plan" {
+                        POSE_OFF_PLAN_ACTION.to_string()
+                    } else {
+                        encoder_action(e.axis)
+                    },
+                    Some(Affects::Since { from_idx: e.first_idx, handling: episode_handling(code) }),
+                )
             })
             .collect()
     }
@@ -356,7 +387,11 @@ impl CaptureStage {
                             input.idx, input.enc
                         ),
                     )
-                    .at(at.0, at.1),
+                    .at(at.0, at.1)
+                    .advise(
+                        "Check the controller's encoder report for this capture; it was placed at the plan's pose.",
+                        Some(Affects::Captures { idx: vec![input.idx], handling: Handling::Inspect }),
+                    ),
                 );
                 nominal
             }
@@ -378,6 +413,10 @@ impl CaptureStage {
                 )
                 .at(at.0, at.1)
                 .with(json!({"pose_error_deg": pose_err, "enc": input.enc, "cmd": input.cmd}))
+                .advise(
+                    POSE_OFF_PLAN_ACTION,
+                    Some(Affects::Since { from_idx: input.idx, handling: Handling::Retake }),
+                )
             }));
         } else {
             alarms.extend(Episode::clear(
@@ -406,6 +445,10 @@ impl CaptureStage {
                     )
                     .at(at.0, at.1)
                     .with(json!({"axis": name, "enc": input.enc, "cmd": input.cmd}))
+                    .advise(
+                        &encoder_action(name),
+                        Some(Affects::Since { from_idx: input.idx, handling: Handling::Inspect }),
+                    )
                 }));
             } else {
                 alarms.extend(Episode::clear(

@@ -14,7 +14,7 @@
 use super::pairs::PendingPartner;
 use super::records::{PairRecord, PairStatus};
 use super::{Ctx, GeometryKey, Ledger};
-use crate::measure::alarm::{Alarm, AlarmKind, Severity};
+use crate::measure::alarm::{action, Affects, Alarm, AlarmKind, Handling, Severity};
 use crate::measure::colour::{White, Xyz};
 use crate::measure::drift::{
     DriftDetector, DriftEstimate, DriftEvent, DriftSpec, PairObservation, StepEffect,
@@ -233,7 +233,7 @@ fn colour_alarm(e: &ColourDriftEstimate, at: (Option<u64>, Option<f64>)) -> Alar
         Severity::Warning,
         "colour-drift",
         format!(
-            "the lamp's colour drifts by {:+.1} K/h (± {:.1} K/h standard error, from {} {}; ΔE00 {:.2}/h on a white): {}; beyond the tolerance. Every later capture's chromaticity moves with the lamp; let the lamp settle or check its supply (a colour drift with a steady luminance is the lamp's temperature, not its output); the corrected output divides the drift out",
+            "the lamp's colour drifts by {:+.1} K/h (± {:.1} K/h standard error, from {} {}; ΔE00 {:.2}/h on a white): {}; beyond the tolerance. Every later capture's chromaticity moves with the lamp",
             e.k_per_h,
             e.se_k_per_h,
             e.observations,
@@ -253,6 +253,7 @@ fn colour_alarm(e: &ColourDriftEstimate, at: (Option<u64>, Option<f64>)) -> Alar
         "n": e.observations,
         "source": e.source,
     }))
+    .advise(action::COLOUR_DRIFT, Some(Affects::Since { from_idx: 0, handling: Handling::Corrected }))
 }
 
 pub(super) struct DriftStage {
@@ -296,7 +297,7 @@ impl DriftStage {
                     sigma: 0.0,
                 };
                 for ev in self.detector.add(obs) {
-                    alarms.push(drift_alarm(ev, "isotropy classes", at));
+                    alarms.push(drift_alarm(ev, "isotropy classes", at, None));
                 }
                 if let Some(colour) = self.colour.as_mut() {
                     colour.observe((key.0, key.1), (t0, xyz0), (t_h, xyz), at, alarms);
@@ -377,7 +378,7 @@ impl DriftStage {
         }
         let at = (Some(p.capture.idx), Some(p.capture.t));
         for ev in self.detector.add(obs) {
-            alarms.push(drift_alarm(ev, "isotropy classes", at));
+            alarms.push(drift_alarm(ev, "isotropy classes", at, None));
         }
         self.interpolated += 1;
     }
@@ -396,8 +397,14 @@ impl DriftStage {
     }
 }
 
-/// The alarm for a drift event of `source` (isotropy classes or probes).
-pub(super) fn drift_alarm(ev: DriftEvent, source: &str, at: (Option<u64>, Option<f64>)) -> Alarm {
+/// The alarm for a drift event of `source` (isotropy classes or probes). `since` is the first
+/// capture a step can have affected (after the last observation before it), when known.
+pub(super) fn drift_alarm(
+    ev: DriftEvent,
+    source: &str,
+    at: (Option<u64>, Option<f64>),
+    since: Option<u64>,
+) -> Alarm {
     match ev {
         DriftEvent::RateSignificant(e) => Alarm::new(
             AlarmKind::Drift,
@@ -409,7 +416,9 @@ pub(super) fn drift_alarm(ev: DriftEvent, source: &str, at: (Option<u64>, Option
             ),
         )
         .at(at.0, at.1)
-        .with(json!({"rate_pct_per_h": e.rate_pct_per_h, "se_pct_per_h": e.se_pct_per_h, "n": e.pairs, "source": source})),
+        .with(json!({"rate_pct_per_h": e.rate_pct_per_h, "se_pct_per_h": e.se_pct_per_h, "n": e.pairs, "source": source}))
+        // a rate acts on the whole run, from its first capture
+        .advise(action::GAIN_DRIFT, Some(Affects::Since { from_idx: 0, handling: Handling::Corrected })),
         DriftEvent::RateCleared(e) => Alarm::new(
             AlarmKind::Drift,
             Severity::Info,
@@ -430,6 +439,10 @@ pub(super) fn drift_alarm(ev: DriftEvent, source: &str, at: (Option<u64>, Option
             ),
         )
         .at(at.0, at.1)
-        .with(json!({"direction": direction, "statistic": statistic, "threshold": threshold, "source": source})),
+        .with(json!({"direction": direction, "statistic": statistic, "threshold": threshold, "source": source}))
+        .advise(
+            action::GAIN_STEP,
+            since.or(at.0).map(|from_idx| Affects::Since { from_idx, handling: Handling::Corrected }),
+        ),
     }
 }

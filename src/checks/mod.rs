@@ -256,6 +256,8 @@ pub struct Checker {
     probe_colour: Option<drift::ColourStage>,
     /// With drift probes enabled the sweeps' level test is left out: the probes see steps.
     probes_enabled: bool,
+    /// The last usable probe checked: a step the next probe finds began after it.
+    last_probe_idx: Option<u64>,
     alarms: u64,
 }
 
@@ -279,6 +281,7 @@ impl Checker {
             drift: isotropic.then(|| DriftStage::new(&spec.colour_drift)),
             sweeps,
             probes_enabled: probes.every > 0,
+            last_probe_idx: None,
             probe_colour: (probes.every > 0)
                 .then(|| drift::ColourStage::probes(&spec.colour_drift, probes.min_probes))
                 .flatten(),
@@ -355,7 +358,9 @@ impl Checker {
                 .probes
                 .add(t0 / 3600.0, y0, input.t / 3600.0, m.checked.xyz[1])
             {
-                out.alarms.push(drift_alarm(ev, "probes", at));
+                // a step happened after the last probe before this one
+                let since = self.last_probe_idx.map(|i| i + 1);
+                out.alarms.push(drift_alarm(ev, "probes", at, since));
             }
             if let Some(colour) = self.probe_colour.as_mut() {
                 colour.observe(
@@ -366,6 +371,7 @@ impl Checker {
                     &mut out.alarms,
                 );
             }
+            self.last_probe_idx = Some(input.idx);
         }
     }
 

@@ -7,7 +7,7 @@
 
 use super::records::{Interpolation, PairRecord, PairStatus, Table2};
 use super::{Checked, Ctx, Ledger};
-use crate::measure::alarm::{Alarm, AlarmKind, Severity};
+use crate::measure::alarm::{Affects, Alarm, AlarmKind, Handling, Severity};
 use crate::measure::colour::colour_difference;
 use crate::measure::geometry::{angle_between, Spherical};
 use crate::measure::reciprocity::{pair_residual, PairError};
@@ -170,6 +170,10 @@ impl PairStage {
                 )
                 .at(at.0, at.1)
                 .with(json!({"de2000": de, "limit": limit, "median": med, "mad": mad, "pairs": n, "a": pair.a, "b": pair.b, "theta_pair_deg": [bucket.0 as f64 / 1000.0, bucket.1 as f64 / 1000.0]}))
+                .advise(
+                    "Look at the two captures: a single outlier is usually a speck, a glint or a flicker; outliers that recur in one direction point at the sample's mount or a pose error. Retake the pair if one capture is plainly wrong.",
+                    Some(Affects::Captures { idx: vec![pair.a, pair.b], handling: Handling::Inspect }),
+                )
             })
         } else {
             None

@@ -10,7 +10,7 @@
 //! outside every listed episode, is not listed.
 
 use super::records::{CaptureRecord, CaptureStatus};
-use crate::measure::alarm::Alarm;
+use crate::measure::alarm::{Affects, Alarm};
 use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -74,7 +74,12 @@ pub fn retakes(captures: &[CaptureRecord], alarms: &[Alarm]) -> Vec<Retake> {
                     .get("offset_deg")
                     .and_then(|v| v.as_f64())
                     .unwrap_or(f64::NAN);
-                let since = ev.get("since_idx").and_then(|v| v.as_u64()).or(a.idx);
+                // the captures the alarm says it affects; a session recorded before alarms
+                // said so gives the start of the sweeps that showed the slip
+                let since = match &a.affects {
+                    Some(Affects::Since { from_idx, .. }) => Some(*from_idx),
+                    _ => ev.get("since_idx").and_then(|v| v.as_u64()).or(a.idx),
+                };
                 for i in range(since, last).into_iter().flatten() {
                     add(
                         i,
@@ -181,6 +186,27 @@ mod tests {
         assert_eq!(r[2].why, "dark capture");
         assert!(r[3].why.contains("off the plan"));
         assert!(r[6].why.contains("joint 2") && r[6].why.contains("+1.10°"));
+        // an alarm that says which captures a slip affects is taken at its word
+        let slip = alarm(
+            "joint-offset-suspected",
+            95,
+            json!({"joint": 2, "offset_deg": 1.1, "since_idx": 90}),
+        )
+        .advise(
+            "check joint 2",
+            Some(Affects::Since {
+                from_idx: 85,
+                handling: crate::measure::alarm::Handling::Retake,
+            }),
+        );
+        let r = retakes(&caps[..], &[slip]);
+        assert_eq!(r.first().map(|x| x.idx), Some(3));
+        let slipped: Vec<u64> = r
+            .iter()
+            .filter(|x| x.why.contains("joint"))
+            .map(|x| x.idx)
+            .collect();
+        assert_eq!(slipped, (85..100).collect::<Vec<u64>>());
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! The checker on synthetic sessions: a reciprocal, smooth BRDF captured on the UBO plan.
 
 use super::*;
+use crate::measure::alarm::{Affects, AlarmKind, Handling};
 use crate::measure::kinematics::RigSpec;
 use crate::measure::plan::SamplingPlan;
 
@@ -238,6 +239,38 @@ fn a_step_found_by_the_sweeps_enters_the_gain_correction() {
     // the last capture's correction carries the step
     let g = last.unwrap().gain_corrected.unwrap();
     assert!((g.gain - 0.97).abs() < 0.005, "{g:?}");
+    // the operator is told what to do, and that the captures since the step are corrected:
+    // from the start of the sweep the drift model puts the step at (sweep 24: 1,944–2,024)
+    assert_eq!(
+        steps[0].affects,
+        Some(Affects::Since {
+            from_idx: 24 * 81,
+            handling: Handling::Corrected
+        })
+    );
+    assert_advised(&steps);
+}
+
+/// Every alarm about drift, positioning or reciprocity that opens a condition says what the
+/// operator can do and which captures it affects; one that closes an episode names the
+/// episode's captures.
+fn assert_advised(alarms: &[Alarm]) {
+    for a in alarms.iter().filter(|a| {
+        matches!(
+            a.kind,
+            AlarmKind::Drift | AlarmKind::Positioning | AlarmKind::ReciprocityOutlier
+        )
+    }) {
+        if a.code.ends_with("-cleared") {
+            assert!(a.action.is_none(), "{a:?}");
+            if a.code.contains("pose") || a.code.contains("encoder") {
+                assert!(matches!(a.affects, Some(Affects::Between { .. })), "{a:?}");
+            }
+        } else {
+            assert!(a.action.as_deref().is_some_and(|s| s.len() > 20), "{a:?}");
+            assert!(a.affects.is_some(), "{a:?}");
+        }
+    }
 }
 
 #[test]
@@ -251,7 +284,7 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
     };
     // the wagon encoder reads 0.5° off for captures 30..=40, then 0.3° from 60 to the end
     let mut ch = checker();
-    let mut seen = Vec::new();
+    let (mut seen, mut all) = (Vec::new(), Vec::new());
     for mut input in session(400) {
         let i = input.idx;
         if (30..=40).contains(&i) {
@@ -259,8 +292,44 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
         } else if i >= 60 {
             input.enc[3] += 0.3;
         }
-        seen.extend(codes(&ch.check(&input)));
+        let out = ch.check(&input);
+        seen.extend(codes(&out));
+        all.extend(out.alarms);
     }
+    assert_advised(&all);
+    // off the plan the captures are retaken; an encoder disagreeing alone asks for a look
+    let affects = |code: &str| -> Vec<Affects> {
+        all.iter()
+            .filter(|a| a.code == code)
+            .filter_map(|a| a.affects.clone())
+            .collect()
+    };
+    assert_eq!(
+        affects("pose-off-plan-cleared"),
+        [Affects::Between {
+            from_idx: 30,
+            to_idx: 40,
+            handling: Handling::Retake
+        }]
+    );
+    assert_eq!(
+        affects("encoder-mismatch"),
+        [
+            Affects::Since {
+                from_idx: 30,
+                handling: Handling::Inspect
+            },
+            Affects::Since {
+                from_idx: 60,
+                handling: Handling::Inspect
+            }
+        ]
+    );
+    assert!(all
+        .iter()
+        .find(|a| a.code == "encoder-mismatch")
+        .and_then(|a| a.action.as_deref())
+        .is_some_and(|s| s.contains("wagon encoder")));
     assert_eq!(
         seen,
         [
@@ -480,6 +549,14 @@ fn probes_give_the_lamp_colour_drift_on_an_anisotropic_sample() {
     let colour: Vec<_> = alarms.iter().filter(|a| a.code == "colour-drift").collect();
     assert_eq!(colour.len(), 1, "{colour:?}");
     assert!(colour[0].message.contains("probes"));
+    assert_eq!(
+        colour[0].affects,
+        Some(Affects::Since {
+            from_idx: 0,
+            handling: Handling::Corrected
+        })
+    );
+    assert_advised(&alarms);
     assert!(!ch
         .observability()
         .blind

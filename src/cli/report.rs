@@ -7,7 +7,7 @@ use super::compare::CompareReport;
 use crate::checks::{CaptureRecord, PairRecord, Table2};
 use crate::config::Config;
 use crate::engine::Summary;
-use crate::measure::alarm::{Alarm, Severity};
+use crate::measure::alarm::{Affects, Alarm, Severity};
 use crate::measure::plan::SamplingPlan;
 use crate::measure::sweeps::SweepRecord;
 use anyhow::{Context, Result};
@@ -857,7 +857,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
                 .collect::<Vec<_>>()
                 .join(", "),
         );
-        h.push_str("</p><table class=alarms><tr><th>capture</th><th>time [h]</th><th>alarm</th><th>message</th></tr>");
+        h.push_str("</p><table class=alarms><tr><th>capture</th><th>time [h]</th><th>alarm</th><th>message</th><th>what to do</th><th>captures affected</th></tr>");
         for a in inp.alarms.iter().take(300) {
             let sev = serde_json::to_value(a.severity)
                 .ok()
@@ -865,12 +865,14 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
                 .unwrap_or_default();
             let _ = write!(
                 h,
-                "<tr><td>{}</td><td>{}</td><td class=\"sev-{sev}\">{}</td><td>{}</td></tr>",
+                "<tr><td>{}</td><td>{}</td><td class=\"sev-{sev}\">{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
                 a.idx.map(|i| i.to_string()).unwrap_or_default(),
                 a.t.map(|t| format!("{:.2}", t / 3600.0))
                     .unwrap_or_default(),
                 esc(&a.code),
-                esc(&a.message)
+                esc(&a.message),
+                esc(a.action.as_deref().unwrap_or("")),
+                esc(&a.affects.as_ref().map(Affects::describe).unwrap_or_default())
             );
         }
         h.push_str("</table>");
@@ -1028,7 +1030,7 @@ impl CsvRow for PairRecord {
 }
 
 impl CsvRow for Alarm {
-    const HEADER: &'static str = "idx,t_s,severity,kind,code,message";
+    const HEADER: &'static str = "idx,t_s,severity,kind,code,message,action,affects";
     fn row(&self) -> String {
         let a = self;
         let sev = serde_json::to_value(a.severity)
@@ -1040,13 +1042,20 @@ impl CsvRow for Alarm {
             .and_then(|v| v.as_str().map(str::to_string))
             .unwrap_or_default();
         format!(
-            "{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{}",
             opt(a.idx),
             opt(a.t),
             sev,
             kind,
             csv_field(&a.code),
-            csv_field(&a.message)
+            csv_field(&a.message),
+            csv_field(a.action.as_deref().unwrap_or("")),
+            csv_field(
+                &a.affects
+                    .as_ref()
+                    .map(Affects::describe)
+                    .unwrap_or_default()
+            )
         )
     }
 }

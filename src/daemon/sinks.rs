@@ -16,7 +16,15 @@ pub(crate) fn format_alarm(a: &Alarm) -> String {
         .ok()
         .and_then(|v| v.as_str().map(str::to_string))
         .unwrap_or_default();
-    format!("[{sev} {kind}/{}] {}", a.code, a.message)
+    let mut line = format!("[{sev} {kind}/{}] {}", a.code, a.message);
+    if let Some(action) = &a.action {
+        line.push_str(" → ");
+        line.push_str(action);
+    }
+    if let Some(affects) = &a.affects {
+        line.push_str(&format!(" [{}]", affects.describe()));
+    }
+    line
 }
 
 /// Log one alarm (or print it above the progress bar).

@@ -3,7 +3,7 @@
 //! engine inputs; the rest are counted and reported as one alarm when the window ends. Windows
 //! are counted in inputs, not wall time, so a replay aggregates exactly as the live run did.
 
-use crate::measure::alarm::{Alarm, Severity};
+use crate::measure::alarm::{Affects, Alarm, Severity};
 use serde_json::json;
 use std::collections::BTreeMap;
 
@@ -139,8 +139,16 @@ fn aggregate(code: &str, storm: &Storm, latest: Alarm, now: u64) -> Alarm {
             storm.held, latest.message
         ),
     )
-    .at(None, latest.t)
-    .with(json!({
+    .at(None, latest.t);
+    // the held alarms' captures, handled as the latest was
+    a.action = latest.action.clone();
+    a.affects = latest.affects.as_ref().and_then(|l| {
+        (!storm.captures.is_empty()).then(|| Affects::Captures {
+            idx: storm.captures.clone(),
+            handling: l.handling(),
+        })
+    });
+    a = a.with(json!({
         "aggregated": storm.held,
         "window_inputs": [first, now],
         "captures": storm.captures,

@@ -985,7 +985,11 @@ impl Engine {
                                     "probe-pose-unavailable",
                                     "no checked capture qualifies as the drift probes' pose (off grazing, off the mirror direction, not dark, with neighbours); no probe is asked for until one does: set [probes] entry to choose one".into(),
                                 )
-                                .at(Some(input.idx), Some(input.t));
+                                .at(Some(input.idx), Some(input.t))
+                                .advise(
+                                    "Set [probes] entry to a bright plan entry off grazing and off the mirror direction and restart the daemon (the session resumes); until then nothing watches the lamp through probes.",
+                                    None,
+                                );
                                 self.alarm(out, a);
                             }
                             None => {}

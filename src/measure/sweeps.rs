@@ -25,7 +25,7 @@
 //! the estimate beyond a tolerance (an offset in degrees, a level in %) and is raised once per
 //! θi layer, kind and sign.
 
-use super::alarm::{Alarm, AlarmKind, Severity};
+use super::alarm::{action, Affects, Alarm, AlarmKind, Handling, Severity};
 use super::geometry::Vec3;
 use super::kinematics::{Pose, Rig};
 use super::resample::{LayeredResampler, ResampleSpec, Sample};
@@ -138,6 +138,7 @@ pub struct SweepRecord {
 /// completed sweeps.
 struct Sweep {
     light: usize,
+    first_idx: u64,
     last_idx: u64,
     last_t: f64,
     layer: i64,
@@ -232,8 +233,16 @@ pub(crate) struct SweepMonitor {
     h_joint: f64,
     last: Option<SweepRecord>,
     tested: usize,
-    /// (last capture index, first capture time) of every completed sweep, in order.
-    sweep_starts: Vec<(u64, f64)>,
+    /// Every completed sweep, in order.
+    sweep_starts: Vec<SweepSpan>,
+}
+
+/// Where a completed sweep lies in the session.
+#[derive(Debug, Clone, Copy)]
+struct SweepSpan {
+    first_idx: u64,
+    last_idx: u64,
+    first_t: f64,
 }
 
 /// What testing one completed sweep gave.
@@ -354,9 +363,31 @@ impl SweepMonitor {
     fn sweep_start(&self, last_idx: u64) -> Option<f64> {
         self.sweep_starts
             .iter()
-            .find(|(i, _)| *i == last_idx)
-            .map(|(_, t)| *t)
+            .find(|s| s.last_idx == last_idx)
+            .map(|s| s.first_t)
             .filter(|t| t.is_finite())
+    }
+
+    /// The first capture of the sweep that ends at `last_idx`.
+    fn sweep_first_idx(&self, last_idx: u64) -> u64 {
+        self.sweep_starts
+            .iter()
+            .find(|s| s.last_idx == last_idx)
+            .map_or(last_idx, |s| s.first_idx)
+    }
+
+    /// The first capture a slip can have affected when the CUSUM run began with the sweep that
+    /// ends at `last_idx`: the sweep before it may hold the slip's start without showing it
+    /// (a slip late in a sweep moves too few of its captures), so its captures count too.
+    fn slip_first_idx(&self, last_idx: u64) -> u64 {
+        match self
+            .sweep_starts
+            .iter()
+            .position(|s| s.last_idx == last_idx)
+        {
+            Some(p) if p > 0 => self.sweep_starts[p - 1].first_idx,
+            _ => self.sweep_first_idx(last_idx),
+        }
     }
 
     pub(crate) fn summary(&self) -> SweepSummary {
@@ -478,7 +509,11 @@ impl SweepMonitor {
         let Some(sweep) = self.sweep_of(light) else {
             return nothing;
         };
-        self.sweep_starts.push((sweep.last_idx, sweep.first_t));
+        self.sweep_starts.push(SweepSpan {
+            first_idx: sweep.first_idx,
+            last_idx: sweep.last_idx,
+            first_t: sweep.first_t,
+        });
         let reference = self.backfit(&sweep.past);
         self.ensure_model(sweep.layer, &reference.class_effects());
         let (all, rows) = self.residuals(&sweep.current, &reference);
@@ -545,12 +580,14 @@ impl SweepMonitor {
             })
             .collect();
         let &last = current.iter().max_by_key(|&&k| self.captures[k].idx)?;
+        let first_idx = current.iter().map(|&k| self.captures[k].idx).min()?;
         let first_t = current
             .iter()
             .map(|&k| self.captures[k].t)
             .fold(f64::INFINITY, f64::min);
         Some(Sweep {
             light,
+            first_idx,
             last_idx: self.captures[last].idx,
             last_t: self.captures[last].t,
             layer: self.captures[last].layer,
@@ -730,7 +767,9 @@ impl SweepMonitor {
                             ),
                         )
                         .at(Some(sweep.last_idx), Some(sweep.last_t))
-                        .with(json!({"source": "light sweeps", "level_pct": 100.0 * mean, "sweeps": run.n, "since_idx": run.start, "since_t": self.sweep_start(run.start), "statistic": stat, "threshold": self.h_level})),
+                        .with(json!({"source": "light sweeps", "level_pct": 100.0 * mean, "sweeps": run.n, "since_idx": run.start, "since_t": self.sweep_start(run.start), "statistic": stat, "threshold": self.h_level}))
+                        // the drift model takes the step from the start of that sweep
+                        .advise(action::GAIN_STEP, Some(Affects::Since { from_idx: self.sweep_first_idx(run.start), handling: Handling::Corrected })),
                     );
                     step.at_s = self.sweep_start(run.start);
                     self.level_cusum.reset();
@@ -830,6 +869,7 @@ impl SweepMonitor {
     }
 
     fn joint_alarm(&self, sweep: &Sweep, x: &JointCrossing, rec: &SweepRecord) -> Alarm {
+        let from_idx = self.slip_first_idx(x.since);
         let other: Vec<serde_json::Value> = rec
             .joints
             .iter()
@@ -853,6 +893,13 @@ impl SweepMonitor {
         )
         .at(Some(sweep.last_idx), Some(sweep.last_t))
         .with(json!({"joint": x.joint + 1, "offset_deg": x.mean, "se_deg": x.mean_se, "sweeps": x.sweeps, "since_idx": x.since, "statistic": x.statistic, "threshold": self.h_joint, "other_joints": other}))
+        .advise(
+            &format!(
+                "Pause the run; check the sample clamp and arm joint {} (re-home the joint if it slipped, re-seat the sample if it moved), then resume; every capture since {from_idx} (the light sweep before the first one that showed it) is on the retake list.",
+                x.joint + 1,
+            ),
+            Some(Affects::Since { from_idx, handling: Handling::Retake }),
+        )
     }
 }
 
@@ -1204,6 +1251,21 @@ mod session_tests {
             );
             let at = first.idx.unwrap() as usize;
             assert!(at >= onset && at < onset + 4 * 81, "{at}");
+            // what to do names the joint; the captures since the run began are retaken
+            // (from the sweep before the one that began the CUSUM run: the onset is in it)
+            let Some(Affects::Since {
+                from_idx,
+                handling: Handling::Retake,
+            }) = first.affects
+            else {
+                panic!("{first:?}");
+            };
+            assert!(from_idx as usize <= onset, "{from_idx} {onset}");
+            assert!(from_idx as usize + 2 * 81 > onset, "{from_idx} {onset}");
+            assert!(first
+                .action
+                .as_deref()
+                .is_some_and(|s| s.contains(&format!("joint {}", joint + 1))));
             if joint == 1 {
                 assert!(alarms.iter().all(|a| a.code != "gain-step"), "{alarms:?}");
             }
