@@ -129,6 +129,57 @@ pub fn ubo_session(upto: usize, gain: impl Fn(f64) -> f64) -> Vec<CaptureInput> 
         .collect()
 }
 
+/// What an ideal rig averages for an anisotropic sample: `reciprocal_reading` times a factor
+/// exp(sin²θi cos 2(φi − 20°) + sin²θo cos 2(φo − 20°)) whose lobes turn with the sample
+/// (reciprocal, like the real thing).
+pub fn anisotropic_reading(wi: &Vec3, wo: &Vec3) -> [f64; 3] {
+    let aniso = |w: &Vec3| {
+        let phi = w.y.atan2(w.x) - 20f64.to_radians();
+        (1.0 - w.z * w.z) * (2.0 * phi).cos()
+    };
+    let f = (aniso(wi) + aniso(wo)).exp();
+    reciprocal_reading(wi, wo).map(|v| v * f)
+}
+
+/// Capture `idx` of plan entry `entry` at `t` seconds, of `anisotropic_reading`, with arm joint
+/// 3 turned by `turn_deg` that the encoders do not see (commanded and encoder poses are the
+/// plan's). None when the rig cannot take the entry.
+pub fn anisotropic_capture(
+    idx: u64,
+    entry: usize,
+    t: f64,
+    turn_deg: f64,
+    probe: bool,
+) -> Option<CaptureInput> {
+    let plan = SamplingPlan::ubo();
+    let rig = Rig::new(RigSpec::default()).expect("the default rig is valid");
+    let d = plan.directions();
+    let e = plan.entry(entry).ok()?;
+    let pp = rig
+        .plan_pose(d[e.light].spherical(), d[e.camera].spherical())
+        .ok()?;
+    let cmd = [
+        pp.pose.joints_deg[0],
+        pp.pose.joints_deg[1],
+        pp.pose.joints_deg[2],
+        pp.pose.wagon_deg,
+    ];
+    let mut actual = pp.pose;
+    actual.joints_deg[2] += turn_deg;
+    let seen = rig.forward(&actual).ok()?;
+    Some(CaptureInput {
+        idx,
+        entry,
+        file: format!("c{idx}.hdr"),
+        t,
+        cmd,
+        enc: cmd,
+        substitute: pp.substitute.map(|s| s.1),
+        probe,
+        outcome: ok_outcome(anisotropic_reading(&seen.omega_i, &seen.omega_o)),
+    })
+}
+
 /// A scripted controller: numbers its lines, and writes the lines of docs/protocol.md.
 #[derive(Debug, Clone, Default)]
 pub struct Controller {

@@ -549,8 +549,14 @@ fn print_probe_plan(
     };
     writeln!(
         out,
-        "\nDrift probes: a re-capture every N captures of {pose}; {} s each; probe scatter {} %",
-        p.session.seconds_per_probe, p.session.scatter_pct
+        "\nDrift probes: a re-capture every N captures of {pose}; {} s {}; probe scatter {} %",
+        p.session.seconds_per_probe,
+        if p.sentinel {
+            "per round (the lamp probe, then a joint-3 sentinel: the sample is anisotropic)"
+        } else {
+            "each"
+        },
+        p.session.scatter_pct
     )?;
     writeln!(
         out,

@@ -5,6 +5,7 @@ use goniowatch::checks::Outcome;
 use goniowatch::config::Config;
 use goniowatch::engine::{Engine, Input, Output};
 use goniowatch::fixtures::{self, Controller};
+use goniowatch::measure::alarm::{Affects, Handling};
 use goniowatch::protocol::parse;
 
 fn engine() -> Engine {
@@ -1053,4 +1054,146 @@ fn a_daemon_behind_a_finished_controller_finishes_on_late_answers_or_without_the
             "lose the link: {lose_the_link}"
         );
     }
+}
+
+/// An anisotropic sample on the UBO plan with probes every 100 captures, arm joint 3 turned by
+/// `turn` from regular capture `onset` on: the engine and a controller that takes every PROBE
+/// it is asked for right after the capture that asked. All outputs, in order.
+fn anisotropic_run(captures: usize, onset: usize, turn: f64) -> (Engine, Vec<Output>) {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/config/sim-anisotropic.toml"
+    ))
+    .unwrap();
+    let cfg = Config::from_toml_str(&text.replace("every = 0", "every = 100")).unwrap();
+    assert!(!cfg.sample.isotropic && cfg.probes.sentinel);
+    let mut e = Engine::from_config(&cfg).unwrap();
+    let mut c = connected_and_running(&mut e);
+    let pose = |p: [f64; 4]| p.map(|v| v.to_string()).join(",");
+    let mut out = Vec::new();
+    let mut idx = 0u64;
+    let feed = |e: &mut Engine, c: &mut Controller, ci: goniowatch::checks::CaptureInput| {
+        let mut f = vec![
+            ("idx", ci.idx.to_string()),
+            ("entry", ci.entry.to_string()),
+            ("file", ci.file.clone()),
+            ("t", ci.t.to_string()),
+            ("cmd", pose(ci.cmd)),
+            ("enc", pose(ci.enc)),
+            ("exp", "x".into()),
+        ];
+        if let Some(sub) = ci.substitute {
+            f.push(("sub", sub.to_string()));
+        }
+        if ci.probe {
+            f.push(("probe", "1".into()));
+        }
+        let mut got = e.handle(&c.line("CAPTURE", &f));
+        got.extend(e.handle(&Input::Outcome {
+            idx: ci.idx,
+            outcome: ci.outcome,
+        }));
+        got
+    };
+    for entry in 0..captures {
+        let t = idx as f64 * 7.0;
+        let deg = if entry >= onset { turn } else { 0.0 };
+        let ci = fixtures::anisotropic_capture(idx, entry, t, deg, false).unwrap();
+        idx += 1;
+        let got = feed(&mut e, &mut c, ci);
+        let asked: Vec<usize> = probes_sent(&got)
+            .iter()
+            .map(|l| l.trim_start_matches("PROBE entry=").parse().unwrap())
+            .collect();
+        out.extend(got);
+        for p in asked {
+            let t = idx as f64 * 7.0;
+            let ci = fixtures::anisotropic_capture(idx, p, t, deg, true).unwrap();
+            idx += 1;
+            out.extend(feed(&mut e, &mut c, ci));
+        }
+    }
+    (e, out)
+}
+
+#[test]
+fn on_an_anisotropic_sample_a_sentinel_probe_follows_each_probe_and_names_a_turn_of_joint_3() {
+    // joint 3 turns by +1° at regular capture 1,500; probes every 100
+    let (e, out) = anisotropic_run(2300, 1500, 1.0);
+    let sentinels: Vec<_> = out
+        .iter()
+        .filter_map(|o| match o {
+            Output::SentinelPose(p) => Some(*p),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(sentinels.len(), 1, "chosen once");
+    let s = sentinels[0];
+    // from the pole light's sweep, on a flank of the anisotropy: steep to joint 3
+    assert!(
+        s.entry < 81 && s.sensitivity_pct_per_deg.abs() > 1.0,
+        "{s:?}"
+    );
+    let lamp = e.summary().probe_pose.unwrap().entry;
+    assert_ne!(lamp, s.entry);
+    // every probe round is the lamp probe, then the sentinel
+    let probes = probes_sent(&out);
+    assert!(probes.len() >= 2 * 20, "{probes:?}");
+    for pair in probes.chunks(2) {
+        assert_eq!(
+            pair,
+            [
+                format!("PROBE entry={lamp}"),
+                format!("PROBE entry={}", s.entry)
+            ]
+        );
+    }
+    // named as joint 3 with the right sign, at the first probe round after the turn
+    let named: Vec<_> = out
+        .iter()
+        .filter_map(|o| match o {
+            Output::Alarm(a) if a.code == "joint-offset-suspected" => Some(a.clone()),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(named.len(), 1, "{named:?}");
+    let a = &named[0];
+    assert_eq!(a.evidence["joint"], 3);
+    let est = a.evidence["offset_deg"].as_f64().unwrap();
+    assert!((0.7..1.3).contains(&est), "{est}");
+    // regular capture 1,500 is capture 1,500 + 2 × 15 probes in; the next round follows
+    // regular capture 1,600
+    let at = a.idx.unwrap();
+    assert!((1530..=1650).contains(&at), "{at}");
+    let Some(Affects::Since {
+        from_idx,
+        handling: Handling::Retake,
+    }) = a.affects
+    else {
+        panic!("{a:?}");
+    };
+    assert!(from_idx <= 1530, "{from_idx}");
+    assert!(a.action.as_deref().unwrap().contains("joint 3"));
+    let summary = e.summary().joint3_sentinel.unwrap();
+    assert!((summary.offset_deg - 1.0).abs() < 0.3, "{summary:?}");
+    // the lamp is steady: no drift alarm
+    assert!(
+        !alarms(&out).iter().any(|c| c.starts_with("gain-")),
+        "{:?}",
+        alarms(&out)
+    );
+}
+
+#[test]
+fn a_steady_anisotropic_sample_keeps_its_sentinel_quiet_and_an_isotropic_one_has_none() {
+    let (e, out) = anisotropic_run(2300, usize::MAX, 0.0);
+    assert!(
+        !alarms(&out).iter().any(|c| c == "joint-offset-suspected"),
+        "{:?}",
+        alarms(&out)
+    );
+    let s = e.summary().joint3_sentinel.unwrap();
+    assert!(s.readings >= 20 && s.offset_deg.abs() < 0.05, "{s:?}");
+    // an isotropic sample (config/sim.toml) probes the lamp only: see
+    // without_a_configured_entry_the_probe_pose_is_chosen_after_a_sweep_and_then_probed
 }

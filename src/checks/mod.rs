@@ -30,13 +30,16 @@ pub use records::{
     IsotropyRecord, Outcome, PairRecord, PairStatus, ProbeGainCurve, Table2,
 };
 
-use crate::measure::alarm::Alarm;
+use crate::measure::alarm::{Affects, Alarm, AlarmKind, Handling, Severity};
 use crate::measure::colour::{RgbToXyz, White, Xyz};
 use crate::measure::drift::{DriftEstimate, StepEffect};
 use crate::measure::geometry::{azimuth_difference_deg, Vec3};
-use crate::measure::kinematics::Rig;
+use crate::measure::kinematics::{Incidence, Rig};
 use crate::measure::plan::{AcquisitionOrder, SamplingPlan};
 use crate::measure::probes::{choose_probe_pose, PoseSample, ProbeDrift, ProbePose, ProbeSpec};
+use crate::measure::sentinel::{
+    choose_sentinel, Joint3Sentinel, RingSample, SentinelPose, SentinelSummary,
+};
 use crate::measure::sweeps::{SweepCapture, SweepMonitor, SweepRecord, SweepSpec, SweepSummary};
 use capture::{CaptureStage, Measured, Verdict};
 use drift::{drift_alarm, DriftStage};
@@ -44,6 +47,7 @@ pub use drift::{ColourDriftEstimate, ColourDriftSpec};
 use isotropy::IsotropyStage;
 use pairs::PairStage;
 use serde::{Deserialize, Serialize};
+use serde_json::json;
 
 /// Thresholds of the checks (`[checks]` in the config).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -258,6 +262,13 @@ pub struct Checker {
     probes_enabled: bool,
     /// The last usable probe checked: a step the next probe finds began after it.
     last_probe_idx: Option<u64>,
+    /// The last lamp probe: its time (h) and ln luminance ratio to its original capture.
+    last_lamp_probe: Option<(f64, f64)>,
+    /// Arm joint 3 from sentinel probes (anisotropic samples with probes), once its pose is
+    /// chosen.
+    sentinel: Option<Joint3Sentinel>,
+    /// The sentinel's settings: whether to choose one, and its test.
+    sentinel_spec: Option<(f64, f64, usize)>,
     alarms: u64,
 }
 
@@ -282,6 +293,13 @@ impl Checker {
             sweeps,
             probes_enabled: probes.every > 0,
             last_probe_idx: None,
+            last_lamp_probe: None,
+            sentinel: None,
+            sentinel_spec: (!isotropic && probes.every > 0 && probes.sentinel).then_some((
+                probes.step_sigmas,
+                probes.sentinel_min_deg,
+                probes.min_probes,
+            )),
             probe_colour: (probes.every > 0)
                 .then(|| drift::ColourStage::probes(&spec.colour_drift, probes.min_probes))
                 .flatten(),
@@ -351,9 +369,16 @@ impl Checker {
         if m.checked.dark {
             return;
         }
+        if self.sentinel.as_ref().map(|s| s.pose().entry) == Some(input.entry) {
+            self.sentinel_probe(input, m, out);
+            return;
+        }
         if let Some(orig) = self.ledger.get(input.entry) {
             let at = (Some(input.idx), Some(input.t));
             let (t0, y0) = (orig.t, orig.xyz[1]);
+            if y0 > 0.0 && m.checked.xyz[1] > 0.0 {
+                self.last_lamp_probe = Some((input.t / 3600.0, (m.checked.xyz[1] / y0).ln()));
+            }
             for ev in self
                 .probes
                 .add(t0 / 3600.0, y0, input.t / 3600.0, m.checked.xyz[1])
@@ -373,6 +398,131 @@ impl Checker {
             }
             self.last_probe_idx = Some(input.idx);
         }
+    }
+
+    /// A sentinel probe: its luminance ratio against the lamp probe's just before it is joint
+    /// 3's turn (`measure::sentinel`). Left out when the lamp probe is missing or stale (the
+    /// lamp cannot be divided out) or either capture is dark.
+    fn sentinel_probe(&mut self, input: &CaptureInput, m: &Measured, out: &mut CheckOutput) {
+        /// The lamp probe must be this recent (h): the two captures of one probe round.
+        const LAMP_PROBE_MAX_AGE_H: f64 = 0.1;
+        let t_h = input.t / 3600.0;
+        let (Some(orig), Some(sentinel)) = (self.ledger.get(input.entry), self.sentinel.as_mut())
+        else {
+            return;
+        };
+        let Some((t_lamp, lamp_ln)) = self.last_lamp_probe else {
+            return;
+        };
+        if m.checked.dark
+            || !(orig.xyz[1] > 0.0 && m.checked.xyz[1] > 0.0)
+            || !(t_h - t_lamp).abs().le(&LAMP_PROBE_MAX_AGE_H)
+        {
+            return;
+        }
+        let d = (m.checked.xyz[1] / orig.xyz[1]).ln() - lamp_ln;
+        let pose = sentinel.pose();
+        if let Some(slip) = sentinel.add(input.idx, d) {
+            out.alarms.push(
+                Alarm::new(
+                    AlarmKind::Positioning,
+                    Severity::Warning,
+                    "joint-offset-suspected",
+                    format!(
+                        "joint 3 looks turned by about {:+.2}° (the sample's rotation about its normal; a tilt or a shift of the sample in its holder moves it too): the sentinel probe (entry {}, θo {:.0}°, {:+.2} %/° of joint 3) moved {:+.2} % against the lamp probe, {:.1} standard deviations of its earlier readings (threshold {}), while the encoders agree with the commands",
+                        slip.offset_deg,
+                        pose.entry,
+                        pose.theta_o_deg,
+                        pose.sensitivity_pct_per_deg,
+                        slip.offset_deg * pose.sensitivity_pct_per_deg,
+                        slip.statistic,
+                        slip.threshold
+                    ),
+                )
+                .at(Some(input.idx), Some(input.t))
+                .with(json!({"joint": 3, "offset_deg": slip.offset_deg, "source": "sentinel probes", "since_idx": slip.since_idx, "statistic": slip.statistic, "threshold": slip.threshold, "entry": pose.entry, "sensitivity_pct_per_deg": pose.sensitivity_pct_per_deg}))
+                .advise(
+                    &format!("Pause the run; check the sample clamp and arm joint 3 (re-home the joint if it slipped, re-seat the sample if it turned in its holder), then resume; every capture since {} is on the retake list.", slip.since_idx),
+                    Some(Affects::Since { from_idx: slip.since_idx, handling: Handling::Retake }),
+                ),
+            );
+        }
+    }
+
+    /// Chooses the joint-3 sentinel's pose (`measure::sentinel`) from the pole light's checked
+    /// captures, once, for an anisotropic sample with probes and the sentinel on; `lamp_entry`
+    /// (the lamp probe's pose) is not offered. None while none qualifies.
+    pub(crate) fn choose_sentinel(&mut self, lamp_entry: usize) -> Option<SentinelPose> {
+        let (step_sigmas, min_deg, min_readings) = self.sentinel_spec?;
+        if let Some(s) = &self.sentinel {
+            return Some(s.pose());
+        }
+        let pole = self
+            .plan
+            .directions()
+            .iter()
+            .find(|d| d.theta_deg.abs() < 1e-6)?
+            .index;
+        let samples: Vec<RingSample> = (0..self.plan.capture_count())
+            .filter_map(|e| {
+                let pe = self.plan.entry(e).ok()?;
+                if pe.light != pole || e == lamp_entry {
+                    return None;
+                }
+                let c = self.ledger.get(e)?;
+                if !c.exact_pose || c.dark || c.substitute {
+                    return None;
+                }
+                let inc = Incidence {
+                    omega_i: c.omega_i,
+                    omega_o: c.omega_o,
+                };
+                let a = inc.angles();
+                Some(RingSample {
+                    entry: e,
+                    theta_o_deg: a.theta_o_deg,
+                    phi_o_deg: a.phi_o_deg,
+                    y: c.xyz[1],
+                    dphi_dq3: self.dphi_o_dq3(&inc)?,
+                })
+            })
+            .collect();
+        let pose = choose_sentinel(&samples)?;
+        self.sentinel = Some(Joint3Sentinel::new(
+            pose,
+            step_sigmas,
+            min_deg,
+            min_readings,
+        ));
+        Some(pose)
+    }
+
+    /// Whether this session follows each probe with a sentinel probe (anisotropic sample,
+    /// probes and the sentinel on).
+    pub(crate) fn wants_sentinel(&self) -> bool {
+        self.sentinel_spec.is_some()
+    }
+
+    /// The sentinel's pose, readings and estimate so far.
+    pub(crate) fn sentinel(&self) -> Option<SentinelSummary> {
+        self.sentinel.as_ref().map(|s| SentinelSummary {
+            pose: s.pose(),
+            readings: s.readings(),
+            offset_deg: s.offset_deg(),
+        })
+    }
+
+    /// ∂φo/∂q₃ at an incidence (degrees of camera azimuth per degree of joint 3), through the
+    /// rig's kinematics.
+    fn dphi_o_dq3(&self, inc: &Incidence) -> Option<f64> {
+        const H: f64 = 0.01;
+        let pose = self.rig.inverse(inc).ok()?;
+        let mut turned = pose;
+        turned.joints_deg[2] += H;
+        let a = self.rig.forward(&pose).ok()?.angles().phi_o_deg;
+        let b = self.rig.forward(&turned).ok()?.angles().phi_o_deg;
+        let d = ((b - a + 180.0).rem_euclid(360.0) - 180.0) / H;
+        d.is_finite().then_some(d)
     }
 
     /// A regular capture through the comparison stages, then into the ledger. A retake of an
@@ -533,6 +683,7 @@ impl Checker {
             self.probes_enabled,
             self.plan.order(),
             self.spec.sweeps.enabled,
+            self.sentinel_spec.is_some(),
         )
     }
 

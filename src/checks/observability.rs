@@ -33,12 +33,14 @@ fn blind(what: &str, why: &str, remedy: &str) -> BlindSpot {
 
 /// The detectors a session runs and what they cannot see: `isotropic` as declared in
 /// `[sample]`, `probes` whether drift probes are enabled, `sweeps` whether the light-sweep
-/// checks are enabled in the config.
+/// checks are enabled in the config, `sentinel` whether probes of an anisotropic sample are
+/// followed by a joint-3 sentinel (`[probes] sentinel`).
 pub fn observability(
     isotropic: bool,
     probes: bool,
     order: AcquisitionOrder,
     sweeps: bool,
+    sentinel: bool,
 ) -> Observability {
     let light_outer = !matches!(order, AcquisitionOrder::CameraOuter);
     let sweeps_run = isotropic && sweeps && light_outer;
@@ -85,11 +87,27 @@ pub fn observability(
             o.blind
                 .push(blind("the lamp's colour drift", why, probes_remedy));
         }
-        o.blind.push(blind(
-            "arm joints 1, 2 and 3 slipping without the encoders seeing it",
-            "the light sweeps compare repeated geometry, which an anisotropic sample does not have",
-            "none from the images alone; check the sample's mount and the encoders",
-        ));
+        if probes && sentinel {
+            o.watched.push(
+                "arm joint 3 (the sample turning about its normal), from a sentinel probe after each drift probe; a tilt or a shift of the sample moves it too and is named as joint 3"
+                    .into(),
+            );
+            o.blind.push(blind(
+                "arm joints 1 and 2 slipping without the encoders seeing it, told apart from joint 3",
+                "the light sweeps compare repeated geometry, which an anisotropic sample does not have; the sentinel sees a tilt but cannot say which joint",
+                "none from the images alone; check the sample's mount and the encoders",
+            ));
+        } else {
+            o.blind.push(blind(
+                "arm joints 1, 2 and 3 slipping without the encoders seeing it",
+                "the light sweeps compare repeated geometry, which an anisotropic sample does not have",
+                if probes {
+                    "joint 3: turn the sentinel on ([probes] sentinel = true); joints 1 and 2: none from the images alone, check the sample's mount and the encoders"
+                } else {
+                    "joint 3: drift probes ([probes] every = N) with their sentinel; joints 1 and 2: none from the images alone, check the sample's mount and the encoders"
+                },
+            ));
+        }
     } else {
         // (arm joint 3 turns an isotropic sample about its normal, which does not change its
         // data: not a blind spot that matters)
@@ -125,7 +143,7 @@ mod tests {
 
     #[test]
     fn an_isotropic_light_outer_session_has_no_blind_spot() {
-        let o = observability(true, false, AcquisitionOrder::LightOuter, true);
+        let o = observability(true, false, AcquisitionOrder::LightOuter, true, true);
         assert!(o.blind.is_empty(), "{o:?}");
         assert!(o.watched.iter().any(|w| w.contains("colour")));
         assert!(o.watched.iter().any(|w| w.contains("joints 1 and 2")));
@@ -133,7 +151,7 @@ mod tests {
 
     #[test]
     fn an_anisotropic_sample_without_probes_says_the_lamp_is_unwatched_and_how_to_watch_it() {
-        let o = observability(false, false, AcquisitionOrder::LightOuter, true);
+        let o = observability(false, false, AcquisitionOrder::LightOuter, true, true);
         let gain = o
             .blind
             .iter()
@@ -142,10 +160,22 @@ mod tests {
         assert!(gain.remedy.contains("[probes] every"));
         assert!(o.blind.iter().any(|b| b.what.contains("colour")));
         assert!(!o.watched.iter().any(|w| w.contains("lamp")));
-        // with probes the gain and the colour are watched; the joints still not
-        let o = observability(false, true, AcquisitionOrder::LightOuter, true);
+        assert!(o
+            .blind
+            .iter()
+            .any(|b| b.what.contains("joints 1, 2 and 3") && b.remedy.contains("sentinel")));
+        // with probes the gain and the colour are watched, and joint 3 by the sentinel;
+        // joints 1 and 2 still not
+        let o = observability(false, true, AcquisitionOrder::LightOuter, true, true);
         assert!(!o.blind.iter().any(|b| b.what.contains("gain drift")));
         assert!(!o.blind.iter().any(|b| b.what.contains("colour")));
+        assert!(o.watched.iter().any(|w| w.contains("joint 3")));
+        assert!(o
+            .blind
+            .iter()
+            .any(|b| b.what.starts_with("arm joints 1 and 2")));
+        // the sentinel off: joint 3 is blind again
+        let o = observability(false, true, AcquisitionOrder::LightOuter, true, false);
         assert!(o.blind.iter().any(|b| b.what.contains("joints 1, 2 and 3")));
         assert!(o
             .watched
@@ -155,13 +185,13 @@ mod tests {
 
     #[test]
     fn a_camera_outer_order_loses_the_sweeps() {
-        let o = observability(true, false, AcquisitionOrder::CameraOuter, true);
+        let o = observability(true, false, AcquisitionOrder::CameraOuter, true, true);
         assert!(o
             .blind
             .iter()
             .any(|b| b.what.contains("joints 1 and 2") && b.why.contains("light-outer")));
         assert!(o.blind.iter().any(|b| b.what == "lamp gain steps"));
-        let o = observability(true, true, AcquisitionOrder::CameraOuter, true);
+        let o = observability(true, true, AcquisitionOrder::CameraOuter, true, true);
         assert!(!o.blind.iter().any(|b| b.what == "lamp gain steps"));
     }
 }

@@ -125,6 +125,8 @@ pub struct PlanSummary {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ProbePlanSummary {
     pub isotropic_sample: bool,
+    /// Each probe round is followed by a joint-3 sentinel probe (anisotropic sample).
+    pub sentinel: bool,
     pub session: crate::measure::probe_plan::ProbeSession,
     pub target: crate::measure::probe_plan::DetectionTarget,
     /// The configured cadence's figures (`[probes] every`), when probes are on.
@@ -196,6 +198,11 @@ fn drift_from_pairs(
     Ok(out)
 }
 
+/// Whether the daemon follows each probe with a joint-3 sentinel (`measure::sentinel`).
+pub(crate) fn sentinel(cfg: &Config) -> bool {
+    !cfg.sample.isotropic && cfg.probes.sentinel
+}
+
 /// The probe plan: the design over the candidate cadences and the configured cadence's figures.
 fn probe_plan(
     cfg: &Config,
@@ -208,7 +215,12 @@ fn probe_plan(
     let session = ProbeSession {
         captures: plan.capture_count() as u64,
         seconds_per_capture: SECONDS_PER_CAPTURE,
-        seconds_per_probe: SECONDS_PER_CAPTURE,
+        // on an anisotropic sample each probe round is a lamp probe and a joint-3 sentinel
+        seconds_per_probe: if sentinel(cfg) {
+            2.0 * SECONDS_PER_CAPTURE
+        } else {
+            SECONDS_PER_CAPTURE
+        },
         // a pose the daemon chooses is among the first sweep's captures: the default pose, or
         // the middle of the first sweep, stands in for it
         anchor: match cfg.probes.entry {
@@ -229,6 +241,7 @@ fn probe_plan(
         .then(|| cadence_figures(&session, &cfg.probes, target, every));
     Ok(ProbePlanSummary {
         isotropic_sample: cfg.sample.isotropic,
+        sentinel: sentinel(cfg),
         session,
         target: *target,
         configured,

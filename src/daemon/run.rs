@@ -155,6 +155,13 @@ impl Live {
                     p.specular_distance_deg,
                     p.sensitivity_pct_per_deg
                 ),
+                Output::SentinelPose(p) => tracing::info!(
+                    "joint-3 sentinel: plan entry {} (θo {:.0}°, φo {:.0}°, {:+.2} %/° of joint 3), probed after each drift probe",
+                    p.entry,
+                    p.theta_o_deg,
+                    p.phi_o_deg,
+                    p.sensitivity_pct_per_deg
+                ),
                 Output::Alarm(a) => {
                     log_alarm(a, self.bar.as_ref(), false);
                     self.hooks.retain(|h| !h.is_finished());

@@ -75,6 +75,9 @@ pub enum Output {
     Manifest(ManifestRecord),
     /// The drift probes' pose was chosen (no `[probes] entry` configured); probes follow.
     ProbePose(crate::measure::probes::ProbePose),
+    /// The joint-3 sentinel's pose was chosen (anisotropic sample with probes); every probe is
+    /// followed by a sentinel probe of it.
+    SentinelPose(crate::measure::sentinel::SentinelPose),
     /// Every capture the controller announced as taken is checked and the run is done.
     Finished,
 }
@@ -98,6 +101,9 @@ pub struct Summary {
     /// The pose the daemon chose for the probes (none configured), once chosen.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub probe_pose: Option<crate::measure::probes::ProbePose>,
+    /// Arm joint 3 from the sentinel probes (anisotropic samples with probes), once chosen.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint3_sentinel: Option<crate::measure::sentinel::SentinelSummary>,
     /// Gain drift estimate from isotropy classes (isotropic samples).
     #[serde(default)]
     pub isotropy_drift: Option<crate::measure::drift::DriftEstimate>,
@@ -136,6 +142,9 @@ pub struct Engine {
     probe_entry: Option<usize>,
     /// The pose chosen for the probes (no entry configured).
     probe_pose: Option<crate::measure::probes::ProbePose>,
+    /// The joint-3 sentinel's entry, once chosen, and whether its choice was tried.
+    sentinel_entry: Option<usize>,
+    sentinel_tried: bool,
     regular_checked: u64,
     /// Inputs handled so far (the alarm aggregation's clock).
     inputs: u64,
@@ -193,6 +202,8 @@ impl Engine {
             probe_every: 0,
             probe_entry: None,
             probe_pose: None,
+            sentinel_entry: None,
+            sentinel_tried: false,
             regular_checked: 0,
             inputs: 0,
         }
@@ -290,6 +301,7 @@ impl Engine {
             interpolated: self.checker.interpolated_table().clone(),
             probe_drift: self.checker.probe_drift(),
             probe_pose: self.probe_pose,
+            joint3_sentinel: self.checker.sentinel(),
             isotropy_drift: self.checker.isotropy_drift(),
             colour_drift: self.checker.colour_drift(),
             observability: self.checker.observability(),
@@ -995,11 +1007,47 @@ impl Engine {
                             None => {}
                         }
                     }
+                    // The joint-3 sentinel is chosen at the same points, once the lamp probe's
+                    // pose is known (it is not offered as the sentinel).
+                    if let (Some(lamp), None) = (self.probe_entry, self.sentinel_entry) {
+                        if self.probe_every > 0
+                            && self.checker.wants_sentinel()
+                            && self.regular_checked.is_multiple_of(sweep)
+                        {
+                            match self.checker.choose_sentinel(lamp) {
+                                Some(pose) => {
+                                    self.sentinel_entry = Some(pose.entry);
+                                    out.push(Output::SentinelPose(pose));
+                                }
+                                None if !self.sentinel_tried => {
+                                    let a = Alarm::new(
+                                        AlarmKind::Positioning,
+                                        Severity::Info,
+                                        "joint3-sentinel-unavailable",
+                                        "no capture of the pole light's sweep is sensitive enough to arm joint 3 to serve as its sentinel (off grazing, on a flank of the sample's anisotropy, at least 0.5 %/°); joint 3 stays unwatched until one is: the sample may be too close to isotropic for it to matter".into(),
+                                    )
+                                    .at(Some(input.idx), Some(input.t))
+                                    .advise(
+                                        "Nothing to do if the sample is nearly isotropic; otherwise check the sample's mount by eye when convenient.",
+                                        None,
+                                    );
+                                    self.alarm(out, a);
+                                }
+                                None => {}
+                            }
+                            self.sentinel_tried = true;
+                        }
+                    }
                     if self.probe_every > 0 && self.regular_checked.is_multiple_of(self.probe_every)
                     {
                         if let Some(entry) = self.probe_entry {
                             if self.link.is_connected() && self.link.is_subscribed() && !self.done {
                                 self.send(out, "PROBE", &[("entry", entry.to_string())]);
+                                // the sentinel right after the lamp probe: the lamp's gain
+                                // cancels between the two
+                                if let Some(s) = self.sentinel_entry {
+                                    self.send(out, "PROBE", &[("entry", s.to_string())]);
+                                }
                             }
                         }
                     }

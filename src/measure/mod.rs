@@ -19,6 +19,7 @@ pub mod probe_plan;
 pub mod probes;
 pub mod reciprocity;
 pub mod resample;
+pub mod sentinel;
 pub mod shepard;
 pub mod stats;
 pub mod sweeps;

@@ -29,6 +29,11 @@ pub struct ProbeSpec {
     pub step_sigmas: f64,
     /// Smallest step reported (%).
     pub step_pct: f64,
+    /// On an anisotropic sample, follow each probe with a sentinel probe of a pose chosen to
+    /// be sensitive to arm joint 3 (`measure::sentinel`); it doubles the probes' run time.
+    pub sentinel: bool,
+    /// Smallest turn of joint 3 the sentinel reports (degrees).
+    pub sentinel_min_deg: f64,
 }
 
 impl Default for ProbeSpec {
@@ -41,6 +46,8 @@ impl Default for ProbeSpec {
             min_probes: 4,
             step_sigmas: 5.0,
             step_pct: 1.0,
+            sentinel: true,
+            sentinel_min_deg: 0.5,
         }
     }
 }

@@ -135,9 +135,11 @@ impl Results {
             Output::Alarm(a) => self.alarms.write(a),
             Output::Manifest(m) => self.manifest.write(m),
             // the summary carries the probe pose
-            Output::Send(_) | Output::Ingest { .. } | Output::ProbePose(_) | Output::Finished => {
-                Ok(())
-            }
+            Output::Send(_)
+            | Output::Ingest { .. }
+            | Output::ProbePose(_)
+            | Output::SentinelPose(_)
+            | Output::Finished => Ok(()),
         }
     }
 
