@@ -172,9 +172,10 @@ struct PlanArgs {
     #[arg(long)]
     json: bool,
     /// The scatter of one probe against its original capture, % SD (measure it: the probes'
-    /// `residual_scale` in a session's summary.json, × 100).
-    #[arg(long, default_value_t = 0.3)]
-    probe_scatter_pct: f64,
+    /// `residual_scale` in a session's summary.json, × 100). Default: the config's
+    /// `[probes] design_scatter_pct`.
+    #[arg(long)]
+    probe_scatter_pct: Option<f64>,
     /// Target: a linear gain decay of this size (%/h) ...
     #[arg(long, default_value_t = 1.0)]
     target_decay_pct_per_h: f64,
@@ -466,7 +467,11 @@ fn plan_command(args: PlanArgs, out: &mut impl Write) -> Result<ExitCode> {
         false_alarms_per_run: target_false_alarms,
         ..DetectionTarget::default()
     };
-    let s = plan_summary(&cfg, probe_scatter_pct, &target)?;
+    let s = plan_summary(
+        &cfg,
+        probe_scatter_pct.unwrap_or(cfg.probes.design_scatter_pct),
+        &target,
+    )?;
     if json {
         writeln!(out, "{}", serde_json::to_string_pretty(&s)?)?;
     } else {

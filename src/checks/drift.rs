@@ -20,6 +20,7 @@ use crate::measure::drift::{
     DriftDetector, DriftEstimate, DriftEvent, DriftSpec, PairObservation, StepEffect,
 };
 use crate::measure::lamp::LampColour;
+use crate::measure::probes::UNSTABLE_FACTOR;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::collections::HashMap;
@@ -429,6 +430,34 @@ pub(super) fn drift_alarm(
             ),
         )
         .at(at.0, at.1),
+        DriftEvent::Unstable { scatter, design, probes } => Alarm::new(
+            AlarmKind::Drift,
+            Severity::Warning,
+            "lamp-unstable",
+            format!(
+                "the lamp is unstable: the {source} scatter by {:.2} % (robust SD of {probes} probes about their trend) against the {:.2} % the probe cadence was designed for ([probes] design_scatter_pct; lamp-unstable above {UNSTABLE_FACTOR} ×); steps smaller than 5 × the scatter go unseen meanwhile",
+                100.0 * scatter,
+                100.0 * design
+            ),
+        )
+        .at(at.0, at.1)
+        .with(json!({"scatter_pct": 100.0 * scatter, "design_scatter_pct": 100.0 * design, "probes": probes, "source": source}))
+        .advise(
+            "Let the lamp warm up and settle; check its supply, its connections and any draught or fan near it; if the scatter stays, pause the run and fix the lamp. Every capture since the scatter rose carries the lamp's noise, which no correction removes.",
+            at.0.map(|from_idx| Affects::Since { from_idx, handling: Handling::Inspect }),
+        ),
+        DriftEvent::UnstableCleared { scatter, design, probes } => Alarm::new(
+            AlarmKind::Drift,
+            Severity::Info,
+            "lamp-unstable-cleared",
+            format!(
+                "the lamp is steady again: the {source} scatter by {:.2} % over {probes} probes (design {:.2} %)",
+                100.0 * scatter,
+                100.0 * design
+            ),
+        )
+        .at(at.0, at.1)
+        .with(json!({"scatter_pct": 100.0 * scatter, "design_scatter_pct": 100.0 * design, "probes": probes, "source": source})),
         DriftEvent::Step { direction, statistic, threshold, pairs_since_reset } => Alarm::new(
             AlarmKind::Drift,
             Severity::Warning,

@@ -52,7 +52,7 @@ pub fn observability(
         .push("reciprocity of every exact pair (Table 2) and capture quality".into());
     if probes {
         o.watched.push(
-            "the lamp's gain (rate and steps) and colour (K/h), from the drift probes".into(),
+            "the lamp's gain (rate and steps), its stability (lamp-unstable) and colour (K/h), from the drift probes".into(),
         );
     }
     if isotropic {
@@ -74,6 +74,13 @@ pub fn observability(
     }
     let probes_remedy =
         "enable drift probes ([probes] every = N): a re-capture of one pose every N captures; `goniowatch plan` prints the N that meets the detection target";
+    if !probes {
+        o.blind.push(blind(
+            "the lamp's stability from capture to capture (flicker)",
+            "only a re-capture of the same pose measures it; isotropy classes and pairs differ by the sample's own pattern, which hides a flicker of a few per cent",
+            probes_remedy,
+        ));
+    }
     if !isotropic {
         let why = "the sample is declared anisotropic ([sample] isotropic = false): it has no isotropy classes, and in a light-outer order a linear drift is confounded with the per-direction non-reciprocity of reciprocal pairs (measure::drift)";
         if !probes {
@@ -142,9 +149,14 @@ mod tests {
     use super::*;
 
     #[test]
-    fn an_isotropic_light_outer_session_has_no_blind_spot() {
+    fn an_isotropic_light_outer_session_is_blind_to_flicker_only() {
         let o = observability(true, false, AcquisitionOrder::LightOuter, true, true);
+        assert_eq!(o.blind.len(), 1, "{o:?}");
+        assert!(o.blind[0].what.contains("flicker") && o.blind[0].remedy.contains("[probes]"));
+        let o = observability(true, true, AcquisitionOrder::LightOuter, true, true);
         assert!(o.blind.is_empty(), "{o:?}");
+        assert!(o.watched.iter().any(|w| w.contains("lamp-unstable")));
+        let o = observability(true, false, AcquisitionOrder::LightOuter, true, true);
         assert!(o.watched.iter().any(|w| w.contains("colour")));
         assert!(o.watched.iter().any(|w| w.contains("joints 1 and 2")));
     }

@@ -581,3 +581,55 @@ fn recolour(input: &CaptureInput, t_s: f64, k_per_h: f64) -> Outcome {
     }
     outcome
 }
+
+#[test]
+fn a_flickering_lamp_at_the_probes_is_lamp_unstable_with_its_scatter() {
+    // an anisotropic sample with a probe of entry 50 after every 100 captures; the lamp's
+    // gain at the probes scatters by 1.5 % (five times the design's 0.3 %) or by 0.1 %
+    for (flicker, want) in [(0.015, 1usize), (0.001, 0)] {
+        let mut ch = anisotropic_checker(crate::measure::probes::ProbeSpec {
+            every: 100,
+            ..Default::default()
+        });
+        let mut rng = crate::measure::stats::SplitMix64(11);
+        let undrifted = ubo_session(51, |_| 1.0).pop().unwrap();
+        let (mut idx, mut alarms) = (0_u64, Vec::new());
+        for (k, mut input) in ubo_session(3000, |_| 1.0).into_iter().enumerate() {
+            input.idx = idx;
+            idx += 1;
+            alarms.extend(ch.check(&input).alarms);
+            if k > 50 && k % 100 == 0 {
+                let mut p = undrifted.clone();
+                p.idx = idx;
+                p.t = input.t + 3.0;
+                p.probe = true;
+                let g = 1.0 + flicker * rng.gauss();
+                if let Outcome::Ok { stats, .. } = &mut p.outcome {
+                    stats.mean_rgb = stats.mean_rgb.map(|v| v * g);
+                }
+                idx += 1;
+                alarms.extend(ch.check(&p).alarms);
+            }
+        }
+        let unstable: Vec<&Alarm> = alarms
+            .iter()
+            .filter(|a| a.code == "lamp-unstable")
+            .collect();
+        assert_eq!(unstable.len(), want, "{flicker}: {unstable:?}");
+        if let Some(a) = unstable.first() {
+            let s = a.evidence["scatter_pct"].as_f64().unwrap();
+            assert!((0.8..2.5).contains(&s), "{s}");
+            assert!(a.message.contains("unstable"));
+            assert_eq!(
+                a.affects,
+                Some(Affects::Since {
+                    from_idx: a.idx.unwrap(),
+                    handling: Handling::Inspect
+                })
+            );
+        }
+        assert_advised(&alarms);
+        // flicker is not a drift
+        assert!(!alarms.iter().any(|a| a.code == "gain-drift"), "{alarms:?}");
+    }
+}

@@ -129,6 +129,13 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
             p.entry, p.theta_i_deg, p.theta_o_deg, p.specular_distance_deg, p.sensitivity_pct_per_deg
         )?;
     }
+    if let Some(j) = &s.joint3_sentinel {
+        writeln!(
+            out,
+            "joint-3 sentinel: plan entry {} (θo {:.0}°, φo {:.0}°, {:+.2} %/° of joint 3), {} readings, latest {:+.2}° against the start",
+            j.pose.entry, j.pose.theta_o_deg, j.pose.phi_o_deg, j.pose.sensitivity_pct_per_deg, j.readings, j.offset_deg
+        )?;
+    }
     let alarms: Vec<String> = s.alarms.iter().map(|(k, v)| format!("{k} {v}")).collect();
     writeln!(
         out,

@@ -415,6 +415,23 @@ pub fn metrics(s: &Snapshot) -> String {
             "Standard error of the drift rate.",
             d.se_pct_per_h,
         );
+        g(
+            "probe_scatter_pct",
+            "The probes' scatter about their trend (% SD of the current segment): the lamp's stability at one pose.",
+            100.0 * d.residual_scale,
+        );
+    }
+    if let Some(j) = &s.summary.joint3_sentinel {
+        g(
+            "sentinel_joint3_offset_deg",
+            "Arm joint 3's turn from the sentinel probe's latest reading against the run's start (degrees; anisotropic samples).",
+            j.offset_deg,
+        );
+        g(
+            "sentinel_readings",
+            "Sentinel probes read.",
+            j.readings as f64,
+        );
     }
     g(
         "finished",
@@ -566,5 +583,35 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("goniowatch_sweep_level_pct -0.4\n"), "{text}");
+
+        // the probes' scatter and the joint-3 sentinel, when they run
+        let mut s5 = s2.clone();
+        s5.summary.probe_drift = Some(crate::measure::drift::DriftEstimate {
+            pairs: 10,
+            rate_pct_per_h: 0.1,
+            se_pct_per_h: 0.05,
+            residual_scale: 0.0025,
+        });
+        s5.summary.joint3_sentinel = Some(crate::measure::sentinel::SentinelSummary {
+            pose: crate::measure::sentinel::SentinelPose {
+                entry: 33,
+                theta_o_deg: 45.0,
+                phi_o_deg: 280.0,
+                luminance: 30.0,
+                sensitivity_pct_per_deg: -3.1,
+            },
+            readings: 12,
+            offset_deg: 0.5,
+        });
+        let text = metrics(&s5);
+        assert!(
+            text.contains("goniowatch_probe_scatter_pct 0.25\n"),
+            "{text}"
+        );
+        assert!(
+            text.contains("goniowatch_sentinel_joint3_offset_deg 0.5\n"),
+            "{text}"
+        );
+        assert!(text.contains("goniowatch_sentinel_readings 12\n"), "{text}");
     }
 }

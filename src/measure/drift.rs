@@ -173,6 +173,20 @@ pub(crate) enum DriftEvent {
         threshold: f64,
         pairs_since_reset: usize,
     },
+    /// (Probes) the capture-to-capture scatter of the lamp, as the robust scale of the current
+    /// segment's residuals, exceeds the scatter the probe plan was designed for by
+    /// `UNSTABLE_FACTOR`: an unstable lamp (flicker, a loose contact) or a noisy probe pose.
+    Unstable {
+        scatter: f64,
+        design: f64,
+        probes: usize,
+    },
+    /// (Probes) the scatter is back under `UNSTABLE_CLEAR_FACTOR` times the design.
+    UnstableCleared {
+        scatter: f64,
+        design: f64,
+        probes: usize,
+    },
 }
 
 #[derive(Debug, Clone)]

@@ -176,8 +176,14 @@ fn simulate(
             probes += 1;
             if let Some((t0, y0)) = orig {
                 let y = gain(regular, t) * (sigma * rng.gauss()).exp();
+                // the plan designs the drift alarms; lamp-unstable judges its scatter assumption
                 for ev in det.add(t0, y0, t, y) {
-                    out.push((regular, ev));
+                    if !matches!(
+                        ev,
+                        DriftEvent::Unstable { .. } | DriftEvent::UnstableCleared { .. }
+                    ) {
+                        out.push((regular, ev));
+                    }
                 }
                 let stop = match scenario {
                     Scenario::FaultFree => false,

@@ -29,6 +29,10 @@ pub struct ProbeSpec {
     pub step_sigmas: f64,
     /// Smallest step reported (%).
     pub step_pct: f64,
+    /// The probes' scatter (% SD of one probe against its original capture) the cadence was
+    /// designed for: `goniowatch plan` assumes it, and `lamp-unstable` is raised when the
+    /// measured scatter exceeds it by `UNSTABLE_FACTOR`.
+    pub design_scatter_pct: f64,
     /// On an anisotropic sample, follow each probe with a sentinel probe of a pose chosen to
     /// be sensitive to arm joint 3 (`measure::sentinel`); it doubles the probes' run time.
     pub sentinel: bool,
@@ -46,6 +50,7 @@ impl Default for ProbeSpec {
             min_probes: 4,
             step_sigmas: 5.0,
             step_pct: 1.0,
+            design_scatter_pct: 0.3,
             sentinel: true,
             sentinel_min_deg: 0.5,
         }
@@ -176,12 +181,20 @@ pub(crate) fn choose_probe_pose(samples: &[PoseSample]) -> Option<ProbePose> {
     best
 }
 
+/// `lamp-unstable` when the probes' robust scatter exceeds the design scatter by this factor ...
+pub const UNSTABLE_FACTOR: f64 = 2.0;
+/// ... and clears below this one (hysteresis).
+pub const UNSTABLE_CLEAR_FACTOR: f64 = 1.5;
+/// Probes on a segment before its scatter is judged: the MAD of fewer is too coarse.
+pub const UNSTABLE_MIN_PROBES: usize = 8;
+
 #[derive(Debug, Clone)]
 pub(crate) struct ProbeDrift {
     spec: ProbeSpec,
     /// (t in hours, ln ratio) of the current segment.
     segment: Vec<(f64, f64)>,
     rate_alarm: bool,
+    unstable: bool,
     estimate: Option<DriftEstimate>,
 }
 
@@ -229,6 +242,7 @@ impl ProbeDrift {
             spec,
             segment: Vec::new(),
             rate_alarm: false,
+            unstable: false,
             estimate: None,
         }
     }
@@ -296,8 +310,47 @@ impl ProbeDrift {
                     ev.push(DriftEvent::RateCleared(est));
                 }
             }
+            ev.extend(self.stability(&f));
         }
         ev
+    }
+
+    /// The lamp's stability at the probes: the robust scale (1.4826 · median |residual|) of the
+    /// current segment about its line against the design scatter. A step restarts the segment,
+    /// so a step is not scatter; a drift is the line, so it is not scatter either.
+    fn stability(&mut self, f: &Fit) -> Option<DriftEvent> {
+        let n = self.segment.len();
+        let design = self.spec.design_scatter_pct / 100.0;
+        if n < UNSTABLE_MIN_PROBES || !(design > 0.0) {
+            return None;
+        }
+        let mut dev: Vec<f64> = self
+            .segment
+            .iter()
+            .map(|p| (p.1 - f.a - f.r * (p.0 - f.t0)).abs())
+            .collect();
+        dev.sort_by(f64::total_cmp);
+        let scatter = 1.4826 * super::stats::median_sorted(&dev);
+        if !scatter.is_finite() {
+            return None;
+        }
+        if !self.unstable && scatter > UNSTABLE_FACTOR * design {
+            self.unstable = true;
+            Some(DriftEvent::Unstable {
+                scatter,
+                design,
+                probes: n - 1,
+            })
+        } else if self.unstable && scatter < UNSTABLE_CLEAR_FACTOR * design {
+            self.unstable = false;
+            Some(DriftEvent::UnstableCleared {
+                scatter,
+                design,
+                probes: n - 1,
+            })
+        } else {
+            None
+        }
     }
 }
 
@@ -337,6 +390,47 @@ mod tests {
             t += 100.0 * 7.0 / 3600.0;
         }
         ev
+    }
+
+    #[test]
+    fn a_flickering_lamp_is_unstable_and_a_steady_one_or_a_step_is_not() {
+        let unstable = |ev: &[(f64, DriftEvent)]| {
+            ev.iter()
+                .filter(|(_, e)| matches!(e, DriftEvent::Unstable { .. }))
+                .count()
+        };
+        // uniform noise of ± 0.3 % (0.17 % SD) against a 0.3 % design: quiet, with a decay or a
+        // step as well
+        for seed in 1..=20 {
+            assert_eq!(unstable(&run(0.0, None, 0.003, seed)), 0, "seed {seed}");
+            assert_eq!(unstable(&run(1.0, None, 0.003, seed)), 0, "seed {seed}");
+            assert_eq!(
+                unstable(&run(0.0, Some((6.0, -0.03)), 0.003, seed)),
+                0,
+                "seed {seed}"
+            );
+        }
+        // ± 2 % (1.2 % SD, four times the design): unstable once, with the measured scatter
+        for seed in 1..=5 {
+            let ev = run(0.0, None, 0.02, seed);
+            assert_eq!(unstable(&ev), 1, "seed {seed}: {ev:?}");
+            let (t, e) = ev
+                .iter()
+                .find(|(_, e)| matches!(e, DriftEvent::Unstable { .. }))
+                .unwrap();
+            let DriftEvent::Unstable {
+                scatter,
+                design,
+                probes,
+            } = *e
+            else {
+                unreachable!()
+            };
+            assert!(scatter > 2.0 * design && scatter < 0.03, "{scatter}");
+            assert!(probes >= UNSTABLE_MIN_PROBES - 1, "{probes}");
+            // found within the first 2 h of probes every 100 captures
+            assert!(*t < 2.5, "{t}");
+        }
     }
 
     #[test]
