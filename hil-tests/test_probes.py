@@ -45,3 +45,32 @@ def test_probes_catch_a_lamp_step_and_stay_quiet_without_one(hil, tmp_path):
     # one CI run measured +0.50 ± 0.15). No alarm (above) is the real criterion.
     d = s["probe_drift"]
     assert abs(d["rate_pct_per_h"]) <= 5 * d["se_pct_per_h"] and d["se_pct_per_h"] < 0.5, d
+
+
+def test_on_an_anisotropic_sample_the_sentinel_names_a_turn_of_joint_3(hil, tmp_path):
+    needs_simulator()
+    cfg = daemon_config(tmp_path, "sentinel", every=25, isotropic=False)
+    rig = hil("sent", [{"kind": "joint-offset", "at_capture": 300, "joint": 3, "offset_deg": 1.0}],
+              captures=500, speed=7.0 / 0.004, preset="brushed")
+    session = tmp_path / "sent-session"
+    code, out, err = run_daemon(rig, session, cfg, timeout=180)
+    assert code == 0, err[-2000:]
+    s = json.load(open(session / "summary.json"))
+    lamp, sentinel = s["probe_pose"]["entry"], s["joint3_sentinel"]["pose"]
+    assert sentinel["entry"] != lamp and abs(sentinel["sensitivity_pct_per_deg"]) > 1.0, sentinel
+    caps = read_jsonl(session / "captures.jsonl")
+    probes = [c for c in caps if c["probe"]]
+    assert {p["entry"] for p in probes} == {lamp, sentinel["entry"]}
+    alarms = read_jsonl(session / "alarms.jsonl")
+    named = [a for a in alarms if a["code"] == "joint-offset-suspected"]
+    assert len(named) == 1, named
+    a = named[0]
+    assert a["evidence"]["joint"] == 3 and 0.5 < a["evidence"]["offset_deg"] < 1.5, a
+    # judged in sentinel probes (the daemon's own quantity): the first or second after the turn
+    # (the turn is at 300 × 7 s of controller time)
+    after = [p for p in probes if p["entry"] == sentinel["entry"] and p["t"] >= 300 * 7.0 and p["idx"] <= a["idx"]]
+    assert 1 <= len(after) <= 2, (a["idx"], [p["idx"] for p in probes])
+    assert a["affects"]["handling"] == "retake" and "joint 3" in a["action"]
+    assert not [x for x in alarms if x["kind"] == "drift"], alarms
+    assert "joint-3 sentinel" in out
+    assert_replay_identical(session, tmp_path)
