@@ -3,7 +3,10 @@ runs (sim + daemon, 16 × 16 images) with drift probes at the cadence `plan` rec
 pose the daemon chooses, per material and nuisance preset: fault-free runs (any probe alarm is a
 false alarm), a −2 % lamp step at three onsets (the delay to the probes' `gain-step`, in regular
 captures), and a 1 %/h decay (when the probes' `gain-drift` first fired, as a fraction of the
-run). Also the probes' measured scatter (`residual_scale` of the fault-free runs), which is what
+run), and on the anisotropic materials arm joint 3 turned by ±1° at the same three onsets (when
+the sentinel probe named it, in regular captures, and its estimate) and, with `--tilts`, joints 1
+and 2 slipped by ±1° at mid-run (which the sentinel sees but cannot tell from joint 3). Also the
+probes' measured scatter (`residual_scale` of the fault-free runs), which is what
 `plan --probe-scatter-pct` assumed, and the chosen pose.
 
 Run (after `cargo build --release`):
@@ -46,6 +49,10 @@ def main():
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--first-seed", type=int, default=1)
     ap.add_argument("--every", type=int, default=0, help="probe cadence (default: plan's recommendation)")
+    ap.add_argument("--no-joints", action="store_true", help="leave out the joint-3 scenarios")
+    ap.add_argument("--tilts", action="store_true", help="add joint 1 and 2 slips of ±1° at mid-run")
+    ap.add_argument("--flicker", action="store_true", help="add lamp flicker of 1 and 3 % per capture")
+    ap.add_argument("--only-extra", action="store_true", help="run only the --flicker/--tilts scenarios")
     ap.add_argument("--keep", help="keep the recorded sessions in this folder")
     ap.add_argument("--replay", help="re-score the sessions kept in this folder")
     a = ap.parse_args()
@@ -72,7 +79,27 @@ def main():
                                       [{"kind": "lamp-step", "at_capture": onset, "step_pct": STEP_PCT}], s))
                 scenarios.append((f"decay {DECAY_PCT_PER_H} %/h",
                                   [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": DECAY_PCT_PER_H}], s))
+                if material in ANISOTROPIC and not a.no_joints:
+                    for onset in ONSETS:
+                        for deg in (1.0, -1.0):
+                            scenarios.append((f"joint 3 {deg:+g} at {onset}",
+                                              [{"kind": "joint-offset", "at_capture": onset, "joint": 3, "offset_deg": deg}], s))
+                if a.flicker:
+                    for amp in (1.0, 3.0):
+                        scenarios.append((f"flicker {amp:g} %",
+                                          [{"kind": "lamp-flicker", "at_capture": 0, "amplitude_pct": amp}], s))
+                if material in ANISOTROPIC and a.tilts:
+                    for joint in (1, 2):
+                        for deg in (1.0, -1.0):
+                            scenarios.append((f"joint {joint} {deg:+g} at 3280",
+                                              [{"kind": "joint-offset", "at_capture": 3280, "joint": joint, "offset_deg": deg}], s))
+            if a.only_extra:
+                scenarios = [sc for sc in scenarios if sc[0].startswith(("flicker", "joint 1", "joint 2"))]
+            flick = {}
             false_runs, ff_runs, scatters, poses = 0, 0, [], set()
+            joint_false, sentinels = 0, set()
+            j3_ok, j3_runs, j3_delays, j3_errors, j3_wrong_sign = 0, 0, [], [], 0
+            tilt_seen, tilt_runs, tilt_delays = 0, 0, []
             step_ok, step_runs, delays = 0, 0, []
             decay_ok, decay_runs, fractions = 0, 0, []
             for name, faults, seed in scenarios:
@@ -88,14 +115,51 @@ def main():
                 caps_file = os.path.join(session, "captures.jsonl")
                 caps = [json.loads(l) for l in open(caps_file)] if faults and os.path.exists(caps_file) else []
                 probe = [x for x in alarms if (x.get("evidence") or {}).get("source") == "probes" and x["kind"] == "drift"]
+                joint = [x for x in alarms if x["code"] == "joint-offset-suspected"]
+                sent = summary.get("joint3_sentinel")
+                if sent:
+                    p = sent["pose"]
+                    sentinels.add((p["entry"], round(p["theta_o_deg"]), round(p["sensitivity_pct_per_deg"], 1)))
                 pose = summary.get("probe_pose")
                 if pose:
                     poses.add((pose["entry"], round(pose["theta_i_deg"]), round(pose["theta_o_deg"])))
                 if not faults:
                     ff_runs += 1
                     false_runs += bool(probe)
+                    joint_false += bool(joint)
                     if summary.get("probe_drift"):
                         scatters.append(100 * summary["probe_drift"]["residual_scale"])
+                elif faults[0]["kind"] == "lamp-flicker":
+                    amp = faults[0]["amplitude_pct"]
+                    hit = [x for x in alarms if x["code"] == "lamp-unstable"]
+                    r = flick.setdefault(amp, [0, 0, [], []])
+                    r[1] += 1
+                    if hit and hit[0].get("idx") is not None:
+                        r[0] += 1
+                        r[2].append(round(regular_index(caps, hit[0]["idx"]) / PLAN, 3))
+                        r[3].append(round(hit[0]["evidence"]["scatter_pct"], 2))
+                elif faults[0]["kind"] == "joint-offset":
+                    f = faults[0]
+                    t_on = f["at_capture"] * 7.0
+                    first = next((c["idx"] for c in caps if c["t"] >= t_on), PLAN)
+                    onset = regular_index(caps, first)
+                    after = [x for x in joint if x.get("idx") is not None and regular_index(caps, x["idx"]) > onset]
+                    if f["joint"] == 3:
+                        j3_runs += 1
+                        if after:
+                            x = after[0]
+                            d = regular_index(caps, x["idx"]) - onset
+                            j3_delays.append(d)
+                            est = x["evidence"]["offset_deg"]
+                            right = x["evidence"]["joint"] == 3 and est * f["offset_deg"] > 0
+                            j3_wrong_sign += not right
+                            j3_errors.append(round(100 * (est / f["offset_deg"] - 1)))
+                            j3_ok += d <= 600 and right
+                    else:
+                        tilt_runs += 1
+                        if after:
+                            tilt_seen += 1
+                            tilt_delays.append(regular_index(caps, after[0]["idx"]) - onset)
                 elif faults[0]["kind"] == "lamp-step":
                     step_runs += 1
                     # a fault's at_capture is a time (at_capture × 7 s): the regular capture
@@ -121,6 +185,15 @@ def main():
                   f"{decay_ok} of {decay_runs} ({sorted(fractions)}) |" if scatters else
                   f"| {material} | {preset} | {config} | {every} | – | – | {false_runs} in {ff_runs} | {step_ok} of {step_runs} | {decay_ok} of {decay_runs} |",
                   flush=True)
+            for amp, (hits, runs, fr, sc) in sorted(flick.items()):
+                print(f"|   | lamp flicker {amp:g} % per capture: lamp-unstable in {hits} of {runs} "
+                      f"(at {sorted(fr)} of the run; measured scatter % {sorted(sc)}) |", flush=True)
+            if j3_runs or tilt_runs:
+                print(f"|   | joint 3 ±1° at {ONSETS}: named within 600 with the right sign in {j3_ok} of {j3_runs} "
+                      f"(delays {sorted(j3_delays)}; estimate error % {sorted(j3_errors)}; wrong joint or sign {j3_wrong_sign}); "
+                      f"sentinel (entry, θo, %/°) {sorted(sentinels)}; fault-free runs with a joint alarm: {joint_false} in {ff_runs}"
+                      + (f"; joints 1/2 ±1° at 3280: seen in {tilt_seen} of {tilt_runs} (delays {sorted(tilt_delays)})" if tilt_runs else "")
+                      + " |", flush=True)
     shutil.rmtree(tmp, ignore_errors=True)
 
 
