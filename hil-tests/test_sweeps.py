@@ -40,6 +40,10 @@ def test_a_slipped_joint_is_named(hil, tmp_path, joint):
     assert 0 < a["evidence"]["offset_deg"] < 3.0, a
     assert ONSET <= a["idx"] <= ONSET + 600, a
     assert f"joint {joint} looks offset" in a["message"]
+    # what to do, and every capture since the slip on the retake list
+    assert f"arm joint {joint}" in a["action"], a
+    assert a["affects"]["scope"] == "since" and a["affects"]["handling"] == "retake", a
+    assert a["affects"]["from_idx"] <= ONSET, a
     # the encoders agree with the commands (the slip is after them): no encoder alarm
     assert not [x for x in alarms if x["code"] == "encoder-mismatch"]
     sweeps = read_jsonl(session / "sweeps.jsonl")
@@ -55,6 +59,7 @@ def test_a_lamp_step_is_a_gain_step_from_the_sweeps(hil, tmp_path):
     assert a["kind"] == "drift" and a["evidence"]["source"] == "light sweeps", a
     assert -4.0 < a["evidence"]["level_pct"] < -1.0, a
     assert ONSET <= a["idx"] <= ONSET + 300, a
+    assert a["affects"]["handling"] == "corrected" and a["affects"]["from_idx"] <= ONSET, a
     assert first(alarms, "joint-offset-suspected") is None, alarms
     # the step enters the isotropy drift model, and the corrected output divides it out
     s = json.load(open(session / "summary.json"))
