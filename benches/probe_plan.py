@@ -82,7 +82,9 @@ def main():
                 if material in ANISOTROPIC and not a.no_joints:
                     for onset in ONSETS:
                         for deg in (1.0, -1.0):
-                            scenarios.append((f"joint 3 {deg:+g} at {onset}",
+                            # the sign in words: a kept session's folder name drops "+" and "−"
+                            sign = "plus" if deg > 0 else "minus"
+                            scenarios.append((f"joint 3 {sign} 1 deg at {onset}",
                                               [{"kind": "joint-offset", "at_capture": onset, "joint": 3, "offset_deg": deg}], s))
                 if a.flicker:
                     for amp in (1.0, 3.0):
@@ -91,7 +93,8 @@ def main():
                 if material in ANISOTROPIC and a.tilts:
                     for joint in (1, 2):
                         for deg in (1.0, -1.0):
-                            scenarios.append((f"joint {joint} {deg:+g} at 3280",
+                            sign = "plus" if deg > 0 else "minus"
+                            scenarios.append((f"joint {joint} {sign} 1 deg at 3280",
                                               [{"kind": "joint-offset", "at_capture": 3280, "joint": joint, "offset_deg": deg}], s))
             if a.only_extra:
                 scenarios = [sc for sc in scenarios if sc[0].startswith(("flicker", "joint 1", "joint 2"))]

@@ -1118,6 +1118,7 @@ fn anisotropic_run(captures: usize, onset: usize, turn: f64) -> (Engine, Vec<Out
 
 #[test]
 fn on_an_anisotropic_sample_a_sentinel_probe_follows_each_probe_and_names_a_turn_of_joint_3() {
+    // (named at the second round after the turn: one departing reading is not enough)
     // joint 3 turns by +1° at regular capture 1,500; probes every 100
     let (e, out) = anisotropic_run(2300, 1500, 1.0);
     let sentinels: Vec<_> = out
@@ -1148,7 +1149,7 @@ fn on_an_anisotropic_sample_a_sentinel_probe_follows_each_probe_and_names_a_turn
             ]
         );
     }
-    // named as joint 3 with the right sign, at the first probe round after the turn
+    // named as joint 3 with the right sign
     let named: Vec<_> = out
         .iter()
         .filter_map(|o| match o {
@@ -1161,10 +1162,10 @@ fn on_an_anisotropic_sample_a_sentinel_probe_follows_each_probe_and_names_a_turn
     assert_eq!(a.evidence["joint"], 3);
     let est = a.evidence["offset_deg"].as_f64().unwrap();
     assert!((0.7..1.3).contains(&est), "{est}");
-    // regular capture 1,500 is capture 1,500 + 2 × 15 probes in; the next round follows
-    // regular capture 1,600
+    // regular capture 1,500 is capture 1,500 + 2 × 15 probes in; the round after regular
+    // capture 1,600 departs and the one after 1,700 confirms it
     let at = a.idx.unwrap();
-    assert!((1530..=1650).contains(&at), "{at}");
+    assert!((1730..=1740).contains(&at), "{at}");
     let Some(Affects::Since {
         from_idx,
         handling: Handling::Retake,

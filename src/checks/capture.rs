@@ -226,6 +226,7 @@ impl CaptureStage {
             light,
             camera,
             probe: input.probe,
+            sentinel: false,
             t: input.t,
             file: input.file.clone(),
             status: CaptureStatus::Ok,

@@ -430,7 +430,7 @@ pub(super) fn drift_alarm(
             ),
         )
         .at(at.0, at.1),
-        DriftEvent::Unstable { scatter, design, probes } => Alarm::new(
+        DriftEvent::Unstable { scatter, design, probes, from_idx } => Alarm::new(
             AlarmKind::Drift,
             Severity::Warning,
             "lamp-unstable",
@@ -443,8 +443,8 @@ pub(super) fn drift_alarm(
         .at(at.0, at.1)
         .with(json!({"scatter_pct": 100.0 * scatter, "design_scatter_pct": 100.0 * design, "probes": probes, "source": source}))
         .advise(
-            "Let the lamp warm up and settle; check its supply, its connections and any draught or fan near it; if the scatter stays, pause the run and fix the lamp. Every capture since the scatter rose carries the lamp's noise, which no correction removes.",
-            at.0.map(|from_idx| Affects::Since { from_idx, handling: Handling::Inspect }),
+            "Let the lamp warm up and settle; check its supply, its connections and any draught or fan near it; if the scatter stays, pause the run and fix the lamp. The captures since the first probe judged carry the lamp's noise, which no correction removes.",
+            Some(Affects::Since { from_idx, handling: Handling::Inspect }),
         ),
         DriftEvent::UnstableCleared { scatter, design, probes } => Alarm::new(
             AlarmKind::Drift,

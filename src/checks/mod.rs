@@ -262,14 +262,37 @@ pub struct Checker {
     probes_enabled: bool,
     /// The last usable probe checked: a step the next probe finds began after it.
     last_probe_idx: Option<u64>,
-    /// The last lamp probe: its time (h) and ln luminance ratio to its original capture.
-    last_lamp_probe: Option<(f64, f64)>,
+    /// The lamp probe just checked, usable: its index and ln luminance ratio to its original
+    /// capture. Cleared by any other probe, taken by the sentinel probe after it.
+    last_lamp_probe: Option<(u64, f64)>,
     /// Arm joint 3 from sentinel probes (anisotropic samples with probes), once its pose is
     /// chosen.
     sentinel: Option<Joint3Sentinel>,
     /// The sentinel's settings: whether to choose one, and its test.
-    sentinel_spec: Option<(f64, f64, usize)>,
+    sentinel_spec: Option<SentinelSettings>,
+    /// The pole light's sweep was complete and no pose qualified as the sentinel.
+    sentinel_unavailable: bool,
     alarms: u64,
+}
+
+/// What `Checker::choose_sentinel` found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum SentinelChoice {
+    Chosen(SentinelPose),
+    /// The pole light's sweep is not complete yet.
+    NotYet,
+    /// None qualifies, or the session has no sentinel.
+    Unavailable,
+}
+
+/// The joint-3 sentinel's test settings, from `[probes]`.
+#[derive(Debug, Clone, Copy)]
+struct SentinelSettings {
+    step_sigmas: f64,
+    min_deg: f64,
+    min_readings: usize,
+    /// ln units.
+    sd_floor: f64,
 }
 
 impl Checker {
@@ -295,11 +318,16 @@ impl Checker {
             last_probe_idx: None,
             last_lamp_probe: None,
             sentinel: None,
-            sentinel_spec: (!isotropic && probes.every > 0 && probes.sentinel).then_some((
-                probes.step_sigmas,
-                probes.sentinel_min_deg,
-                probes.min_probes,
-            )),
+            sentinel_unavailable: false,
+            sentinel_spec: (!isotropic && probes.every > 0 && probes.sentinel).then_some(
+                SentinelSettings {
+                    step_sigmas: probes.step_sigmas,
+                    min_deg: probes.sentinel_min_deg,
+                    min_readings: probes.min_probes,
+                    // the scatter of the difference of two probes at the design scatter
+                    sd_floor: std::f64::consts::SQRT_2 * probes.design_scatter_pct / 100.0,
+                },
+            ),
             probe_colour: (probes.every > 0)
                 .then(|| drift::ColourStage::probes(&spec.colour_drift, probes.min_probes))
                 .flatten(),
@@ -321,10 +349,21 @@ impl Checker {
             colour: &self.colour,
             spec: &self.spec,
         };
+        // a probe of the sentinel's pose is the sentinel's; any other probe is the lamp's, and
+        // the sentinel compares only with the lamp probe checked right before it
+        let sentinel =
+            input.probe && self.sentinel.as_ref().map(|s| s.pose().entry) == Some(input.entry);
+        if input.probe && !sentinel {
+            self.last_lamp_probe = None;
+        }
         match self.capture.check(&ctx, input, &mut out.alarms) {
             Verdict::NotInPlan => {}
-            Verdict::Unusable(rec) => out.capture = Some(*rec),
+            Verdict::Unusable(mut rec) => {
+                rec.sentinel = sentinel;
+                out.capture = Some(*rec);
+            }
             Verdict::Usable(mut rec, m) => {
+                rec.sentinel = sentinel;
                 rec.gain_corrected = gain_correction(
                     &self.probes,
                     self.capture.probes,
@@ -333,7 +372,9 @@ impl Checker {
                     input.t / 3600.0,
                     m.checked.xyz,
                 );
-                if input.probe {
+                if sentinel {
+                    self.sentinel_probe(input, &m, &mut out);
+                } else if input.probe {
                     self.probe(input, &m, &mut out);
                 } else {
                     self.regular(input, m, &mut out);
@@ -369,20 +410,19 @@ impl Checker {
         if m.checked.dark {
             return;
         }
-        if self.sentinel.as_ref().map(|s| s.pose().entry) == Some(input.entry) {
-            self.sentinel_probe(input, m, out);
-            return;
-        }
         if let Some(orig) = self.ledger.get(input.entry) {
             let at = (Some(input.idx), Some(input.t));
             let (t0, y0) = (orig.t, orig.xyz[1]);
             if y0 > 0.0 && m.checked.xyz[1] > 0.0 {
-                self.last_lamp_probe = Some((input.t / 3600.0, (m.checked.xyz[1] / y0).ln()));
+                self.last_lamp_probe = Some((input.idx, (m.checked.xyz[1] / y0).ln()));
             }
-            for ev in self
-                .probes
-                .add(t0 / 3600.0, y0, input.t / 3600.0, m.checked.xyz[1])
-            {
+            for ev in self.probes.add(
+                input.idx,
+                t0 / 3600.0,
+                y0,
+                input.t / 3600.0,
+                m.checked.xyz[1],
+            ) {
                 // a step happened after the last probe before this one
                 let since = self.last_probe_idx.map(|i| i + 1);
                 out.alarms.push(drift_alarm(ev, "probes", at, since));
@@ -401,22 +441,21 @@ impl Checker {
     }
 
     /// A sentinel probe: its luminance ratio against the lamp probe's just before it is joint
-    /// 3's turn (`measure::sentinel`). Left out when the lamp probe is missing or stale (the
-    /// lamp cannot be divided out) or either capture is dark.
+    /// 3's turn (`measure::sentinel`). Left out unless the capture right before it was a usable
+    /// lamp probe (the two captures of one probe round: otherwise the lamp cannot be divided
+    /// out), and when it is dark.
     fn sentinel_probe(&mut self, input: &CaptureInput, m: &Measured, out: &mut CheckOutput) {
-        /// The lamp probe must be this recent (h): the two captures of one probe round.
-        const LAMP_PROBE_MAX_AGE_H: f64 = 0.1;
-        let t_h = input.t / 3600.0;
+        let lamp = self.last_lamp_probe.take();
         let (Some(orig), Some(sentinel)) = (self.ledger.get(input.entry), self.sentinel.as_mut())
         else {
             return;
         };
-        let Some((t_lamp, lamp_ln)) = self.last_lamp_probe else {
+        let Some((lamp_idx, lamp_ln)) = lamp else {
             return;
         };
-        if m.checked.dark
+        if lamp_idx + 1 != input.idx
+            || m.checked.dark
             || !(orig.xyz[1] > 0.0 && m.checked.xyz[1] > 0.0)
-            || !(t_h - t_lamp).abs().le(&LAMP_PROBE_MAX_AGE_H)
         {
             return;
         }
@@ -451,18 +490,34 @@ impl Checker {
 
     /// Chooses the joint-3 sentinel's pose (`measure::sentinel`) from the pole light's checked
     /// captures, once, for an anisotropic sample with probes and the sentinel on; `lamp_entry`
-    /// (the lamp probe's pose) is not offered. None while none qualifies.
-    pub(crate) fn choose_sentinel(&mut self, lamp_entry: usize) -> Option<SentinelPose> {
-        let (step_sigmas, min_deg, min_readings) = self.sentinel_spec?;
+    /// (the lamp probe's pose) is not offered. `NotYet` while the pole light's sweep is
+    /// incomplete, `Unavailable` when it is complete and no capture qualifies (or the session
+    /// does not want a sentinel, or the plan has no pole).
+    pub(crate) fn choose_sentinel(&mut self, lamp_entry: usize) -> SentinelChoice {
+        let Some(set) = self.sentinel_spec else {
+            return SentinelChoice::Unavailable;
+        };
         if let Some(s) = &self.sentinel {
-            return Some(s.pose());
+            return SentinelChoice::Chosen(s.pose());
         }
-        let pole = self
-            .plan
-            .directions()
+        let dirs = self.plan.directions();
+        let Some(pole) = dirs
             .iter()
-            .find(|d| d.theta_deg.abs() < 1e-6)?
-            .index;
+            .find(|d| d.theta_deg.abs() < 1e-6)
+            .map(|d| d.index)
+        else {
+            self.sentinel_unavailable = true;
+            return SentinelChoice::Unavailable;
+        };
+        if !self.ledger.light_complete(pole) {
+            return SentinelChoice::NotYet;
+        }
+        let ring_len = |theta: f64| {
+            dirs.iter()
+                .filter(|d| (d.theta_deg - theta).abs() < 1e-6)
+                .count()
+                .max(1)
+        };
         let samples: Vec<RingSample> = (0..self.plan.capture_count())
             .filter_map(|e| {
                 let pe = self.plan.entry(e).ok()?;
@@ -473,28 +528,34 @@ impl Checker {
                 if !c.exact_pose || c.dark || c.substitute {
                     return None;
                 }
-                let inc = Incidence {
-                    omega_i: c.omega_i,
-                    omega_o: c.omega_o,
-                };
-                let a = inc.angles();
+                let cam = dirs.get(pe.camera)?;
                 Some(RingSample {
                     entry: e,
-                    theta_o_deg: a.theta_o_deg,
-                    phi_o_deg: a.phi_o_deg,
+                    theta_o_deg: cam.theta_deg,
+                    phi_o_deg: cam.phi_deg.rem_euclid(360.0),
+                    ring_step_deg: 360.0 / ring_len(cam.theta_deg) as f64,
                     y: c.xyz[1],
-                    dphi_dq3: self.dphi_o_dq3(&inc)?,
+                    dphi_dq3: self.dphi_o_dq3(&Incidence {
+                        omega_i: c.omega_i,
+                        omega_o: c.omega_o,
+                    })?,
                 })
             })
             .collect();
-        let pose = choose_sentinel(&samples)?;
+        // a 1° turn must clear the slip test's own threshold at the design scatter
+        let min_pct_per_deg = 100.0 * set.step_sigmas * set.sd_floor;
+        let Some(pose) = choose_sentinel(&samples, min_pct_per_deg) else {
+            self.sentinel_unavailable = true;
+            return SentinelChoice::Unavailable;
+        };
         self.sentinel = Some(Joint3Sentinel::new(
             pose,
-            step_sigmas,
-            min_deg,
-            min_readings,
+            set.step_sigmas,
+            set.min_deg,
+            set.min_readings,
+            set.sd_floor,
         ));
-        Some(pose)
+        SentinelChoice::Chosen(pose)
     }
 
     /// Whether this session follows each probe with a sentinel probe (anisotropic sample,
@@ -683,7 +744,7 @@ impl Checker {
             self.probes_enabled,
             self.plan.order(),
             self.spec.sweeps.enabled,
-            self.sentinel_spec.is_some(),
+            self.sentinel_spec.is_some() && !self.sentinel_unavailable,
         )
     }
 

@@ -109,6 +109,10 @@ pub struct CaptureRecord {
     pub light: usize,
     pub camera: usize,
     pub probe: bool,
+    /// A probe of the joint-3 sentinel's pose (`measure::sentinel`), not of the lamp's: it is
+    /// no point of the lamp's gain curve.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub sentinel: bool,
     pub t: f64,
     pub file: String,
     pub status: CaptureStatus,
@@ -291,9 +295,11 @@ impl ProbeGainCurve {
         }
     }
 
-    /// Take the next capture record; a probe gives its point (hours, gain).
+    /// Take the next capture record; a lamp probe gives its point (hours, gain).
     pub(crate) fn add(&mut self, c: &CaptureRecord) -> Option<(f64, f64)> {
-        let xyz = c.xyz.filter(|_| c.status == CaptureStatus::Ok)?;
+        let xyz = c
+            .xyz
+            .filter(|_| c.status == CaptureStatus::Ok && !c.sentinel)?;
         if !c.probe {
             self.first.entry(c.entry).or_insert((c.t, xyz[1]));
             return None;

@@ -417,7 +417,7 @@ pub fn metrics(s: &Snapshot) -> String {
         );
         g(
             "probe_scatter_pct",
-            "The probes' scatter about their trend (% SD of the current segment): the lamp's stability at one pose.",
+            "The probes' scatter about their trend (% least-squares SD of the current segment; lamp-unstable judges a robust scale of its last 8 probes, given in that alarm).",
             100.0 * d.residual_scale,
         );
     }
@@ -453,6 +453,7 @@ mod tests {
             light,
             camera: 0,
             probe,
+            sentinel: false,
             t: idx as f64 * 7.0,
             file: format!("c{idx}.hdr"),
             status: crate::checks::CaptureStatus::Ok,

@@ -19,6 +19,10 @@ struct Storm {
     emitted: u32,
     held: u64,
     captures: Vec<u64>,
+    /// The held alarms' affected captures, merged; and their action when they all had the
+    /// same one (None: differing, or none).
+    affects: Option<Affects>,
+    action: Option<Option<String>>,
     latest: Option<Alarm>,
     /// The highest severity held back in this window.
     held_worst: Option<Severity>,
@@ -69,6 +73,15 @@ impl AlarmBook {
                 storm.captures.push(i);
             }
         }
+        storm.affects = match (storm.affects.take(), a.affects.clone()) {
+            (Some(s), Some(x)) => Some(s.merge(x, ALARM_LIST_MAX)),
+            (s, x) => s.or(x),
+        };
+        storm.action = Some(match storm.action.take() {
+            None => a.action.clone(),
+            Some(same) if same == a.action => same,
+            Some(_) => None,
+        });
         storm.latest = Some(a);
         None
     }
@@ -140,14 +153,9 @@ fn aggregate(code: &str, storm: &Storm, latest: Alarm, now: u64) -> Alarm {
         ),
     )
     .at(None, latest.t);
-    // the held alarms' captures, handled as the latest was
-    a.action = latest.action.clone();
-    a.affects = latest.affects.as_ref().and_then(|l| {
-        (!storm.captures.is_empty()).then(|| Affects::Captures {
-            idx: storm.captures.clone(),
-            handling: l.handling(),
-        })
-    });
+    // the held alarms' captures together, and their action if they shared one
+    a.affects = storm.affects.clone();
+    a.action = storm.action.clone().flatten();
     a = a.with(json!({
         "aggregated": storm.held,
         "window_inputs": [first, now],
@@ -218,5 +226,59 @@ mod tests {
         assert_eq!(agg.len(), 1);
         assert_eq!(agg[0].severity, Severity::Critical);
         assert_eq!(book.criticals(), 8);
+    }
+
+    #[test]
+    fn an_aggregate_affects_every_capture_its_alarms_did() {
+        use crate::measure::alarm::Handling;
+        let mut book = AlarmBook::default();
+        // reciprocity outliers, each naming its pair; all with the same action
+        for i in 0..9u64 {
+            let a = Alarm::new(
+                AlarmKind::ReciprocityOutlier,
+                Severity::Warning,
+                "reciprocity-outlier",
+                "x".into(),
+            )
+            .at(Some(100 + i), None)
+            .advise(
+                "look",
+                Some(Affects::Captures {
+                    idx: vec![i, 100 + i],
+                    handling: Handling::Inspect,
+                }),
+            );
+            book.admit(a, i);
+        }
+        let agg = book.flush(9, true);
+        assert_eq!(agg.len(), 1);
+        // the four held back: captures 5–8 and their partners 105–108
+        assert_eq!(
+            agg[0].affects,
+            Some(Affects::Captures {
+                idx: vec![5, 6, 7, 8, 105, 106, 107, 108],
+                handling: Handling::Inspect
+            })
+        );
+        assert_eq!(agg[0].action.as_deref(), Some("look"));
+        // "from here on" conditions merge to the earliest, and the stronger handling
+        let m = Affects::Since {
+            from_idx: 50,
+            handling: Handling::Corrected,
+        }
+        .merge(
+            Affects::Captures {
+                idx: vec![40],
+                handling: Handling::Retake,
+            },
+            200,
+        );
+        assert_eq!(
+            m,
+            Affects::Since {
+                from_idx: 40,
+                handling: Handling::Retake
+            }
+        );
     }
 }

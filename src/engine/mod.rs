@@ -10,7 +10,8 @@
 //! (idempotent). Outcomes are handed to the checker in capture-index order.
 
 use crate::checks::{
-    CaptureInput, CaptureRecord, CheckCounts, Checker, IsotropyRecord, Outcome, PairRecord, Table2,
+    CaptureInput, CaptureRecord, CheckCounts, Checker, IsotropyRecord, Outcome, PairRecord,
+    SentinelChoice, Table2,
 };
 mod alarms;
 mod ledger;
@@ -1015,11 +1016,13 @@ impl Engine {
                             && self.regular_checked.is_multiple_of(sweep)
                         {
                             match self.checker.choose_sentinel(lamp) {
-                                Some(pose) => {
+                                SentinelChoice::Chosen(pose) => {
                                     self.sentinel_entry = Some(pose.entry);
                                     out.push(Output::SentinelPose(pose));
                                 }
-                                None if !self.sentinel_tried => {
+                                SentinelChoice::NotYet => {}
+                                SentinelChoice::Unavailable if !self.sentinel_tried => {
+                                    self.sentinel_tried = true;
                                     let a = Alarm::new(
                                         AlarmKind::Positioning,
                                         Severity::Info,
@@ -1033,9 +1036,8 @@ impl Engine {
                                     );
                                     self.alarm(out, a);
                                 }
-                                None => {}
+                                SentinelChoice::Unavailable => {}
                             }
-                            self.sentinel_tried = true;
                         }
                     }
                     if self.probe_every > 0 && self.regular_checked.is_multiple_of(self.probe_every)

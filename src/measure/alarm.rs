@@ -114,6 +114,41 @@ impl Affects {
         }
     }
 
+    /// The captures of both (for alarms of one code aggregated into one): a union of lists,
+    /// else from the earliest first capture on; the more demanding handling (retake, then
+    /// inspect, then corrected). A list is kept to `max_listed` captures, beyond which it
+    /// becomes "from its first on".
+    pub fn merge(self, other: Affects, max_listed: usize) -> Affects {
+        let rank = |h: Handling| match h {
+            Handling::Retake => 2,
+            Handling::Inspect => 1,
+            Handling::Corrected => 0,
+        };
+        let handling = if rank(other.handling()) > rank(self.handling()) {
+            other.handling()
+        } else {
+            self.handling()
+        };
+        let first = |a: &Affects| match a {
+            Affects::Captures { idx, .. } => idx.iter().min().copied().unwrap_or(0),
+            Affects::Since { from_idx, .. } | Affects::Between { from_idx, .. } => *from_idx,
+        };
+        let from_idx = first(&self).min(first(&other));
+        match (self, other) {
+            (Affects::Captures { idx: mut a, .. }, Affects::Captures { idx: b, .. }) => {
+                a.extend(b);
+                a.sort_unstable();
+                a.dedup();
+                if a.len() > max_listed {
+                    Affects::Since { from_idx, handling }
+                } else {
+                    Affects::Captures { idx: a, handling }
+                }
+            }
+            _ => Affects::Since { from_idx, handling },
+        }
+    }
+
     /// A short phrase for the surfaces, e.g. "captures 3280 on: corrected".
     pub fn describe(&self) -> String {
         let which = match self {

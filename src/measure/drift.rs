@@ -180,6 +180,8 @@ pub(crate) enum DriftEvent {
         scatter: f64,
         design: f64,
         probes: usize,
+        /// The first probe of the window judged.
+        from_idx: u64,
     },
     /// (Probes) the scatter is back under `UNSTABLE_CLEAR_FACTOR` times the design.
     UnstableCleared {

@@ -177,7 +177,7 @@ fn simulate(
             if let Some((t0, y0)) = orig {
                 let y = gain(regular, t) * (sigma * rng.gauss()).exp();
                 // the plan designs the drift alarms; lamp-unstable judges its scatter assumption
-                for ev in det.add(t0, y0, t, y) {
+                for ev in det.add(regular, t0, y0, t, y) {
                     if !matches!(
                         ev,
                         DriftEvent::Unstable { .. } | DriftEvent::UnstableCleared { .. }

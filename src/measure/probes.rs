@@ -185,14 +185,18 @@ pub(crate) fn choose_probe_pose(samples: &[PoseSample]) -> Option<ProbePose> {
 pub const UNSTABLE_FACTOR: f64 = 2.0;
 /// ... and clears below this one (hysteresis).
 pub const UNSTABLE_CLEAR_FACTOR: f64 = 1.5;
-/// Probes on a segment before its scatter is judged: the MAD of fewer is too coarse.
-pub const UNSTABLE_MIN_PROBES: usize = 8;
+/// The scatter is judged over the last this many probes of a segment (the original capture
+/// that anchors the first segment left out): the MAD of fewer is too coarse, and a window keeps
+/// a flicker that starts late in a long steady segment from being outvoted.
+pub const UNSTABLE_WINDOW: usize = 8;
 
 #[derive(Debug, Clone)]
 pub(crate) struct ProbeDrift {
     spec: ProbeSpec,
     /// (t in hours, ln ratio) of the current segment.
     segment: Vec<(f64, f64)>,
+    /// The capture index of each point of the segment (None: the original capture).
+    segment_idx: Vec<Option<u64>>,
     rate_alarm: bool,
     unstable: bool,
     estimate: Option<DriftEstimate>,
@@ -241,6 +245,7 @@ impl ProbeDrift {
         ProbeDrift {
             spec,
             segment: Vec::new(),
+            segment_idx: Vec::new(),
             rate_alarm: false,
             unstable: false,
             estimate: None,
@@ -263,8 +268,16 @@ impl ProbeDrift {
         (ln_g.is_finite() && sigma.is_finite()).then(|| (ln_g.exp(), sigma))
     }
 
-    /// One probe: its time and luminance, and the original capture's time and luminance.
-    pub(crate) fn add(&mut self, t_orig_h: f64, y_orig: f64, t_h: f64, y: f64) -> Vec<DriftEvent> {
+    /// One probe, capture `idx`: its time and luminance, and the original capture's time and
+    /// luminance.
+    pub(crate) fn add(
+        &mut self,
+        idx: u64,
+        t_orig_h: f64,
+        y_orig: f64,
+        t_h: f64,
+        y: f64,
+    ) -> Vec<DriftEvent> {
         let mut ev = Vec::new();
         if !(y_orig > 0.0 && y > 0.0 && t_h.is_finite() && t_orig_h.is_finite()) {
             return ev;
@@ -273,6 +286,7 @@ impl ProbeDrift {
         if self.segment.is_empty() {
             // the original capture anchors the first segment at ratio 1
             self.segment.push((t_orig_h, 0.0));
+            self.segment_idx.push(None);
         }
         if self.segment.len() > self.spec.min_probes {
             if let Some(f) = fit(&self.segment) {
@@ -286,11 +300,13 @@ impl ProbeDrift {
                         pairs_since_reset: self.segment.len(),
                     });
                     self.segment.clear();
+                    self.segment_idx.clear();
                     self.rate_alarm = false;
                 }
             }
         }
         self.segment.push((t_h, d));
+        self.segment_idx.push(Some(idx));
         if let Some(f) = fit(&self.segment) {
             let est = DriftEstimate {
                 pairs: self.segment.len() - 1,
@@ -316,18 +332,28 @@ impl ProbeDrift {
     }
 
     /// The lamp's stability at the probes: the robust scale (1.4826 · median |residual|) of the
-    /// current segment about its line against the design scatter. A step restarts the segment,
-    /// so a step is not scatter; a drift is the line, so it is not scatter either.
+    /// last `UNSTABLE_WINDOW` probes about the current segment's line against the design
+    /// scatter. A step restarts the segment, so a step is not scatter; a drift is the line, so it
+    /// is not scatter either.
     fn stability(&mut self, f: &Fit) -> Option<DriftEvent> {
-        let n = self.segment.len();
         let design = self.spec.design_scatter_pct / 100.0;
-        if n < UNSTABLE_MIN_PROBES || !(design > 0.0) {
+        let probes: Vec<(usize, u64)> = self
+            .segment_idx
+            .iter()
+            .enumerate()
+            .filter_map(|(k, i)| i.map(|i| (k, i)))
+            .collect();
+        if probes.len() < UNSTABLE_WINDOW || !(design > 0.0) {
             return None;
         }
-        let mut dev: Vec<f64> = self
-            .segment
+        let window = &probes[probes.len() - UNSTABLE_WINDOW..];
+        let from_idx = window[0].1;
+        let mut dev: Vec<f64> = window
             .iter()
-            .map(|p| (p.1 - f.a - f.r * (p.0 - f.t0)).abs())
+            .map(|&(k, _)| {
+                let p = self.segment[k];
+                (p.1 - f.a - f.r * (p.0 - f.t0)).abs()
+            })
             .collect();
         dev.sort_by(f64::total_cmp);
         let scatter = 1.4826 * super::stats::median_sorted(&dev);
@@ -339,14 +365,15 @@ impl ProbeDrift {
             Some(DriftEvent::Unstable {
                 scatter,
                 design,
-                probes: n - 1,
+                probes: UNSTABLE_WINDOW,
+                from_idx,
             })
         } else if self.unstable && scatter < UNSTABLE_CLEAR_FACTOR * design {
             self.unstable = false;
             Some(DriftEvent::UnstableCleared {
                 scatter,
                 design,
-                probes: n - 1,
+                probes: UNSTABLE_WINDOW,
             })
         } else {
             None
@@ -384,12 +411,41 @@ mod tests {
         // a probe every 100 captures of 7 s: every 0.194 h over 12.75 h
         let mut t = 0.3;
         while t < 12.75 {
-            for e in p.add(0.1, y0, t, 40.0 * gain(t) * (1.0 + g())) {
+            for e in p.add(
+                (t * 1000.0) as u64,
+                0.1,
+                y0,
+                t,
+                40.0 * gain(t) * (1.0 + g()),
+            ) {
                 ev.push((t, e));
             }
             t += 100.0 * 7.0 / 3600.0;
         }
         ev
+    }
+
+    #[test]
+    fn a_flicker_that_starts_late_in_a_long_steady_segment_is_found() {
+        let mut p = ProbeDrift::new(ProbeSpec {
+            every: 100,
+            ..ProbeSpec::default()
+        });
+        let mut rng = crate::measure::stats::SplitMix64(5);
+        let mut found = None;
+        // 40 steady probes (0.1 %), then 2 % flicker from probe 40 on
+        for k in 0..60u64 {
+            let sd = if k < 40 { 0.001 } else { 0.02 };
+            let y = 40.0 * (1.0 + sd * rng.gauss());
+            for e in p.add(k, 0.0, 40.0, 0.2 + 0.2 * k as f64, y) {
+                if let DriftEvent::Unstable { from_idx, .. } = e {
+                    found.get_or_insert((k, from_idx));
+                }
+            }
+        }
+        let (k, from_idx) = found.expect("flicker found");
+        assert!((44..=50).contains(&k), "{k}");
+        assert!(from_idx >= 36 && from_idx <= k, "{from_idx}");
     }
 
     #[test]
@@ -422,12 +478,13 @@ mod tests {
                 scatter,
                 design,
                 probes,
+                ..
             } = *e
             else {
                 unreachable!()
             };
             assert!(scatter > 2.0 * design && scatter < 0.03, "{scatter}");
-            assert!(probes >= UNSTABLE_MIN_PROBES - 1, "{probes}");
+            assert_eq!(probes, UNSTABLE_WINDOW);
             // found within the first 2 h of probes every 100 captures
             assert!(*t < 2.5, "{t}");
         }

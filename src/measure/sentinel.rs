@@ -21,12 +21,16 @@
 
 use serde::{Deserialize, Serialize};
 
-/// A capture of the pole light's sweep offered to the sentinel choice.
+/// A capture of the pole light's sweep offered to the sentinel choice, at its camera's plan
+/// direction (measured angles jitter with the encoders; the plan's rings do not).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct RingSample {
     pub entry: usize,
     pub theta_o_deg: f64,
     pub phi_o_deg: f64,
+    /// The plan's azimuth step on this ring (360° over its directions): a neighbour further
+    /// than 1.5 steps away means one is missing, and the slope would span a lobe.
+    pub ring_step_deg: f64,
     /// Its luminance at the original capture.
     pub y: f64,
     /// ∂φo/∂q₃ at its pose (degrees of camera azimuth per degree of joint 3; ±1 on a rig whose
@@ -59,15 +63,19 @@ pub struct SentinelSummary {
 pub const SENTINEL_MAX_THETA_O_DEG: f64 = 60.0;
 /// ... and off the pole, where the azimuth is undefined.
 pub const SENTINEL_MIN_THETA_O_DEG: f64 = 5.0;
-/// Below this sensitivity (%/°) a sentinel would not see a degree of joint 3 above its noise:
-/// the sample is not anisotropic enough at these poses, and none is chosen.
+/// The smallest sensitivity (%/°) a sentinel may have whatever its test's threshold.
 pub const SENTINEL_MIN_PCT_PER_DEG: f64 = 0.5;
 
 /// Chooses the sentinel among the pole light's captures: off grazing and off the pole, both
-/// ring neighbours measured, on a flank (the slopes to both neighbours have the same sign, so
-/// the central difference is not a peak's or a valley's noise), the steepest one by the central
-/// difference. Ties go to the lower entry; None when none reaches `SENTINEL_MIN_PCT_PER_DEG`.
-pub(crate) fn choose_sentinel(samples: &[RingSample]) -> Option<SentinelPose> {
+/// ring neighbours measured (one plan step away), on a flank (one neighbour brighter and the
+/// other darker, so the central difference is not a peak's or a valley's noise), the steepest
+/// one by the central difference. Ties go to the lower entry; None when none reaches
+/// `min_pct_per_deg` (at least `SENTINEL_MIN_PCT_PER_DEG`).
+pub(crate) fn choose_sentinel(
+    samples: &[RingSample],
+    min_pct_per_deg: f64,
+) -> Option<SentinelPose> {
+    let min_pct_per_deg = min_pct_per_deg.max(SENTINEL_MIN_PCT_PER_DEG);
     let usable: Vec<&RingSample> = samples
         .iter()
         .filter(|s| s.y > 0.0 && s.y.is_finite() && s.dphi_dq3.is_finite())
@@ -77,11 +85,11 @@ pub(crate) fn choose_sentinel(samples: &[RingSample]) -> Option<SentinelPose> {
         .iter()
         .filter(|s| (SENTINEL_MIN_THETA_O_DEG..=SENTINEL_MAX_THETA_O_DEG).contains(&s.theta_o_deg))
     {
-        // its ring: the same θo to a hundredth of a degree, in azimuth order
+        // its ring: the same plan θo, in azimuth order
         let mut ring: Vec<&RingSample> = usable
             .iter()
             .copied()
-            .filter(|n| (n.theta_o_deg - s.theta_o_deg).abs() < 0.01)
+            .filter(|n| (n.theta_o_deg - s.theta_o_deg).abs() < 1e-6)
             .collect();
         if ring.len() < 3 {
             continue;
@@ -97,7 +105,8 @@ pub(crate) fn choose_sentinel(samples: &[RingSample]) -> Option<SentinelPose> {
             gap(prev.phi_o_deg, s.phi_o_deg),
             gap(s.phi_o_deg, next.phi_o_deg),
         );
-        if !(g_prev > 1e-6 && g_next > 1e-6) {
+        let most = 1.5 * s.ring_step_deg;
+        if !(g_prev > 1e-6 && g_next > 1e-6 && g_prev <= most && g_next <= most) {
             continue;
         }
         let left = (s.y / prev.y).ln() / g_prev;
@@ -108,7 +117,7 @@ pub(crate) fn choose_sentinel(samples: &[RingSample]) -> Option<SentinelPose> {
         // ln Y per degree of azimuth, then per degree of joint 3, in %
         let central = (next.y / prev.y).ln() / (g_prev + g_next);
         let sensitivity = 100.0 * central * s.dphi_dq3;
-        if !sensitivity.is_finite() || sensitivity.abs() < SENTINEL_MIN_PCT_PER_DEG {
+        if !sensitivity.is_finite() || sensitivity.abs() < min_pct_per_deg {
             continue;
         }
         if best.is_none_or(|b| sensitivity.abs() > b.sensitivity_pct_per_deg.abs()) {
@@ -127,46 +136,67 @@ pub(crate) fn choose_sentinel(samples: &[RingSample]) -> Option<SentinelPose> {
 /// A slip the sentinel found.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Joint3Slip {
-    /// Estimated turn of joint 3 (degrees).
+    /// Estimated turn of joint 3 (degrees): the two departing readings against the segment.
     pub offset_deg: f64,
-    /// Its departure in standard deviations of the segment, and the threshold.
+    /// The first departure in standard deviations of the segment, and the threshold.
     pub statistic: f64,
     pub threshold: f64,
-    /// The first capture it can have affected: the one after the previous sentinel probe.
+    /// The first capture it can have affected: the one after the last sentinel probe before
+    /// the first departing reading.
     pub since_idx: u64,
 }
 
+/// A departing reading waiting for the next one to confirm it.
+#[derive(Debug, Clone, Copy)]
+struct Pending {
+    d: f64,
+    statistic: f64,
+    since_idx: u64,
+}
+
 /// The sentinel's readings and its slip test.
+///
+/// A reading d departs when |d − mean| exceeds `step_sigmas` standard deviations of the
+/// current segment (at least `sd_floor`, the scatter the difference of two probes has at the
+/// design scatter) and `min_deg` of joint 3. A slip is named only when the next reading departs
+/// the same way: every capture after a slip goes on the retake list, so one glitched probe (a
+/// speck, a flicker) must not put it there. An unconfirmed departure is left out of the segment.
 #[derive(Debug, Clone)]
 pub(crate) struct Joint3Sentinel {
     pose: SentinelPose,
     step_sigmas: f64,
     min_deg: f64,
     min_readings: usize,
-    /// d of the current segment; the original captures anchor the first one at 0.
+    sd_floor: f64,
+    /// d of the current segment.
     segment: Vec<f64>,
+    pending: Option<Pending>,
+    /// The first segment's mean once it has `min_readings`: the level of no turn.
+    baseline: Option<f64>,
     last_idx: Option<u64>,
-    /// The last estimate (degrees) against the first segment, for the surfaces.
+    /// The latest reading against the baseline (degrees), for the surfaces.
     offset_deg: f64,
     readings: usize,
 }
 
-/// No segment's scatter is taken as smaller than this (ln units): the camera's own noise.
-const SCATTER_FLOOR: f64 = 1e-3;
-
 impl Joint3Sentinel {
+    /// `sd_floor` in ln units.
     pub(crate) fn new(
         pose: SentinelPose,
         step_sigmas: f64,
         min_deg: f64,
         min_readings: usize,
+        sd_floor: f64,
     ) -> Self {
         Joint3Sentinel {
             pose,
             step_sigmas,
             min_deg,
             min_readings: min_readings.max(3),
-            segment: vec![0.0],
+            sd_floor: sd_floor.max(1e-4),
+            segment: Vec::new(),
+            pending: None,
+            baseline: None,
             last_idx: None,
             offset_deg: 0.0,
             readings: 0,
@@ -182,42 +212,70 @@ impl Joint3Sentinel {
         self.readings
     }
 
-    /// The estimated joint-3 offset so far (degrees): the latest reading against the run's start.
+    /// The latest reading as a turn of joint 3 against the first readings (degrees; 0 until
+    /// they are in).
     pub(crate) fn offset_deg(&self) -> f64 {
         self.offset_deg
     }
 
     /// One sentinel probe at capture `idx`: `d` is its ln luminance ratio to its original
-    /// minus the lamp probe's at the same time. A slip when it departs from the segment.
+    /// minus the lamp probe's of the same round.
     pub(crate) fn add(&mut self, idx: u64, d: f64) -> Option<Joint3Slip> {
         if !d.is_finite() {
             return None;
         }
         let s = self.pose.sensitivity_pct_per_deg / 100.0;
         self.readings += 1;
-        self.offset_deg = d / s;
         let since_idx = self.last_idx.map_or(idx, |i| i + 1);
         self.last_idx = Some(idx);
+        let departure = self.departure(d, s);
         let mut slip = None;
-        if self.segment.len() >= self.min_readings {
-            let n = self.segment.len() as f64;
-            let mean = self.segment.iter().sum::<f64>() / n;
-            let var = self.segment.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-            let sd = var.sqrt().max(SCATTER_FLOOR);
-            let e = d - mean;
-            let deg = e / s;
-            if e.abs() > self.step_sigmas * sd && deg.abs() >= self.min_deg {
+        match (self.pending.take(), departure) {
+            (Some(p), Some((_, e))) if e.signum() == (p.d - self.mean()).signum() => {
+                let mean = self.mean();
                 slip = Some(Joint3Slip {
-                    offset_deg: deg,
-                    statistic: e.abs() / sd,
+                    offset_deg: ((p.d + d) / 2.0 - mean) / s,
+                    statistic: p.statistic,
                     threshold: self.step_sigmas,
+                    since_idx: p.since_idx,
+                });
+                self.segment = vec![p.d, d];
+            }
+            (_, Some((statistic, _))) => {
+                // a first departure (or one against the pending one's sign): wait for the next
+                self.pending = Some(Pending {
+                    d,
+                    statistic,
                     since_idx,
                 });
-                self.segment.clear();
             }
+            (_, None) => self.segment.push(d),
         }
-        self.segment.push(d);
+        if self.baseline.is_none() && self.segment.len() >= self.min_readings && slip.is_none() {
+            self.baseline = Some(self.mean());
+        }
+        if let Some(b) = self.baseline {
+            self.offset_deg = (d - b) / s;
+        }
         slip
+    }
+
+    fn mean(&self) -> f64 {
+        self.segment.iter().sum::<f64>() / self.segment.len().max(1) as f64
+    }
+
+    /// (statistic, d − mean) when `d` departs from the segment, which has enough readings.
+    fn departure(&self, d: f64, s: f64) -> Option<(f64, f64)> {
+        let n = self.segment.len();
+        if n < self.min_readings {
+            return None;
+        }
+        let mean = self.mean();
+        let var = self.segment.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+        let sd = var.sqrt().max(self.sd_floor);
+        let e = d - mean;
+        (e.abs() > self.step_sigmas * sd && (e / s).abs() >= self.min_deg)
+            .then_some((e.abs() / sd, e))
     }
 }
 
@@ -237,6 +295,7 @@ mod tests {
                     entry,
                     theta_o_deg: theta,
                     phi_o_deg: phi,
+                    ring_step_deg: 360.0 / n as f64,
                     y: 10.0 * (a * (2.0 * (phi - 20.0_f64).to_radians()).cos()).exp(),
                     dphi_dq3: -1.0,
                 });
@@ -248,7 +307,7 @@ mod tests {
 
     #[test]
     fn the_steepest_flank_is_chosen_and_a_flat_sample_has_none() {
-        let s = choose_sentinel(&rings(0.3)).unwrap();
+        let s = choose_sentinel(&rings(0.3), 0.5).unwrap();
         // the steepest slope of a·cos 2(φ − 20°) is at φ = 65° or 155° … (here on the 45° ring,
         // whose cameras sit closer to it)
         assert_eq!(s.theta_o_deg, 45.0);
@@ -261,19 +320,37 @@ mod tests {
             "{s:?} {slope}"
         );
         assert!(s.sensitivity_pct_per_deg.abs() > 0.9, "{s:?}");
-        assert!(choose_sentinel(&rings(0.0)).is_none());
-        assert!(choose_sentinel(&rings(0.01)).is_none());
+        assert!(choose_sentinel(&rings(0.0), 0.5).is_none());
+        // a sentinel must see a degree above its own threshold: asked for more than the
+        // steepest pose gives, there is none
+        assert!(choose_sentinel(&rings(0.3), 1.2 * s.sensitivity_pct_per_deg.abs()).is_none());
+        assert!(choose_sentinel(&rings(0.01), 0.5).is_none());
         // dark or broken captures are not offered
         let mut v = rings(0.3);
         for r in v.iter_mut() {
             r.y = f64::NAN;
         }
-        assert!(choose_sentinel(&v).is_none());
-        assert!(choose_sentinel(&[]).is_none());
+        assert!(choose_sentinel(&v, 0.5).is_none());
+        assert!(choose_sentinel(&[], 0.5).is_none());
+        // a missing neighbour makes the slope span two steps: that camera is not chosen
+        let all = rings(0.3);
+        let best = choose_sentinel(&all, 0.5).unwrap();
+        let gap: Vec<RingSample> = all
+            .iter()
+            .copied()
+            .filter(|r| {
+                !(r.theta_o_deg == best.theta_o_deg
+                    && ((r.phi_o_deg - best.phi_o_deg).rem_euclid(360.0) - 20.0).abs() < 1e-9)
+            })
+            .collect();
+        assert_ne!(
+            choose_sentinel(&gap, 0.5).map(|s| s.entry),
+            Some(best.entry)
+        );
     }
 
     #[test]
-    fn a_turn_is_found_at_the_first_reading_after_it_and_noise_is_not() {
+    fn a_turn_is_named_when_the_next_reading_confirms_it_and_noise_or_a_glitch_is_not() {
         let pose = SentinelPose {
             entry: 20,
             theta_o_deg: 45.0,
@@ -283,30 +360,40 @@ mod tests {
         };
         let mut rng = crate::measure::stats::SplitMix64(7);
         let mut noise = move || 0.003 * rng.gauss();
-        // 30 readings of 0.3 % scatter, no slip: nothing
+        // the floor: two probes' scatter at a 0.3 % design
+        let floor = 0.003 * std::f64::consts::SQRT_2;
+        // 30 readings of 0.3 % scatter about an unknown level, no slip: nothing
         for _ in 0..20 {
-            let mut m = Joint3Sentinel::new(pose, 5.0, 0.5, 4);
+            let mut m = Joint3Sentinel::new(pose, 5.0, 0.5, 4, floor);
             for k in 0..30 {
-                assert_eq!(m.add(100 * k, noise()), None, "reading {k}");
+                assert_eq!(m.add(100 * k, 0.004 + noise()), None, "reading {k}");
             }
+            assert!(m.offset_deg().abs() < 0.5, "{}", m.offset_deg());
         }
-        // +1° from reading 12 on: found there, with the right sign and size
-        let mut m = Joint3Sentinel::new(pose, 5.0, 0.5, 4);
+        // +1° from reading 12 on: departs there, named at the next reading, with the right sign
+        // and size, affecting the captures after reading 11
+        let mut m = Joint3Sentinel::new(pose, 5.0, 0.5, 4, floor);
         let mut found = Vec::new();
         for k in 0..30u64 {
             let turn = if k >= 12 { 1.0 } else { 0.0 };
-            if let Some(s) = m.add(100 * k, -0.03 * turn + noise()) {
+            if let Some(s) = m.add(100 * k, 0.004 - 0.03 * turn + noise()) {
                 found.push((k, s));
             }
         }
         assert_eq!(found.len(), 1, "{found:?}");
         let (k, s) = found[0];
-        assert_eq!(k, 12);
+        assert_eq!(k, 13);
         assert!((s.offset_deg - 1.0).abs() < 0.2, "{s:?}");
         assert_eq!(s.since_idx, 1101);
         assert!((m.offset_deg() - 1.0).abs() < 0.2);
         // a reading that is not a number is left out
         assert_eq!(m.add(4000, f64::NAN), None);
         assert_eq!(m.readings(), 30);
+        // one glitched reading (a speck on one probe) is not a slip, and is left out
+        let mut m = Joint3Sentinel::new(pose, 5.0, 0.5, 4, floor);
+        for k in 0..30u64 {
+            let glitch = if k == 15 { 0.05 } else { 0.0 };
+            assert_eq!(m.add(100 * k, glitch + noise()), None, "reading {k}");
+        }
     }
 }

@@ -377,17 +377,16 @@ impl SweepMonitor {
     }
 
     /// The first capture a slip can have affected when the CUSUM run began with the sweep that
-    /// ends at `last_idx`: the sweep before it may hold the slip's start without showing it
-    /// (a slip late in a sweep moves too few of its captures), so its captures count too.
+    /// ends at `last_idx`: the sweep taken just before it (by capture index, not by when it
+    /// completed) may hold the slip's start without showing it (a slip late in a sweep moves
+    /// too few of its captures), so its captures count too.
     fn slip_first_idx(&self, last_idx: u64) -> u64 {
-        match self
-            .sweep_starts
+        let first = self.sweep_first_idx(last_idx);
+        self.sweep_starts
             .iter()
-            .position(|s| s.last_idx == last_idx)
-        {
-            Some(p) if p > 0 => self.sweep_starts[p - 1].first_idx,
-            _ => self.sweep_first_idx(last_idx),
-        }
+            .filter(|s| s.last_idx < first)
+            .max_by_key(|s| s.last_idx)
+            .map_or(first, |s| s.first_idx)
     }
 
     pub(crate) fn summary(&self) -> SweepSummary {
