@@ -1198,3 +1198,58 @@ fn a_steady_anisotropic_sample_keeps_its_sentinel_quiet_and_an_isotropic_one_has
     // an isotropic sample (config/sim.toml) probes the lamp only: see
     // without_a_configured_entry_the_probe_pose_is_chosen_after_a_sweep_and_then_probed
 }
+
+#[test]
+fn a_sample_without_a_pose_sensitive_to_joint_3_says_so_once_and_probes_the_lamp_only() {
+    // declared anisotropic, but the captures are of an isotropic BRDF: no pole-light pose
+    // changes with joint 3
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/config/sim-anisotropic.toml"
+    ))
+    .unwrap();
+    let cfg = Config::from_toml_str(&text.replace("every = 0", "every = 100")).unwrap();
+    let mut e = Engine::from_config(&cfg).unwrap();
+    let mut c = connected_and_running(&mut e);
+    let pose = |p: [f64; 4]| p.map(|v| v.to_string()).join(",");
+    let mut out = Vec::new();
+    for ci in fixtures::ubo_session(400, |_| 1.0) {
+        let mut f = vec![
+            ("idx", ci.idx.to_string()),
+            ("entry", ci.entry.to_string()),
+            ("file", ci.file.clone()),
+            ("t", ci.t.to_string()),
+            ("cmd", pose(ci.cmd)),
+            ("enc", pose(ci.enc)),
+            ("exp", "x".into()),
+        ];
+        if let Some(sub) = ci.substitute {
+            f.push(("sub", sub.to_string()));
+        }
+        out.extend(e.handle(&c.line("CAPTURE", &f)));
+        out.extend(e.handle(&Input::Outcome {
+            idx: ci.idx,
+            outcome: ci.outcome,
+        }));
+    }
+    let said = alarms(&out)
+        .iter()
+        .filter(|a| *a == "joint3-sentinel-unavailable")
+        .count();
+    assert_eq!(said, 1, "{:?}", alarms(&out));
+    assert!(!out.iter().any(|o| matches!(o, Output::SentinelPose(_))));
+    let lamp = e.summary().probe_pose.unwrap().entry;
+    let probes = probes_sent(&out);
+    assert!(!probes.is_empty());
+    assert!(
+        probes.iter().all(|p| *p == format!("PROBE entry={lamp}")),
+        "{probes:?}"
+    );
+    assert!(e.summary().joint3_sentinel.is_none());
+    assert!(e
+        .summary()
+        .observability
+        .blind
+        .iter()
+        .any(|b| b.what.contains("joints 1, 2 and 3")));
+}
