@@ -533,6 +533,36 @@ fn connected_and_running(e: &mut Engine) -> Controller {
     c
 }
 
+/// A capture line and its outcome, as a controller and the decoder would hand them over.
+fn feed_capture(
+    e: &mut Engine,
+    c: &mut Controller,
+    ci: goniowatch::checks::CaptureInput,
+) -> Vec<Output> {
+    let pose = |p: [f64; 4]| p.map(|v| v.to_string()).join(",");
+    let mut f = vec![
+        ("idx", ci.idx.to_string()),
+        ("entry", ci.entry.to_string()),
+        ("file", ci.file.clone()),
+        ("t", ci.t.to_string()),
+        ("cmd", pose(ci.cmd)),
+        ("enc", pose(ci.enc)),
+        ("exp", "x".into()),
+    ];
+    if let Some(sub) = ci.substitute {
+        f.push(("sub", sub.to_string()));
+    }
+    if ci.probe {
+        f.push(("probe", "1".into()));
+    }
+    let mut got = e.handle(&c.line("CAPTURE", &f));
+    got.extend(e.handle(&Input::Outcome {
+        idx: ci.idx,
+        outcome: ci.outcome,
+    }));
+    got
+}
+
 /// The PROBE lines an engine sent.
 fn probes_sent(out: &[Output]) -> Vec<String> {
     sent(out)
@@ -593,27 +623,10 @@ fn without_a_configured_entry_the_probe_pose_is_chosen_after_a_sweep_and_then_pr
     assert_eq!(cfg.probes.entry, None);
     let mut e = Engine::from_config(&cfg).unwrap();
     let mut c = connected_and_running(&mut e);
-    let pose = |p: [f64; 4]| p.map(|v| v.to_string()).join(",");
     let mut out = Vec::new();
     // the first 100 captures of the plan: the pole light's sweep (81) and 19 more
     for ci in fixtures::ubo_session(100, |_| 1.0) {
-        let mut f = vec![
-            ("idx", ci.idx.to_string()),
-            ("entry", ci.entry.to_string()),
-            ("file", ci.file.clone()),
-            ("t", ci.t.to_string()),
-            ("cmd", pose(ci.cmd)),
-            ("enc", pose(ci.enc)),
-            ("exp", "x".into()),
-        ];
-        if let Some(sub) = ci.substitute {
-            f.push(("sub", sub.to_string()));
-        }
-        out.extend(e.handle(&c.line("CAPTURE", &f)));
-        out.extend(e.handle(&Input::Outcome {
-            idx: ci.idx,
-            outcome: ci.outcome,
-        }));
+        out.extend(feed_capture(&mut e, &mut c, ci));
     }
     let chosen: Vec<_> = out
         .iter()
@@ -1069,38 +1082,14 @@ fn anisotropic_run(captures: usize, onset: usize, turn: f64) -> (Engine, Vec<Out
     assert!(!cfg.sample.isotropic && cfg.probes.sentinel);
     let mut e = Engine::from_config(&cfg).unwrap();
     let mut c = connected_and_running(&mut e);
-    let pose = |p: [f64; 4]| p.map(|v| v.to_string()).join(",");
     let mut out = Vec::new();
     let mut idx = 0u64;
-    let feed = |e: &mut Engine, c: &mut Controller, ci: goniowatch::checks::CaptureInput| {
-        let mut f = vec![
-            ("idx", ci.idx.to_string()),
-            ("entry", ci.entry.to_string()),
-            ("file", ci.file.clone()),
-            ("t", ci.t.to_string()),
-            ("cmd", pose(ci.cmd)),
-            ("enc", pose(ci.enc)),
-            ("exp", "x".into()),
-        ];
-        if let Some(sub) = ci.substitute {
-            f.push(("sub", sub.to_string()));
-        }
-        if ci.probe {
-            f.push(("probe", "1".into()));
-        }
-        let mut got = e.handle(&c.line("CAPTURE", &f));
-        got.extend(e.handle(&Input::Outcome {
-            idx: ci.idx,
-            outcome: ci.outcome,
-        }));
-        got
-    };
     for entry in 0..captures {
         let t = idx as f64 * 7.0;
         let deg = if entry >= onset { turn } else { 0.0 };
         let ci = fixtures::anisotropic_capture(idx, entry, t, deg, false).unwrap();
         idx += 1;
-        let got = feed(&mut e, &mut c, ci);
+        let got = feed_capture(&mut e, &mut c, ci);
         let asked: Vec<usize> = probes_sent(&got)
             .iter()
             .map(|l| l.trim_start_matches("PROBE entry=").parse().unwrap())
@@ -1110,7 +1099,7 @@ fn anisotropic_run(captures: usize, onset: usize, turn: f64) -> (Engine, Vec<Out
             let t = idx as f64 * 7.0;
             let ci = fixtures::anisotropic_capture(idx, p, t, deg, true).unwrap();
             idx += 1;
-            out.extend(feed(&mut e, &mut c, ci));
+            out.extend(feed_capture(&mut e, &mut c, ci));
         }
     }
     (e, out)
@@ -1211,26 +1200,9 @@ fn a_sample_without_a_pose_sensitive_to_joint_3_says_so_once_and_probes_the_lamp
     let cfg = Config::from_toml_str(&text.replace("every = 0", "every = 100")).unwrap();
     let mut e = Engine::from_config(&cfg).unwrap();
     let mut c = connected_and_running(&mut e);
-    let pose = |p: [f64; 4]| p.map(|v| v.to_string()).join(",");
     let mut out = Vec::new();
     for ci in fixtures::ubo_session(400, |_| 1.0) {
-        let mut f = vec![
-            ("idx", ci.idx.to_string()),
-            ("entry", ci.entry.to_string()),
-            ("file", ci.file.clone()),
-            ("t", ci.t.to_string()),
-            ("cmd", pose(ci.cmd)),
-            ("enc", pose(ci.enc)),
-            ("exp", "x".into()),
-        ];
-        if let Some(sub) = ci.substitute {
-            f.push(("sub", sub.to_string()));
-        }
-        out.extend(e.handle(&c.line("CAPTURE", &f)));
-        out.extend(e.handle(&Input::Outcome {
-            idx: ci.idx,
-            outcome: ci.outcome,
-        }));
+        out.extend(feed_capture(&mut e, &mut c, ci));
     }
     let said = alarms(&out)
         .iter()
