@@ -524,24 +524,10 @@ fn probes_give_the_lamp_colour_drift_on_an_anisotropic_sample() {
         every: 100,
         ..Default::default()
     });
-    let regular = colour_drift_session(3000, -40.0);
     // the probe's reading at time t is entry 50's reading under the lamp then
-    let undrifted = ubo_session(51, |_| 1.0).pop().unwrap();
-    let (mut idx, mut alarms) = (0_u64, Vec::new());
-    for (k, mut input) in regular.into_iter().enumerate() {
-        input.idx = idx;
-        idx += 1;
-        alarms.extend(ch.check(&input).alarms);
-        if k > 50 && k % 100 == 0 {
-            let mut p = undrifted.clone();
-            p.idx = idx;
-            p.t = input.t + 3.0;
-            p.probe = true;
-            p.outcome = recolour(&undrifted, p.t, -40.0);
-            idx += 1;
-            alarms.extend(ch.check(&p).alarms);
-        }
-    }
+    let alarms = with_probes(&mut ch, colour_drift_session(3000, -40.0), |p| {
+        recolour(p, p.t, -40.0)
+    });
     assert!(ch.isotropy_drift().is_none());
     let e = ch.colour_drift().unwrap();
     assert_eq!(e.source, "probes");
@@ -562,6 +548,33 @@ fn probes_give_the_lamp_colour_drift_on_an_anisotropic_sample() {
         .blind
         .iter()
         .any(|b| b.what.contains("colour")));
+}
+
+/// `regular` through `ch` with a probe of entry 50 after every 100th capture (from the 100th),
+/// 3 s later, whose outcome `probe_outcome` makes from the undrifted probe capture (its time
+/// set). All alarms.
+fn with_probes(
+    ch: &mut Checker,
+    regular: Vec<CaptureInput>,
+    mut probe_outcome: impl FnMut(&CaptureInput) -> Outcome,
+) -> Vec<Alarm> {
+    let undrifted = ubo_session(51, |_| 1.0).pop().unwrap();
+    let (mut idx, mut alarms) = (0_u64, Vec::new());
+    for (k, mut input) in regular.into_iter().enumerate() {
+        input.idx = idx;
+        idx += 1;
+        alarms.extend(ch.check(&input).alarms);
+        if k > 50 && k % 100 == 0 {
+            let mut p = undrifted.clone();
+            p.idx = idx;
+            p.t = input.t + 3.0;
+            p.probe = true;
+            p.outcome = probe_outcome(&p);
+            idx += 1;
+            alarms.extend(ch.check(&p).alarms);
+        }
+    }
+    alarms
 }
 
 /// The outcome of `input` under a lamp moving by `k_per_h` from 3000 K, at time `t_s`: the lamp
@@ -592,25 +605,14 @@ fn a_flickering_lamp_at_the_probes_is_lamp_unstable_with_its_scatter() {
             ..Default::default()
         });
         let mut rng = crate::measure::stats::SplitMix64(11);
-        let undrifted = ubo_session(51, |_| 1.0).pop().unwrap();
-        let (mut idx, mut alarms) = (0_u64, Vec::new());
-        for (k, mut input) in ubo_session(3000, |_| 1.0).into_iter().enumerate() {
-            input.idx = idx;
-            idx += 1;
-            alarms.extend(ch.check(&input).alarms);
-            if k > 50 && k % 100 == 0 {
-                let mut p = undrifted.clone();
-                p.idx = idx;
-                p.t = input.t + 3.0;
-                p.probe = true;
-                let g = 1.0 + flicker * rng.gauss();
-                if let Outcome::Ok { stats, .. } = &mut p.outcome {
-                    stats.mean_rgb = stats.mean_rgb.map(|v| v * g);
-                }
-                idx += 1;
-                alarms.extend(ch.check(&p).alarms);
+        let alarms = with_probes(&mut ch, ubo_session(3000, |_| 1.0), |p| {
+            let g = 1.0 + flicker * rng.gauss();
+            let mut outcome = p.outcome.clone();
+            if let Outcome::Ok { stats, .. } = &mut outcome {
+                stats.mean_rgb = stats.mean_rgb.map(|v| v * g);
             }
-        }
+            outcome
+        });
         let unstable: Vec<&Alarm> = alarms
             .iter()
             .filter(|a| a.code == "lamp-unstable")
