@@ -92,6 +92,9 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
             # the lamp colour estimate and its plot (isotropy classes)
             page.wait_for_function("document.querySelectorAll('#colourplot polygon').length === 1", timeout=60000)
             assert "K/h" in page.text_content("#colournow")
+            # the lamp's stability and joint 3 are said, watched or not (an isotropic sample)
+            assert page.text_content("#scatternow") != "—"
+            assert "not watched" in page.text_content("#sentinelnow")
             # the injected dark frame appears as an alarm with its message
             page.wait_for_selector('#alarms li[data-code="dark-capture"]', timeout=60000)
             text = page.text_content('#alarms li[data-code="dark-capture"]')
