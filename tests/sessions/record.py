@@ -115,6 +115,14 @@ SCENARIOS = {
         {},
         False,
     ),
+    "joint3-sentinel": (
+        "a brushed (anisotropic) sample with drift probes every 25 captures; arm joint 3 turns by "
+        "+1 deg at capture 300: the sentinel probe after each lamp probe names joint 3",
+        [{"kind": "joint-offset", "at_capture": 300, "joint": 3, "offset_deg": 1.0}],
+        {"captures": 500, "preset": "brushed"},
+        {"every": 25, "isotropic": False},
+        False,
+    ),
 }
 
 RESULTS = hil.RESULT_FILES  # the result files, summary.json included
@@ -167,7 +175,7 @@ def record(name, tmp):
         "",
         doc[0].upper() + doc[1:] + ".",
         "",
-        f"- simulator: walkway, realistic preset, seed 7, 16 x 16 images, {session['captures']} captures; faults: "
+        f"- simulator: {session.get('preset', 'walkway')}, realistic preset, seed 7, 16 x 16 images, {session['captures']} captures; faults: "
         + (json.dumps(faults) if faults else "none"),
         "- daemon config: config/sim.toml" + (f" with {json.dumps(overrides)}" if overrides else ""),
         "- captures: " + ("kept (replay measures them again)" if keep else "not kept (replay takes the journaled outcomes: `replay --recorded-outcomes`)"),
