@@ -143,8 +143,8 @@ pub struct Engine {
     probe_entry: Option<usize>,
     /// The pose chosen for the probes (no entry configured).
     probe_pose: Option<crate::measure::probes::ProbePose>,
-    /// The joint-3 sentinel's entry, once chosen, and whether its choice was tried.
-    sentinel_entry: Option<usize>,
+    /// Whether the joint-3 sentinel was found unavailable (said once). Its pose, once chosen,
+    /// is the checker's.
     sentinel_tried: bool,
     regular_checked: u64,
     /// Inputs handled so far (the alarm aggregation's clock).
@@ -203,7 +203,6 @@ impl Engine {
             probe_every: 0,
             probe_entry: None,
             probe_pose: None,
-            sentinel_entry: None,
             sentinel_tried: false,
             regular_checked: 0,
             inputs: 0,
@@ -1010,14 +1009,13 @@ impl Engine {
                     }
                     // The joint-3 sentinel is chosen at the same points, once the lamp probe's
                     // pose is known (it is not offered as the sentinel).
-                    if let (Some(lamp), None) = (self.probe_entry, self.sentinel_entry) {
+                    if let (Some(lamp), None) = (self.probe_entry, self.checker.sentinel()) {
                         if self.probe_every > 0
                             && self.checker.wants_sentinel()
                             && self.regular_checked.is_multiple_of(sweep)
                         {
                             match self.checker.choose_sentinel(lamp) {
                                 SentinelChoice::Chosen(pose) => {
-                                    self.sentinel_entry = Some(pose.entry);
                                     out.push(Output::SentinelPose(pose));
                                 }
                                 SentinelChoice::NotYet => {}
@@ -1047,8 +1045,8 @@ impl Engine {
                                 self.send(out, "PROBE", &[("entry", entry.to_string())]);
                                 // the sentinel right after the lamp probe: the lamp's gain
                                 // cancels between the two
-                                if let Some(s) = self.sentinel_entry {
-                                    self.send(out, "PROBE", &[("entry", s.to_string())]);
+                                if let Some(s) = self.checker.sentinel() {
+                                    self.send(out, "PROBE", &[("entry", s.pose.entry.to_string())]);
                                 }
                             }
                         }
