@@ -18,12 +18,12 @@ Prints a Markdown table. Uses benches/detection.py's runner (same rig config, 16
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import detection as D  # noqa: E402
+import probe_plan as P  # noqa: E402
 
 PLAN = 6561
 ANISOTROPIC = {"brushed", "fabric"}
@@ -31,14 +31,7 @@ ANISOTROPIC = {"brushed", "fabric"}
 
 def cadence(every, config):
     """The probe cadence: a number, or the one `goniowatch plan` recommends for `config`."""
-    if every != "plan":
-        return int(every)
-    out = subprocess.run([D.BIN, "plan", "--json", "--config", os.path.join(D.REPO, "config", config)],
-                         capture_output=True, text=True, check=True).stdout
-    design = json.loads(out)["probes"]["design"]
-    if design["outcome"] != "recommended":
-        sys.exit(f"{config}: plan recommends no cadence: {design['reason']}")
-    return design["cadence"]["every"]
+    return int(every) if every != "plan" else P.plan_cadence(config)
 
 
 def regular_index(session, idx):
@@ -46,8 +39,7 @@ def regular_index(session, idx):
     path = os.path.join(session, "captures.jsonl")
     if not os.path.exists(path):
         return idx
-    caps = [json.loads(line) for line in open(path)]
-    return sum(1 for c in caps if c["idx"] < idx and not c.get("probe"))
+    return P.regular_index([json.loads(line) for line in open(path)], idx)
 
 
 def main():

@@ -36,6 +36,16 @@ STEP_PCT = -2.0
 DECAY_PCT_PER_H = 1.0
 
 
+def plan_cadence(config):
+    """The probe cadence `goniowatch plan` recommends for `config` (a file in config/)."""
+    out = subprocess.run([D.BIN, "plan", "--json", "--config", os.path.join(D.REPO, "config", config)],
+                         capture_output=True, text=True, check=True).stdout
+    design = json.loads(out)["probes"]["design"]
+    if design["outcome"] != "recommended":
+        sys.exit(f"{config}: plan recommends no cadence: {design['reason']}")
+    return design["cadence"]["every"]
+
+
 def regular_index(captures, idx):
     """Regular captures before capture `idx` (probes excluded)."""
     return sum(1 for c in captures if c["idx"] < idx and not c.get("probe"))
@@ -63,14 +73,7 @@ def main():
     print("|---|---|---|---|---|---|---|---|---|")
     for material in a.materials.split(","):
         config = "sim-anisotropic.toml" if material in ANISOTROPIC else "sim.toml"
-        every = a.every
-        if not every:
-            out = subprocess.run([D.BIN, "plan", "--json", "--config", os.path.join(D.REPO, "config", config)],
-                                 capture_output=True, text=True, check=True).stdout
-            design = json.loads(out)["probes"]["design"]
-            if design["outcome"] != "recommended":
-                sys.exit(f"{config}: plan recommends no cadence: {design['reason']}")
-            every = design["cadence"]["every"]
+        every = a.every or plan_cadence(config)
         for preset in a.presets.split(","):
             scenarios = [("no fault", [], s) for s in range(a.first_seed, a.first_seed + a.fault_free_seeds)]
             for s in range(a.first_seed, a.first_seed + a.seeds):
