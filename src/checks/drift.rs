@@ -17,7 +17,8 @@ use super::{Ctx, GeometryKey, Ledger};
 use crate::measure::alarm::{action, Affects, Alarm, AlarmKind, Handling, Severity};
 use crate::measure::colour::{White, Xyz};
 use crate::measure::drift::{
-    DriftDetector, DriftEstimate, DriftEvent, DriftSpec, PairObservation, StepEffect,
+    mount_coordinates, DriftDetector, DriftEstimate, DriftEvent, DriftSpec, MountPattern,
+    PairObservation, StepEffect,
 };
 use crate::measure::lamp::LampColour;
 use crate::measure::probes::UNSTABLE_FACTOR;
@@ -90,6 +91,7 @@ fn isotropy_drift_spec() -> DriftSpec {
     DriftSpec {
         run_pairs: 5200.0,
         step_detection: false,
+        mount_terms: true,
         ..DriftSpec::default()
     }
 }
@@ -103,6 +105,7 @@ impl ColourStage {
         let model = LampColour::new(spec.lamp_cct_k).ok()?;
         let quiet = DriftSpec {
             rate_tolerance_pct_per_h: f64::INFINITY,
+            mount_terms: false,
             ..fits
         };
         Some(ColourStage {
@@ -162,6 +165,8 @@ impl ColourStage {
                 d,
                 bucket,
                 sigma: 0.0,
+                // the chromaticity ratios cancel the mount's achromatic pattern
+                mount: [0.0; 4],
             });
         }
         let (Some(u), Some(v)) = (self.fits[0].estimate(), self.fits[1].estimate()) else {
@@ -261,8 +266,8 @@ pub(super) struct DriftStage {
     detector: DriftDetector,
     /// The lamp's colour (None when the lamp model cannot be built).
     colour: Option<ColourStage>,
-    /// The first capture of each geometry: (time in hours, XYZ).
-    first_of_geometry: HashMap<GeometryKey, (f64, Xyz)>,
+    /// The first capture of each geometry: (time in hours, XYZ, `mount_coordinates`).
+    first_of_geometry: HashMap<GeometryKey, (f64, Xyz, [f64; 4])>,
     /// Interpolated pairs fed to the fit.
     pub(super) interpolated: u64,
 }
@@ -277,25 +282,28 @@ impl DriftStage {
         }
     }
 
-    /// A capture of `key` at time `t_s` with colour `xyz` (Y > 0): an observation against the
-    /// first capture of its geometry, or that first capture.
+    /// A capture of `key` at time `t_s` with colour `xyz` (Y > 0) and the gnomonic coordinates
+    /// `mount` of its directions: an observation against the first capture of its geometry, or
+    /// that first capture.
     pub(super) fn observe(
         &mut self,
         key: GeometryKey,
         t_s: f64,
         xyz: Xyz,
+        mount: [f64; 4],
         at: (Option<u64>, Option<f64>),
         alarms: &mut Vec<Alarm>,
     ) {
         let t_h = t_s / 3600.0;
         match self.first_of_geometry.get(&key) {
-            Some(&(t0, xyz0)) => {
+            Some(&(t0, xyz0, mount0)) => {
                 let obs = PairObservation {
                     t_a_h: t0,
                     t_b_h: t_h,
                     d: (xyz[1] / xyz0[1]).ln(),
                     bucket: (key.0, key.1),
                     sigma: 0.0,
+                    mount: std::array::from_fn(|j| mount[j] - mount0[j]),
                 };
                 for ev in self.detector.add(obs) {
                     alarms.push(drift_alarm(ev, "isotropy classes", at, None));
@@ -305,7 +313,7 @@ impl DriftStage {
                 }
             }
             None => {
-                self.first_of_geometry.insert(key, (t_h, xyz));
+                self.first_of_geometry.insert(key, (t_h, xyz, mount));
             }
         }
     }
@@ -361,11 +369,28 @@ impl DriftStage {
             (dirs[pe.camera].theta_deg * 1000.0).round() as i64,
         );
         let (t_sub, t_par) = (p.capture.t / 3600.0, t_partner / 3600.0);
+        // the pair swaps light and camera: the mount's coordinates of the partner are the
+        // substitute's swapped (nominal directions)
+        let (wl, wc) = (
+            dirs[pe.light].spherical().to_vector(),
+            dirs[pe.camera].spherical().to_vector(),
+        );
+        let (m_sub, m_par) = (mount_coordinates(&wl, &wc), mount_coordinates(&wc, &wl));
         // d = ln(Y later / Y earlier)
-        let (t_a_h, t_b_h, d) = if t_sub <= t_par {
-            (t_sub, t_par, (b[1] / a[1]).ln())
+        let (t_a_h, t_b_h, d, mount) = if t_sub <= t_par {
+            (
+                t_sub,
+                t_par,
+                (b[1] / a[1]).ln(),
+                std::array::from_fn(|j| m_par[j] - m_sub[j]),
+            )
         } else {
-            (t_par, t_sub, (a[1] / b[1]).ln())
+            (
+                t_par,
+                t_sub,
+                (a[1] / b[1]).ln(),
+                std::array::from_fn(|j| m_sub[j] - m_par[j]),
+            )
         };
         let obs = PairObservation {
             t_a_h,
@@ -373,6 +398,7 @@ impl DriftStage {
             d,
             bucket,
             sigma: (spread[1] / b[1]).abs(),
+            mount,
         };
         if !(obs.d.is_finite() && obs.sigma.is_finite()) {
             return;
@@ -395,6 +421,11 @@ impl DriftStage {
 
     pub(super) fn steps(&self) -> &[StepEffect] {
         self.detector.steps()
+    }
+
+    /// The off-centre mount's pattern, once it is part of the model.
+    pub(super) fn mount(&self) -> Option<MountPattern> {
+        self.detector.mount()
     }
 }
 
@@ -458,6 +489,7 @@ pub(super) fn drift_alarm(
         )
         .at(at.0, at.1)
         .with(json!({"scatter_pct": 100.0 * scatter, "design_scatter_pct": 100.0 * design, "probes": probes, "source": source})),
+        DriftEvent::MountPattern(m) => mount_alarm(&m, source, at),
         DriftEvent::Step { direction, statistic, threshold, pairs_since_reset } => Alarm::new(
             AlarmKind::Drift,
             Severity::Warning,
@@ -474,4 +506,31 @@ pub(super) fn drift_alarm(
             since.or(at.0).map(|from_idx| Affects::Since { from_idx, handling: Handling::Corrected }),
         ),
     }
+}
+
+/// The off-centre mount's pattern became part of the drift model.
+fn mount_alarm(m: &MountPattern, source: &str, at: (Option<u64>, Option<f64>)) -> Alarm {
+    let ((cam, cam_az), (light, light_az)) = (m.camera_pct(), m.light_pct());
+    let (cam_se, light_se) = (100.0 * m.camera_se, 100.0 * m.light_se);
+    Alarm::new(
+        AlarmKind::Isotropy,
+        Severity::Warning,
+        "sample-off-centre",
+        format!(
+            "the luminance follows the camera's azimuth by {cam:.2} ± {cam_se:.2} % per unit tan θo (brightest towards φ = {cam_az:.0}°) in every light sweep, {}: the sample sits off the arm's rotation centre, or is not isotropic. The {source} drift model and the light sweeps carry this pattern from now on, which makes their drift estimates less precise",
+            if m.light_separated() {
+                format!("and the light's by {light:.2} ± {light_se:.2} % per unit tan θi (φ = {light_az:.0}°)")
+            } else {
+                "and the light's (not yet told apart from a drift: no rate alarm until the light has turned through a θ layer)".to_string()
+            }
+        ),
+    )
+    .at(at.0, at.1)
+    .with(json!({
+        "camera_pct": cam, "camera_azimuth_deg": cam_az, "camera_se_pct": cam_se,
+        "light_pct": light, "light_azimuth_deg": light_az, "light_se_pct": light_se,
+        "rate_inflation": m.rate_inflation,
+        "source": source,
+    }))
+    .advise(action::SAMPLE_OFF_CENTRE, Some(Affects::Since { from_idx: 0, handling: Handling::Inspect }))
 }

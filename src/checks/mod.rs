@@ -32,7 +32,7 @@ pub use records::{
 
 use crate::measure::alarm::{Affects, Alarm, AlarmKind, Handling, Severity};
 use crate::measure::colour::{RgbToXyz, White, Xyz};
-use crate::measure::drift::{DriftEstimate, StepEffect};
+use crate::measure::drift::{mount_coordinates, DriftEstimate, StepEffect};
 use crate::measure::geometry::{azimuth_difference_deg, Vec3};
 use crate::measure::kinematics::{Incidence, Rig};
 use crate::measure::plan::{AcquisitionOrder, SamplingPlan};
@@ -603,10 +603,15 @@ impl Checker {
                 .wait_for_partner(c.clone(), input.entry, m.camera);
         }
         if !retake {
-            out.pairs.extend(
-                self.pairs
-                    .pair(&ctx, &self.ledger, input.entry, c, &mut out.alarms),
-            );
+            let mount = self.drift.as_ref().and_then(|d| d.mount());
+            out.pairs.extend(self.pairs.pair(
+                &ctx,
+                &self.ledger,
+                input.entry,
+                c,
+                mount.as_ref(),
+                &mut out.alarms,
+            ));
         }
         let comparable = c.exact_pose && !c.substitute && !c.dark && !retake;
         if comparable {
@@ -618,7 +623,8 @@ impl Checker {
             if let Some(drift) = self.drift.as_mut() {
                 let key = ctx.geometry_key(m.light, m.camera);
                 let at = (Some(input.idx), Some(input.t));
-                drift.observe(key, input.t, c.xyz, at, &mut out.alarms);
+                let mount = mount_coordinates(&m.nominal.omega_i, &m.nominal.omega_o);
+                drift.observe(key, input.t, c.xyz, mount, at, &mut out.alarms);
                 if let Some(sweeps) = self.sweeps.as_mut() {
                     sweeps.add(SweepCapture {
                         idx: input.idx,
@@ -631,6 +637,7 @@ impl Checker {
                         omega_o: m.nominal.omega_o,
                         cmd: input.cmd,
                         y: c.xyz[1],
+                        mount,
                     });
                 }
             }
@@ -665,7 +672,8 @@ impl Checker {
         }
         let level_test = !self.probes_enabled;
         if let Some(sweeps) = self.sweeps.as_mut() {
-            let o = sweeps.light_complete(light, level_test);
+            let mount = self.drift.as_ref().and_then(|d| d.mount());
+            let o = sweeps.light_complete(light, level_test, mount.as_ref());
             if let (Some(drift), Some(t)) = (self.drift.as_mut(), o.step_at_s) {
                 drift.add_step(t);
             }

@@ -8,7 +8,8 @@
 use super::records::{Interpolation, PairRecord, PairStatus, Table2};
 use super::{Checked, Ctx, Ledger};
 use crate::measure::alarm::{Affects, Alarm, AlarmKind, Handling, Severity};
-use crate::measure::colour::colour_difference;
+use crate::measure::colour::{ciede2000, colour_difference, xyz_to_lab, Xyz};
+use crate::measure::drift::{mount_coordinates, MountPattern};
 use crate::measure::geometry::{angle_between, Spherical};
 use crate::measure::reciprocity::{pair_residual, PairError};
 use crate::measure::resample::{ResampleSpec, Resampler, Sample};
@@ -57,6 +58,7 @@ impl PairStage {
         ledger: &Ledger,
         entry: usize,
         capture: &Checked,
+        mount: Option<&MountPattern>,
         alarms: &mut Vec<Alarm>,
     ) -> Option<PairRecord> {
         let partner_entry = ctx.plan.reciprocal_of(entry).ok()?;
@@ -67,10 +69,26 @@ impl PairStage {
         let pair = score_pair(ctx, partner, capture, [partner_entry, entry], capture.t);
         if let (Some(d), PairStatus::Exact) = (&pair.diff, pair.status) {
             self.table2.add(d);
+            // the outlier test judges what the off-centre mount's pattern, once modelled, does
+            // not explain; Table 2 keeps the pair as measured
+            let de = match (mount, pair.xyz_a, pair.xyz_b) {
+                (Some(m), Some(a), Some(b)) => {
+                    let unmounted = |xyz: Xyz, c: &Checked| {
+                        let f = (-m.ln_effect(&mount_coordinates(&c.omega_i, &c.omega_o))).exp();
+                        xyz.map(|v| v * f)
+                    };
+                    let white = ctx.colour.white;
+                    ciede2000(
+                        xyz_to_lab(unmounted(a, partner), white),
+                        xyz_to_lab(unmounted(b, capture), white),
+                    )
+                }
+                _ => d.de2000,
+            };
             // a non-finite difference has no place in the sorted history of the outlier test
-            if d.de2000.is_finite() {
+            if de.is_finite() {
                 let at = (Some(capture.idx), Some(capture.t));
-                alarms.extend(self.outlier(ctx, d.de2000, &pair, at));
+                alarms.extend(self.outlier(ctx, de, &pair, at));
             }
         }
         match pair.status {

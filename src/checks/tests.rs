@@ -638,3 +638,83 @@ fn a_flickering_lamp_at_the_probes_is_lamp_unstable_with_its_scatter() {
         assert!(!alarms.iter().any(|a| a.code == "gain-drift"), "{alarms:?}");
     }
 }
+
+/// The UBO session of a sample off the arm's rotation centre: every reading times
+/// exp(light · g(ωi) + camera · g(ωo)), g the gnomonic coordinates of the nominal directions,
+/// under `gain`.
+fn off_centre_session(
+    upto: usize,
+    light: [f64; 2],
+    camera: [f64; 2],
+    gain: impl Fn(f64) -> f64,
+) -> Vec<CaptureInput> {
+    use crate::measure::drift::mount_coordinates;
+    let plan = SamplingPlan::ubo();
+    let d = plan.directions();
+    let mut v = ubo_session(upto, gain);
+    for input in &mut v {
+        let e = plan.entry(input.entry).unwrap();
+        let (wi, wo) = (
+            d[e.light].spherical().to_vector(),
+            d[e.camera].spherical().to_vector(),
+        );
+        let m = mount_coordinates(&wi, &wo);
+        let f = (light[0] * m[0] + light[1] * m[1] + camera[0] * m[2] + camera[1] * m[3]).exp();
+        if let Outcome::Ok { stats, .. } = &mut input.outcome {
+            stats.mean_rgb = stats.mean_rgb.map(|c| c * f);
+        }
+    }
+    v
+}
+
+#[test]
+fn a_sample_off_the_rotation_centre_is_named_and_its_pattern_is_not_taken_for_drift() {
+    // 2 % per unit tan θi towards φ = 20°, and the parallax's 3 % the other way on the camera
+    let (a, c) = (20f64.to_radians(), 200f64.to_radians());
+    let light = [0.02 * a.cos(), 0.02 * a.sin()];
+    let camera = [0.03 * c.cos(), 0.03 * c.sin()];
+    for rate in [0.0, -1.0] {
+        let mut ch = checker();
+        let mut named = Vec::new();
+        let mut drift = Vec::new();
+        for input in off_centre_session(2500, light, camera, |t| (rate / 100.0 * t).exp()) {
+            for al in ch.check(&input).alarms {
+                match al.code.as_str() {
+                    "sample-off-centre" => named.push(al),
+                    "gain-drift" | "gain-step" | "reciprocity-outlier" => drift.push(al),
+                    _ => {}
+                }
+            }
+        }
+        // named once, early (the camera's half shows in the first sweeps), with what to do
+        assert_eq!(named.len(), 1, "{named:?}");
+        assert!(named[0].idx.unwrap() < 600, "{:?}", named[0].idx);
+        assert_advised(&named);
+        let ev = &named[0].evidence;
+        assert!(
+            (ev["camera_pct"].as_f64().unwrap() - 3.0).abs() < 0.3,
+            "{ev}"
+        );
+        assert!(
+            (ev["camera_azimuth_deg"].as_f64().unwrap() - 200.0).abs() < 5.0,
+            "{ev}"
+        );
+        // the rate is the lamp's, not the pattern's
+        let e = ch.isotropy_drift().unwrap();
+        assert!((e.rate_pct_per_h - rate).abs() < 0.05, "{rate}: {e:?}");
+        let m = ch.drift.as_ref().unwrap().mount().unwrap();
+        let (amp, az) = m.light_pct();
+        assert!((amp - 2.0).abs() < 0.2 && (az - 20.0).abs() < 5.0, "{m:?}");
+        // only the real drift is alarmed
+        let want = if rate == 0.0 { 0 } else { 1 };
+        assert_eq!(drift.len(), want, "{rate}: {drift:?}");
+        assert!(drift.iter().all(|a| a.code == "gain-drift"));
+    }
+    // a centred sample: nothing named
+    let mut centred = checker();
+    assert_eq!(
+        count_alarms(&mut centred, session(2500), "sample-off-centre"),
+        0
+    );
+    assert!(centred.drift.as_ref().unwrap().mount().is_none());
+}

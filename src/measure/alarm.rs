@@ -52,6 +52,8 @@ pub mod action {
     pub const GAIN_DRIFT: &str = "Let the lamp warm up and settle, or check its supply; the corrected colours divide the drift out, so no capture needs taking again. If the rate keeps growing, pause the run and re-seat or replace the lamp.";
     /// A gain step.
     pub const GAIN_STEP: &str = "Check the lamp, its supply and anything that may shade the sample or reflect onto it; the step is fitted and divided out of the corrected colours. Steps that recur mean an unstable lamp: pause the run and fix it.";
+    /// The sample sits off the arm's rotation centre.
+    pub const SAMPLE_OFF_CENTRE: &str = "Check that the sample is centred in its holder and lies flat at the holder's height; at the next chance re-centre it. The drift checks model the pattern from now on, at some cost in precision; drift probes ([probes] every = N) measure the lamp free of it.";
     /// A colour drift of the lamp.
     pub const COLOUR_DRIFT: &str = "Let the lamp settle or check its supply voltage (a colour drift at a steady luminance is the filament's temperature); the corrected colours divide the drift out.";
 }

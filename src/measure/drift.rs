@@ -28,11 +28,22 @@
 //! from the MAD), recomputed every `refit_every` pairs on all pairs so far (n ≤ 3,240; a refit is
 //! O(n)). Deterministic: fixed iteration count and order.
 //!
+//! A sample that does not sit on the arm's rotation centre (off-centre, or raised above it) breaks
+//! the isotropy the classes rely on: the lamp's spot and the camera's view move across it with
+//! the *absolute* azimuths, so members of one class differ by a stationary pattern that
+//! light-outer order turns into a trend. To first order the pattern is linear in the directions'
+//! gnomonic coordinates g(ω) = (ωx/ωz, ωy/ωz) = tan θ·(cos φ, sin φ), one vector for the light and
+//! one for the camera (`mount_coordinates`). The camera's half is identified within every light
+//! sweep, free of the gain; the light's half only across sweeps, partly confounded with a rate,
+//! so the four terms cost precision and enter the model only once the camera's half is
+//! significant and larger than `mount_min_pct` per unit tan θ (`MountPattern`, latched).
+//!
 //! Change detection: two-sided CUSUM on the standardized residuals of new pairs (clipped at ±4),
 //! reference k = 0.5 and threshold h designed from the average run length (Siegmund's
 //! approximation) so that a whole 3,240-pair run raises a false alarm in at most 1 of
 //! `false_alarm_runs` runs.
 
+use super::geometry::Vec3;
 use super::stats::{cusum_threshold, robust_scale_upper};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -60,6 +71,18 @@ pub(crate) struct DriftSpec {
     /// its ARL design to hold; see `Checker`'s isotropy source).
     #[serde(default = "yes")]
     pub step_detection: bool,
+    /// Test for the off-centre mount's azimuthal pattern and model it once found (isotropy
+    /// classes; a single-pose source has no such pattern).
+    #[serde(default)]
+    pub mount_terms: bool,
+    /// The camera-side pattern enters the model when its amplitude, less z standard errors,
+    /// exceeds this (% of luminance per unit tan θ).
+    #[serde(default = "mount_min_pct")]
+    pub mount_min_pct: f64,
+}
+
+fn mount_min_pct() -> f64 {
+    0.5
 }
 
 fn yes() -> bool {
@@ -78,6 +101,8 @@ impl Default for DriftSpec {
             false_alarm_runs: 20.0,
             run_pairs: 3240.0,
             step_detection: true,
+            mount_terms: false,
+            mount_min_pct: mount_min_pct(),
         }
     }
 }
@@ -97,6 +122,77 @@ pub(crate) struct PairObservation {
     /// 1 / (1 + (sigma / scale)²) on top of its Huber weight.
     #[serde(default)]
     pub sigma: f64,
+    /// `mount_coordinates` of the later capture less those of the earlier one (0 where the
+    /// source has no such pattern).
+    #[serde(default)]
+    pub mount: [f64; 4],
+}
+
+/// The gnomonic coordinates (tan θ·cos φ, tan θ·sin φ) of the light and of the camera direction
+/// (sample frame): the off-centre mount's pattern is linear in them. θ is capped at 85°.
+pub(crate) fn mount_coordinates(omega_i: &Vec3, omega_o: &Vec3) -> [f64; 4] {
+    let g = |w: &Vec3| {
+        let z = w.z.max(MOUNT_MIN_COS);
+        [w.x / z, w.y / z]
+    };
+    let (a, b) = (g(omega_i), g(omega_o));
+    let v = [a[0], a[1], b[0], b[1]];
+    if v.iter().all(|x| x.is_finite()) {
+        v
+    } else {
+        [0.0; 4]
+    }
+}
+
+/// The light's half of the mount pattern and a rate are confounded until the light has turned
+/// through most of a θ layer: while it widens the rate's standard error more than this many
+/// times, the rate is not alarmed (that standard error, from correlated residuals, is
+/// optimistic, and the two are then traded against each other).
+const MAX_RATE_INFLATION: f64 = 2.0;
+
+/// cos 85°: the gnomonic coordinates grow without bound at grazing directions.
+const MOUNT_MIN_COS: f64 = 0.087_155_742_747_658_17;
+
+/// The off-centre mount's azimuthal pattern as fitted: ln-luminance per unit of each gnomonic
+/// coordinate, light side and camera side, with the larger standard error of each pair.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MountPattern {
+    pub light: [f64; 2],
+    pub light_se: f64,
+    pub camera: [f64; 2],
+    pub camera_se: f64,
+    /// How many times the light's half widens the rate's standard error: large until the light
+    /// has turned through a θ layer, when the two can be told apart.
+    pub rate_inflation: f64,
+}
+
+impl MountPattern {
+    /// The pattern's ln-luminance at the gnomonic coordinates `m` (`mount_coordinates`).
+    pub(crate) fn ln_effect(&self, m: &[f64; 4]) -> f64 {
+        self.light[0] * m[0] + self.light[1] * m[1] + self.camera[0] * m[2] + self.camera[1] * m[3]
+    }
+
+    /// Whether the light's half is told apart from a rate in this fit.
+    pub fn light_separated(&self) -> bool {
+        self.rate_inflation <= MAX_RATE_INFLATION
+    }
+
+    /// Amplitude (% per unit tan θ) and the azimuth it points to (degrees), light side.
+    pub fn light_pct(&self) -> (f64, f64) {
+        polar(self.light)
+    }
+
+    /// Amplitude (% per unit tan θ) and the azimuth it points to (degrees), camera side.
+    pub fn camera_pct(&self) -> (f64, f64) {
+        polar(self.camera)
+    }
+}
+
+fn polar(v: [f64; 2]) -> (f64, f64) {
+    (
+        100.0 * v[0].hypot(v[1]),
+        v[1].atan2(v[0]).to_degrees().rem_euclid(360.0),
+    )
 }
 
 /// The current drift estimate.
@@ -183,6 +279,9 @@ pub(crate) enum DriftEvent {
         /// The first probe of the window judged.
         from_idx: u64,
     },
+    /// The off-centre mount's pattern is significant and large (once per session): from now on
+    /// it is part of the model.
+    MountPattern(MountPattern),
     /// (Probes) the scatter is back under `UNSTABLE_CLEAR_FACTOR` times the design.
     UnstableCleared {
         scatter: f64,
@@ -209,6 +308,11 @@ pub(crate) struct DriftDetector {
     /// Known step times (hours) and, after a fit, their sizes.
     step_times: Vec<f64>,
     step_effects: Vec<StepEffect>,
+    /// The off-centre mount's pattern, once found (then part of every fit).
+    mount: Option<MountPattern>,
+    /// Whether the light's half of the pattern has been told apart from the rate (latched);
+    /// until then the rate is not alarmed.
+    light_separated: bool,
 }
 
 impl DriftDetector {
@@ -227,6 +331,8 @@ impl DriftDetector {
             h,
             step_times: Vec::new(),
             step_effects: Vec::new(),
+            mount: None,
+            light_separated: false,
         }
     }
 
@@ -296,7 +402,8 @@ impl DriftDetector {
                     .max(est.residual_scale * 0.25);
                 let sd =
                     (bucket_sd * bucket_sd * (1.0 + 1.0 / nb as f64) + o.sigma * o.sigma).sqrt();
-                let z = ((o.d - r * (o.t_b_h - o.t_a_h) - beta) / sd).clamp(-4.0, 4.0);
+                let pattern = self.mount.map_or(0.0, |m| m.ln_effect(&o.mount));
+                let z = ((o.d - r * (o.t_b_h - o.t_a_h) - beta - pattern) / sd).clamp(-4.0, 4.0);
                 self.cusum_hi = (self.cusum_hi + z - self.spec.cusum_k).max(0.0);
                 self.cusum_lo = (self.cusum_lo - z - self.spec.cusum_k).max(0.0);
                 self.cusum_n += 1;
@@ -322,10 +429,21 @@ impl DriftDetector {
         if self.obs.len() >= self.spec.min_pairs
             && self.obs.len().is_multiple_of(self.spec.refit_every.max(1))
         {
-            if let Some(est) = self.fit() {
+            let fitted = match self.mount_found() {
+                Some(f) => {
+                    let est = self.keep(f);
+                    if let Some(m) = self.mount {
+                        ev.push(DriftEvent::MountPattern(m));
+                    }
+                    Some(est)
+                }
+                None => self.fit(),
+            };
+            if let Some(est) = fitted {
                 self.estimate = Some(est);
                 let lower = est.rate_pct_per_h.abs() - self.spec.z * est.se_pct_per_h;
-                if !self.rate_alarm && lower > self.spec.rate_tolerance_pct_per_h {
+                let identified = self.mount.is_none() || self.light_separated;
+                if !self.rate_alarm && identified && lower > self.spec.rate_tolerance_pct_per_h {
                     self.rate_alarm = true;
                     ev.push(DriftEvent::RateSignificant(est));
                 } else if self.rate_alarm
@@ -340,10 +458,43 @@ impl DriftDetector {
         ev
     }
 
+    /// Adopts a design fit: its bucket effects, scales, steps and mount pattern.
+    fn keep(&mut self, f: DesignFit) -> DriftEstimate {
+        self.beta = f.beta;
+        self.bucket_scale = f.bucket_scale;
+        self.step_effects = f.step_effects;
+        if f.mount.is_some() {
+            self.mount = f.mount;
+            self.light_separated |= f.inflation <= MAX_RATE_INFLATION;
+        }
+        f.estimate
+    }
+
+    /// While the mount terms are out of the model: whether the camera side of the pattern is
+    /// now significant and large enough to bring them in. The camera's half is fitted within
+    /// each light sweep, so a gain drift or step cannot pose as it; the light's half can, and
+    /// is not tested.
+    fn mount_found(&self) -> Option<DesignFit> {
+        if !self.spec.mount_terms || self.mount.is_some() {
+            return None;
+        }
+        let f = self.fit_design(true)?;
+        let m = f.mount?;
+        let (amp, _) = m.camera_pct();
+        let lower = amp - self.spec.z * 100.0 * m.camera_se;
+        (m.camera_se.is_finite() && lower > self.spec.mount_min_pct).then_some(f)
+    }
+
+    /// The off-centre mount's pattern, once it is part of the model.
+    pub(crate) fn mount(&self) -> Option<MountPattern> {
+        self.mount
+    }
+
     /// IRLS with Huber weights and bucket fixed effects (within-bucket centring).
     fn fit(&mut self) -> Option<DriftEstimate> {
-        if !self.step_times.is_empty() {
-            return self.fit_with_steps();
+        if self.mount.is_some() || !self.step_times.is_empty() {
+            let f = self.fit_design(self.mount.is_some())?;
+            return Some(self.keep(f));
         }
         let n = self.obs.len();
         // precision weights from each observation's own uncertainty (equal in the first pass)
@@ -405,12 +556,13 @@ impl DriftDetector {
     }
 
     /// The same IRLS with one indicator column per known step (a pair spanning τ_k carries
-    /// s_k): the centred weighted design solved by SVD least squares, the covariance from its
-    /// pseudo-inverse. Deterministic: fixed passes, buckets in BTreeMap order.
-    fn fit_with_steps(&mut self) -> Option<DriftEstimate> {
+    /// s_k) and, with `mount`, the four mount columns: the centred weighted design solved by
+    /// SVD least squares, the covariance from its pseudo-inverse. Deterministic: fixed passes,
+    /// buckets in BTreeMap order. Pure: the caller decides whether to keep the result.
+    fn fit_design(&self, mount: bool) -> Option<DesignFit> {
         let n = self.obs.len();
         let k = self.step_times.len();
-        let p = 1 + k;
+        let p = 1 + k + if mount { 4 } else { 0 };
         let row = |o: &PairObservation| -> Vec<f64> {
             let mut x = Vec::with_capacity(p);
             x.push(o.t_b_h - o.t_a_h);
@@ -421,6 +573,9 @@ impl DriftDetector {
                     0.0
                 });
             }
+            if mount {
+                x.extend_from_slice(&o.mount);
+            }
             x
         };
         let rows: Vec<Vec<f64>> = self.obs.iter().map(row).collect();
@@ -430,6 +585,7 @@ impl DriftDetector {
         let mut beta: BTreeMap<(i64, i64), (f64, usize)> = BTreeMap::new();
         let mut scale = 0.0;
         let mut res: Vec<f64> = Vec::new();
+        let mut inflation = 1.0;
         for _ in 0..5 {
             // weighted bucket means of every column and of d
             let mut acc: BTreeMap<(i64, i64), BucketSums> = BTreeMap::new();
@@ -480,11 +636,20 @@ impl DriftDetector {
             let sse: f64 = res.iter().zip(&w).map(|(e, wi)| wi * e * e).sum();
             let ata = a.transpose() * &a;
             // a step no pair spans yet has a zero column: its variance is left infinite
-            cov = ata.pseudo_inverse(1e-12).ok()?.map(|v| v * sse / dof);
+            cov = ata
+                .clone()
+                .pseudo_inverse(1e-12)
+                .ok()?
+                .map(|v| v * sse / dof);
+            if mount {
+                // the rate's variance with the light's two mount columns left out
+                let keep: Vec<usize> = (0..p).filter(|&j| j != 1 + k && j != 2 + k).collect();
+                let sub = ata.select_rows(keep.iter()).select_columns(keep.iter());
+                let v0 = sub.pseudo_inverse(1e-12).ok()?[(0, 0)] * sse / dof;
+                inflation = (cov[(0, 0)] / v0).max(0.0).sqrt();
+            }
         }
-        self.bucket_scale = bucket_scales(&self.obs, &res);
-        self.beta = beta;
-        self.step_effects = self
+        let step_effects = self
             .step_times
             .iter()
             .enumerate()
@@ -496,13 +661,43 @@ impl DriftDetector {
                 se: cov[(1 + j, 1 + j)].sqrt(),
             })
             .collect();
-        Some(DriftEstimate {
-            pairs: n,
-            rate_pct_per_h: 100.0 * coef[0],
-            se_pct_per_h: 100.0 * cov[(0, 0)].max(0.0).sqrt(),
-            residual_scale: scale,
+        let mount = mount.then(|| {
+            let m = 1 + k;
+            let se = |a: usize, b: usize| cov[(a, a)].max(cov[(b, b)]).max(0.0).sqrt();
+            MountPattern {
+                light: [coef[m], coef[m + 1]],
+                light_se: se(m, m + 1),
+                camera: [coef[m + 2], coef[m + 3]],
+                camera_se: se(m + 2, m + 3),
+                rate_inflation: inflation,
+            }
+        });
+        Some(DesignFit {
+            estimate: DriftEstimate {
+                pairs: n,
+                rate_pct_per_h: 100.0 * coef[0],
+                se_pct_per_h: 100.0 * cov[(0, 0)].max(0.0).sqrt(),
+                residual_scale: scale,
+            },
+            beta,
+            bucket_scale: bucket_scales(&self.obs, &res),
+            step_effects,
+            mount,
+            inflation,
         })
     }
+}
+
+/// What `fit_design` found.
+struct DesignFit {
+    estimate: DriftEstimate,
+    beta: BTreeMap<(i64, i64), (f64, usize)>,
+    bucket_scale: BTreeMap<(i64, i64), f64>,
+    step_effects: Vec<StepEffect>,
+    mount: Option<MountPattern>,
+    /// With the mount columns: how many times the light's half of the pattern widens the
+    /// rate's standard error (1 without them).
+    inflation: f64,
 }
 
 #[cfg(test)]
@@ -544,6 +739,7 @@ mod tests {
                 d,
                 bucket: (b as i64, 0),
                 sigma: 0.0,
+                mount: [0.0; 4],
             }) {
                 events.push((i, e));
             }
@@ -576,6 +772,7 @@ mod tests {
                     d: lg(t_b) - lg(t_a) + 0.01 * s.gauss(),
                     bucket: ((i % 5) as i64, 0),
                     sigma: 0.0,
+                    mount: [0.0; 4],
                 });
             }
             det
@@ -638,6 +835,7 @@ mod tests {
                     d,
                     bucket: (if odd { -1 } else { (i % 7) as i64 }, 0),
                     sigma: if odd { sigma } else { 0.0 },
+                    mount: [0.0; 4],
                 });
             }
             det.estimate().unwrap().rate_pct_per_h
@@ -667,6 +865,7 @@ mod tests {
                 // alone in a bucket of its own, as an interpolated pair often is
                 bucket: (if odd { 1 } else { 0 }, 0),
                 sigma: *sigma,
+                mount: [0.0; 4],
             });
         }
         assert_eq!(det.estimate().unwrap().pairs, 4);

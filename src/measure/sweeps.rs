@@ -26,6 +26,7 @@
 //! θi layer, kind and sign.
 
 use super::alarm::{action, Affects, Alarm, AlarmKind, Handling, Severity};
+use super::drift::MountPattern;
 use super::geometry::Vec3;
 use super::kinematics::{Pose, Rig};
 use super::resample::{LayeredResampler, ResampleSpec, Sample};
@@ -97,6 +98,8 @@ pub(crate) struct SweepCapture {
     pub cmd: [f64; 4],
     /// Luminance Y (> 0).
     pub y: f64,
+    /// `measure::drift::mount_coordinates` of the nominal directions.
+    pub mount: [f64; 4],
 }
 
 /// One joint's fit in a sweep.
@@ -499,7 +502,14 @@ impl SweepMonitor {
     }
 
     /// The light direction `light` is complete: test its sweep against the earlier ones.
-    pub(crate) fn light_complete(&mut self, light: usize, level_test: bool) -> SweepOutcome {
+    /// With `mount` (the off-centre mount's pattern, once the drift model carries it), every
+    /// luminance is taken less that pattern: it moves the level with the light's azimuth.
+    pub(crate) fn light_complete(
+        &mut self,
+        light: usize,
+        level_test: bool,
+        mount: Option<&MountPattern>,
+    ) -> SweepOutcome {
         let nothing = SweepOutcome::default();
         let Some(done) = self.completed.get_mut(light) else {
             return nothing;
@@ -513,9 +523,9 @@ impl SweepMonitor {
             last_idx: sweep.last_idx,
             first_t: sweep.first_t,
         });
-        let reference = self.backfit(&sweep.past);
+        let reference = self.backfit(&sweep.past, mount);
         self.ensure_model(sweep.layer, &reference.class_effects());
-        let (all, rows) = self.residuals(&sweep.current, &reference);
+        let (all, rows) = self.residuals(&sweep.current, &reference, mount);
         if all.len() < self.spec.min_captures {
             return nothing;
         }
@@ -596,11 +606,17 @@ impl SweepMonitor {
         })
     }
 
+    /// ln Y of capture `k`, less the mount's pattern when there is one.
+    fn ln_y_of(&self, k: usize, mount: Option<&MountPattern>) -> f64 {
+        let c = &self.captures[k];
+        c.y.ln() - mount.map_or(0.0, |m| m.ln_effect(&c.mount))
+    }
+
     /// The F + L + C reference over the earlier sweeps, by back-fitting group means.
-    fn backfit(&self, past: &[usize]) -> Reference {
+    fn backfit(&self, past: &[usize], mount: Option<&MountPattern>) -> Reference {
         let n_class = self.class_ids.len();
         let n_dir = self.completed.len();
-        let y: Vec<f64> = past.iter().map(|&k| self.captures[k].y.ln()).collect();
+        let y: Vec<f64> = past.iter().map(|&k| self.ln_y_of(k, mount)).collect();
         let cls: Vec<usize> = past.iter().map(|&k| self.class_of[k]).collect();
         let lig: Vec<usize> = past.iter().map(|&k| self.captures[k].light).collect();
         let cam: Vec<usize> = past
@@ -638,7 +654,12 @@ impl SweepMonitor {
 
     /// The current sweep's residuals against the reference (captures whose class has an
     /// earlier member), and the rows (residual, sensitivities) of those with sensitivities.
-    fn residuals(&self, current: &[usize], r: &Reference) -> (Vec<f64>, Vec<(f64, [f64; 2])>) {
+    fn residuals(
+        &self,
+        current: &[usize],
+        r: &Reference,
+        mount: Option<&MountPattern>,
+    ) -> (Vec<f64>, Vec<(f64, [f64; 2])>) {
         let n_dir = self.completed.len();
         let mut rows: Vec<(f64, [f64; 2])> = Vec::new();
         let mut all: Vec<f64> = Vec::new();
@@ -647,7 +668,9 @@ impl SweepMonitor {
             if !r.seen[self.class_of[k]] {
                 continue;
             }
-            let e = cap.y.ln() - r.class[self.class_of[k]] - r.camera[cap.camera.min(n_dir - 1)];
+            let e = self.ln_y_of(k, mount)
+                - r.class[self.class_of[k]]
+                - r.camera[cap.camera.min(n_dir - 1)];
             all.push(e);
             if let Some(s) = self.sensitivities(&cap.cmd) {
                 rows.push((e, s));
@@ -951,16 +974,17 @@ mod tests {
                 omega_o: Vec3::new(0.0, 0.0, 1.0),
                 cmd: [0.0; 4],
                 y: *y,
+                mount: [0.0; 4],
             });
         }
         // only the positive finite value is kept
         assert_eq!(m.captures.len(), 1);
-        let o = m.light_complete(0, true);
+        let o = m.light_complete(0, true, None);
         assert!(o.record.is_none() && o.alarms.is_empty() && o.step_at_s.is_none());
         // a light the plan does not have, and a light with no capture at all
-        let o = m.light_complete(500, true);
+        let o = m.light_complete(500, true, None);
         assert!(o.record.is_none() && o.alarms.is_empty());
-        let o = m.light_complete(7, true);
+        let o = m.light_complete(7, true, None);
         assert!(o.record.is_none() && o.alarms.is_empty());
         assert_eq!(m.summary().tested, 0);
     }
@@ -1039,6 +1063,7 @@ mod model_tests {
                     pose.wagon_deg,
                 ],
                 y,
+                mount: [0.0; 4],
             };
             m.add(cap.clone());
             caps.push(cap);
@@ -1142,7 +1167,7 @@ mod session_tests {
             let pe = plan.entry(e).unwrap();
             if current != Some(pe.light) {
                 if let Some(done) = current {
-                    let o = m.light_complete(done, level_test);
+                    let o = m.light_complete(done, level_test, None);
                     records.extend(o.record);
                     alarms.extend(o.alarms);
                     if done == last_light {
@@ -1201,6 +1226,7 @@ mod session_tests {
                     pose.wagon_deg,
                 ],
                 y,
+                mount: [0.0; 4],
             });
         }
         (records, alarms)

@@ -123,6 +123,15 @@ SCENARIOS = {
         {"every": 25, "isotropic": False},
         False,
     ),
+    "off-centre": (
+        "the second nuisance model (realistic-b: a sample mounted off the rotation centre, "
+        "vignetting, stray light) under a 1 %/h lamp decay, no probes: sample-off-centre from "
+        "the isotropy classes, then gain-drift without false steps",
+        [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 1.0}],
+        {"captures": 1500, "realism": "realistic-b"},
+        {},
+        False,
+    ),
 }
 
 RESULTS = hil.RESULT_FILES  # the result files, summary.json included
