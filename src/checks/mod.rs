@@ -32,7 +32,7 @@ pub use records::{
 
 use crate::measure::alarm::{Affects, Alarm, AlarmKind, Handling, Severity};
 use crate::measure::colour::{RgbToXyz, White, Xyz};
-use crate::measure::drift::{mount_coordinates, DriftEstimate, StepEffect};
+use crate::measure::drift::{mount_coordinates, DriftEstimate, MountPattern, StepEffect};
 use crate::measure::geometry::{azimuth_difference_deg, Vec3};
 use crate::measure::kinematics::{Incidence, Rig};
 use crate::measure::plan::{AcquisitionOrder, SamplingPlan};
@@ -768,6 +768,11 @@ impl Checker {
     /// The gain drift estimate from isotropy classes (isotropic samples), once there are enough.
     pub fn isotropy_drift(&self) -> Option<DriftEstimate> {
         self.drift.as_ref().and_then(|d| d.estimate())
+    }
+
+    /// The off-centre mount's pattern, once the isotropy drift model carries it.
+    pub fn sample_off_centre(&self) -> Option<MountPattern> {
+        self.drift.as_ref().and_then(|d| d.mount())
     }
 
     /// The conditions that hold over captures and are in progress now (pose episodes).

@@ -69,6 +69,13 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
             "gain drift from isotropy classes: {:+.3} %/h ± {:.3} (standard error, {} comparisons)",
             d.rate_pct_per_h, d.se_pct_per_h, d.pairs
         )?;
+        if let Some(m) = &s.sample_off_centre {
+            let ((cam, cam_az), (light, light_az)) = (m.camera_pct(), m.light_pct());
+            writeln!(
+                out,
+                "  the sample sits off the rotation centre: {cam:.2} % per unit tan θo towards φ = {cam_az:.0}° (camera), {light:.2} % per unit tan θi towards φ = {light_az:.0}° (light), modelled"
+            )?;
+        }
         for st in &s.isotropy_steps {
             writeln!(
                 out,

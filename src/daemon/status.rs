@@ -366,6 +366,18 @@ pub fn metrics(s: &Snapshot) -> String {
             d.se_pct_per_h,
         );
     }
+    if let Some(m) = &s.summary.sample_off_centre {
+        g(
+            "sample_off_centre_camera_pct",
+            "The off-centre mount's pattern on the camera's side (% per unit tan θo), once modelled.",
+            m.camera_pct().0,
+        );
+        g(
+            "sample_off_centre_light_pct",
+            "The same on the light's side (% per unit tan θi).",
+            m.light_pct().0,
+        );
+    }
     if let Some(c) = &s.summary.colour_drift {
         g(
             "colour_drift_k_per_h",

@@ -117,6 +117,9 @@ pub struct Summary {
     /// Gain steps the light sweeps found, as fitted in the isotropy drift model.
     #[serde(default)]
     pub isotropy_steps: Vec<crate::measure::drift::StepEffect>,
+    /// The off-centre mount's pattern, once the isotropy drift model carries it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample_off_centre: Option<crate::measure::drift::MountPattern>,
     /// The light-sweep checks (isotropic samples in a light-outer order).
     #[serde(default)]
     pub sweeps: Option<crate::measure::sweeps::SweepSummary>,
@@ -306,6 +309,7 @@ impl Engine {
             colour_drift: self.checker.colour_drift(),
             observability: self.checker.observability(),
             isotropy_steps: self.checker.isotropy_steps(),
+            sample_off_centre: self.checker.sample_off_centre(),
             sweeps: self.checker.sweeps(),
             alarms: self.alarm_book.counts().clone(),
             link: self.link.stats.clone(),
