@@ -38,6 +38,12 @@ SCENARIOS = [
     ("decay 1 %/h", [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 1.0}], ("rate", 0, 1.0)),
     ("step −2 % at mid-run", [{"kind": "lamp-step", "at_capture": 3280, "step_pct": -2.0}], ("step", 3280, None)),
     ("step −3 % at mid-run", [{"kind": "lamp-step", "at_capture": 3280, "step_pct": -3.0}], ("step", 3280, None)),
+    ("step −1.5 % at mid-run", [{"kind": "lamp-step", "at_capture": 3280, "step_pct": -1.5}], ("step", 3280, None)),
+    # light sweep 40 starts at capture 3,240; the θi = 75° layer holds lights 57–80 (captures 4,617 on)
+    ("step −1.5 % at a sweep boundary", [{"kind": "lamp-step", "at_capture": 3240, "step_pct": -1.5}], ("step", 3240, None)),
+    ("step −1.5 % early in the 75° layer", [{"kind": "lamp-step", "at_capture": 5200, "step_pct": -1.5}], ("step", 5200, None)),
+    ("step −3 % early in the 75° layer", [{"kind": "lamp-step", "at_capture": 5200, "step_pct": -3.0}], ("step", 5200, None)),
+    ("step −1.5 % late in the 75° layer", [{"kind": "lamp-step", "at_capture": 5900, "step_pct": -1.5}], ("step", 5900, None)),
 ] + [
     (f"joint {j} +{o}° at mid-run", [{"kind": "joint-offset", "at_capture": 3280, "joint": j, "offset_deg": float(o)}], ("joint", 3280, j))
     for j in (1, 2, 3) for o in (1, 2)

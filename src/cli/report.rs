@@ -1061,17 +1061,18 @@ impl CsvRow for Alarm {
 }
 
 impl CsvRow for SweepRecord {
-    const HEADER: &'static str = "light,idx,t_s,captures,level_pct,level_se_pct,level_z,level_cusum,joint1_offset_deg,joint1_se_deg,joint1_z,joint1_cusum,joint2_offset_deg,joint2_se_deg,joint2_z,joint2_cusum,residual_sd";
+    const HEADER: &'static str = "light,idx,t_s,captures,level_pct,level_expected_pct,level_se_pct,level_z,level_cusum,joint1_offset_deg,joint1_se_deg,joint1_z,joint1_cusum,joint2_offset_deg,joint2_se_deg,joint2_z,joint2_cusum,residual_sd";
     fn row(&self) -> String {
         let r = self;
         let j = |k: usize| r.joints.iter().find(|f| f.joint == k);
         format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.light,
             r.idx,
             r.t,
             r.captures,
             r.level_pct,
+            r.level_expected_pct,
             r.level_se_pct,
             opt(r.level_z),
             r.level_cusum,

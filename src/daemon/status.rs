@@ -573,6 +573,7 @@ mod tests {
                 t: 7931.0,
                 captures: 70,
                 level_pct: -0.4,
+                level_expected_pct: 0.1,
                 level_se_pct: 0.2,
                 level_z: Some(-1.0),
                 level_cusum: 0.0,
