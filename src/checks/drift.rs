@@ -17,7 +17,7 @@ use super::{Ctx, GeometryKey, Ledger};
 use crate::measure::alarm::{action, Affects, Alarm, AlarmKind, Handling, Severity};
 use crate::measure::colour::{White, Xyz};
 use crate::measure::drift::{
-    mount_coordinates, DriftDetector, DriftEstimate, DriftEvent, DriftSpec, MountPattern,
+    mount_coordinates, DriftDetector, DriftEstimate, DriftEvent, DriftSpec, GainPath, MountPattern,
     PairObservation, StepEffect,
 };
 use crate::measure::lamp::LampColour;
@@ -421,6 +421,11 @@ impl DriftStage {
 
     pub(super) fn steps(&self) -> &[StepEffect] {
         self.detector.steps()
+    }
+
+    /// The fitted gain path, once there is an estimate.
+    pub(super) fn gain_path(&self) -> Option<GainPath> {
+        self.detector.gain_path()
     }
 
     /// The off-centre mount's pattern, once it is part of the model.

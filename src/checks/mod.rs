@@ -673,7 +673,8 @@ impl Checker {
         let level_test = !self.probes_enabled;
         if let Some(sweeps) = self.sweeps.as_mut() {
             let mount = self.drift.as_ref().and_then(|d| d.mount());
-            let o = sweeps.light_complete(light, level_test, mount.as_ref());
+            let gain = self.drift.as_ref().and_then(|d| d.gain_path());
+            let o = sweeps.light_complete(light, level_test, mount.as_ref(), gain.as_ref());
             if let (Some(drift), Some(t)) = (self.drift.as_mut(), o.step_at_s) {
                 drift.add_step(t);
             }

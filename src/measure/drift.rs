@@ -195,6 +195,33 @@ fn polar(v: [f64; 2]) -> (f64, f64) {
     )
 }
 
+/// A fitted gain path: ln g(t) = r·t + Σ s_k·[t ≥ τ_k] (t in hours).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct GainPath {
+    pub rate_per_h: f64,
+    /// (τ_k in hours, s_k in ln units)
+    pub steps: Vec<(f64, f64)>,
+}
+
+impl GainPath {
+    /// ln g at `t_s` controller seconds.
+    pub(crate) fn ln_at(&self, t_s: f64) -> f64 {
+        let t_h = t_s / 3600.0;
+        let steps: f64 = self
+            .steps
+            .iter()
+            .filter(|(t, _)| *t <= t_h)
+            .map(|(_, s)| s)
+            .sum();
+        let v = self.rate_per_h * t_h + steps;
+        if v.is_finite() {
+            v
+        } else {
+            0.0
+        }
+    }
+}
+
 /// The current drift estimate.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct DriftEstimate {
@@ -368,6 +395,19 @@ impl DriftDetector {
             var += st.se * st.se;
         }
         Some((v, var.sqrt()))
+    }
+
+    /// The fitted gain path ln g(t), once there is an estimate.
+    pub(crate) fn gain_path(&self) -> Option<GainPath> {
+        let e = self.estimate?;
+        Some(GainPath {
+            rate_per_h: e.rate_pct_per_h / 100.0,
+            steps: self
+                .step_effects
+                .iter()
+                .map(|s| (s.t_h, s.ln_size))
+                .collect(),
+        })
     }
 
     pub(crate) fn estimate(&self) -> Option<DriftEstimate> {

@@ -26,7 +26,7 @@
 //! θi layer, kind and sign.
 
 use super::alarm::{action, Affects, Alarm, AlarmKind, Handling, Severity};
-use super::drift::MountPattern;
+use super::drift::{GainPath, MountPattern};
 use super::geometry::Vec3;
 use super::kinematics::{Pose, Rig};
 use super::resample::{LayeredResampler, ResampleSpec, Sample};
@@ -153,6 +153,12 @@ struct Sweep {
     first_t: f64,
     current: Vec<usize>,
     past: Vec<usize>,
+}
+
+/// What the drift model already explains and the sweeps take out of ln Y first.
+struct Known<'a> {
+    mount: Option<&'a MountPattern>,
+    gain: Option<&'a GainPath>,
 }
 
 /// The F + L + C reference: class, light and camera effects (ln units), and which classes have
@@ -539,12 +545,16 @@ impl SweepMonitor {
 
     /// The light direction `light` is complete: test its sweep against the earlier ones.
     /// With `mount` (the off-centre mount's pattern, once the drift model carries it), every
-    /// luminance is taken less that pattern: it moves the level with the light's azimuth.
+    /// luminance is taken less that pattern: it moves the level with the light's azimuth. With
+    /// `gain` (the drift model's fitted path), less the gain as well: the level test looks for
+    /// steps beyond the modelled drift, and a drift inside a θi layer is not read as part of
+    /// the layer's azimuthal pattern, nor a step already fitted as a new one.
     pub(crate) fn light_complete(
         &mut self,
         light: usize,
         level_test: bool,
         mount: Option<&MountPattern>,
+        gain: Option<&GainPath>,
     ) -> SweepOutcome {
         let nothing = SweepOutcome::default();
         let Some(done) = self.completed.get_mut(light) else {
@@ -559,9 +569,10 @@ impl SweepMonitor {
             last_idx: sweep.last_idx,
             first_t: sweep.first_t,
         });
-        let reference = self.backfit(&sweep.past, mount);
+        let known = Known { mount, gain };
+        let reference = self.backfit(&sweep.past, &known);
         self.ensure_model(sweep.layer, &reference.class_effects());
-        let (all, rows) = self.residuals(&sweep.current, &reference, mount);
+        let (all, rows) = self.residuals(&sweep.current, &reference, &known);
         if all.len() < self.spec.min_captures {
             return nothing;
         }
@@ -746,17 +757,19 @@ impl SweepMonitor {
         })
     }
 
-    /// ln Y of capture `k`, less the mount's pattern when there is one.
-    fn ln_y_of(&self, k: usize, mount: Option<&MountPattern>) -> f64 {
+    /// ln Y of capture `k`, less what the drift model already explains.
+    fn ln_y_of(&self, k: usize, known: &Known) -> f64 {
         let c = &self.captures[k];
-        c.y.ln() - mount.map_or(0.0, |m| m.ln_effect(&c.mount))
+        c.y.ln()
+            - known.mount.map_or(0.0, |m| m.ln_effect(&c.mount))
+            - known.gain.map_or(0.0, |g| g.ln_at(c.t))
     }
 
     /// The F + L + C reference over the earlier sweeps, by back-fitting group means.
-    fn backfit(&self, past: &[usize], mount: Option<&MountPattern>) -> Reference {
+    fn backfit(&self, past: &[usize], known: &Known) -> Reference {
         let n_class = self.class_ids.len();
         let n_dir = self.completed.len();
-        let y: Vec<f64> = past.iter().map(|&k| self.ln_y_of(k, mount)).collect();
+        let y: Vec<f64> = past.iter().map(|&k| self.ln_y_of(k, known)).collect();
         let cls: Vec<usize> = past.iter().map(|&k| self.class_of[k]).collect();
         let lig: Vec<usize> = past.iter().map(|&k| self.captures[k].light).collect();
         let cam: Vec<usize> = past
@@ -799,7 +812,7 @@ impl SweepMonitor {
         &self,
         current: &[usize],
         r: &Reference,
-        mount: Option<&MountPattern>,
+        known: &Known,
     ) -> (Vec<f64>, Vec<(f64, [f64; 2])>) {
         let n_dir = self.completed.len();
         let mut rows: Vec<(f64, [f64; 2])> = Vec::new();
@@ -809,7 +822,7 @@ impl SweepMonitor {
             if !r.seen[self.class_of[k]] {
                 continue;
             }
-            let e = self.ln_y_of(k, mount)
+            let e = self.ln_y_of(k, known)
                 - r.class[self.class_of[k]]
                 - r.camera[cap.camera.min(n_dir - 1)];
             all.push(e);
@@ -920,12 +933,12 @@ impl SweepMonitor {
                             Severity::Warning,
                             "gain-step",
                             format!(
-                                "the gain level stepped {} by about {:+.2} %: light sweep {} (captures up to {}) and the {} before it sit off the earlier sweeps of θi = {}° (CUSUM {stat:.1} > {:.1}; from isotropy classes, no probes)",
+                                "the gain level stepped {}: light sweep {} (captures up to {}) and the {} before it sit {:+.2} % off the earlier sweeps of θi = {}° beyond the modelled drift (CUSUM {stat:.1} > {:.1}; from isotropy classes, no probes); the step's size is fitted from the isotropy classes from now on",
                                 if sign > 0 { "up" } else { "down" },
-                                100.0 * mean,
                                 sweep.light,
                                 sweep.last_idx,
                                 run.n.saturating_sub(1),
+                                100.0 * mean,
                                 layer as f64 / 1000.0,
                                 self.h_level
                             ),
@@ -1121,12 +1134,12 @@ mod tests {
         }
         // only the positive finite value is kept
         assert_eq!(m.captures.len(), 1);
-        let o = m.light_complete(0, true, None);
+        let o = m.light_complete(0, true, None, None);
         assert!(o.record.is_none() && o.alarms.is_empty() && o.step_at_s.is_none());
         // a light the plan does not have, and a light with no capture at all
-        let o = m.light_complete(500, true, None);
+        let o = m.light_complete(500, true, None, None);
         assert!(o.record.is_none() && o.alarms.is_empty());
-        let o = m.light_complete(7, true, None);
+        let o = m.light_complete(7, true, None, None);
         assert!(o.record.is_none() && o.alarms.is_empty());
         assert_eq!(m.summary().tested, 0);
     }
@@ -1323,7 +1336,7 @@ mod session_tests {
             let pe = plan.entry(e).unwrap();
             if current != Some(pe.light) {
                 if let Some(done) = current {
-                    let o = m.light_complete(done, level_test, None);
+                    let o = m.light_complete(done, level_test, None, None);
                     records.extend(o.record);
                     alarms.extend(o.alarms);
                     if done == last_light {
