@@ -61,7 +61,7 @@ def main():
     ap.add_argument("--every", type=int, default=0, help="probe cadence (default: plan's recommendation)")
     ap.add_argument("--no-joints", action="store_true", help="leave out the joint-3 scenarios")
     ap.add_argument("--tilts", action="store_true", help="add joint 1 and 2 slips of ±1° at mid-run")
-    ap.add_argument("--flicker", action="store_true", help="add lamp flicker of 1 and 3 % per capture")
+    ap.add_argument("--flicker", action="store_true", help="add lamp flicker of 1 and 3 %% per capture")
     ap.add_argument("--only-extra", action="store_true", help="run only the --flicker/--tilts scenarios")
     ap.add_argument("--keep", help="keep the recorded sessions in this folder")
     ap.add_argument("--replay", help="re-score the sessions kept in this folder")

@@ -204,21 +204,25 @@ pub(crate) struct GainPath {
 }
 
 impl GainPath {
-    /// ln g at `t_s` controller seconds.
+    /// ln g at `t_s` controller seconds (0 where it is not finite).
     pub(crate) fn ln_at(&self, t_s: f64) -> f64 {
-        let t_h = t_s / 3600.0;
+        let v = self.ln_at_h(t_s / 3600.0);
+        if v.is_finite() {
+            v
+        } else {
+            0.0
+        }
+    }
+
+    /// ln g at `t_h` hours.
+    pub(crate) fn ln_at_h(&self, t_h: f64) -> f64 {
         let steps: f64 = self
             .steps
             .iter()
             .filter(|(t, _)| *t <= t_h)
             .map(|(_, s)| s)
             .sum();
-        let v = self.rate_per_h * t_h + steps;
-        if v.is_finite() {
-            v
-        } else {
-            0.0
-        }
+        self.rate_per_h * t_h + steps
     }
 }
 
@@ -388,10 +392,9 @@ impl DriftDetector {
     /// out), once there is an estimate.
     pub(crate) fn ln_gain_at(&self, t_h: f64) -> Option<(f64, f64)> {
         let e = self.estimate?;
-        let mut v = e.rate_pct_per_h / 100.0 * t_h;
+        let v = self.gain_path()?.ln_at_h(t_h);
         let mut var = (t_h * e.se_pct_per_h / 100.0).powi(2);
         for st in self.step_effects.iter().filter(|st| st.t_h <= t_h) {
-            v += st.ln_size;
             var += st.se * st.se;
         }
         Some((v, var.sqrt()))
@@ -503,9 +506,9 @@ impl DriftDetector {
         self.beta = f.beta;
         self.bucket_scale = f.bucket_scale;
         self.step_effects = f.step_effects;
-        if f.mount.is_some() {
-            self.mount = f.mount;
-            self.light_separated |= f.inflation <= MAX_RATE_INFLATION;
+        if let Some(m) = f.mount {
+            self.mount = Some(m);
+            self.light_separated |= m.light_separated();
         }
         f.estimate
     }
@@ -723,7 +726,6 @@ impl DriftDetector {
             bucket_scale: bucket_scales(&self.obs, &res),
             step_effects,
             mount,
-            inflation,
         })
     }
 }
@@ -735,14 +737,44 @@ struct DesignFit {
     bucket_scale: BTreeMap<(i64, i64), f64>,
     step_effects: Vec<StepEffect>,
     mount: Option<MountPattern>,
-    /// With the mount columns: how many times the light's half of the pattern widens the
-    /// rate's standard error (1 without them).
-    inflation: f64,
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn mount_coordinates_stay_finite_at_grazing_and_bad_directions() {
+        let up = Vec3::new(0.0, 0.0, 1.0);
+        assert_eq!(mount_coordinates(&up, &up), [0.0; 4]);
+        // 45° along +x: tan θ = 1
+        let d = Vec3::new(1.0, 0.0, 1.0).normalize();
+        let m = mount_coordinates(&d, &up);
+        assert!((m[0] - 1.0).abs() < 1e-12 && m[1].abs() < 1e-12);
+        // grazing and below the horizon: capped at θ = 85° (tan 85° = 11.43), never infinite
+        for w in [Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, -0.2)] {
+            let m = mount_coordinates(&w, &up);
+            assert!(m.iter().all(|v| v.is_finite() && v.abs() <= 11.5), "{m:?}");
+        }
+        // a NaN direction contributes nothing
+        let nan = Vec3::new(f64::NAN, 0.0, 1.0);
+        assert_eq!(mount_coordinates(&nan, &d), [0.0; 4]);
+    }
+
+    #[test]
+    fn the_gain_path_is_the_rate_and_the_steps_that_have_happened() {
+        let g = GainPath {
+            rate_per_h: -0.01,
+            steps: vec![(2.0, (0.97f64).ln())],
+        };
+        assert!((g.ln_at(3600.0) + 0.01).abs() < 1e-12);
+        assert!((g.ln_at(3.0 * 3600.0) - (-0.03 + (0.97f64).ln())).abs() < 1e-12);
+        let bad = GainPath {
+            rate_per_h: f64::NAN,
+            steps: Vec::new(),
+        };
+        assert_eq!(bad.ln_at(10.0), 0.0);
+    }
     use crate::fixtures::Lcg;
 
     /// Synthetic pairs with bucket effects, a rate, noise, and an optional step.

@@ -707,7 +707,8 @@ impl SweepMonitor {
             v
         };
         let (n, cols) = (lights.len(), 1 + 2 * harmonics.len());
-        let x = DMatrix::from_fn(n, cols, |i, j| row(phi(lights[i]))[j]);
+        let rows: Vec<Vec<f64>> = lights.iter().map(|&l| row(phi(l))).collect();
+        let x = DMatrix::from_fn(n, cols, |i, j| rows[i][j]);
         let y = DVector::from_iterator(n, lights.iter().map(|&l| r.light[l]));
         let b = x.clone().svd(true, true).solve(&y, 1e-9).ok()?;
         let x0 = DVector::from_vec(row(here));
