@@ -45,6 +45,11 @@ SCENARIOS = [
     ("step −3 % early in the 75° layer", [{"kind": "lamp-step", "at_capture": 5200, "step_pct": -3.0}], ("step", 5200, None)),
     ("step −1.5 % late in the 75° layer", [{"kind": "lamp-step", "at_capture": 5900, "step_pct": -1.5}], ("step", 5900, None)),
 ] + [
+    # an encoder reading off while the arm goes where it is told: one episode, no drift or
+    # joint alarm, and the pairs kept exact by the commanded pose (joint 4 is the wagon)
+    (f"encoder {n} +{o}° at mid-run", [{"kind": "encoder-mismatch", "at_capture": 3280, "joint": j, "offset_deg": o}], ("encoder", 3280, j))
+    for n, j, o in (("joint 1", 1, 0.3), ("joint 2", 2, 0.3), ("wagon", 4, 0.5))
+] + [
     (f"joint {j} +{o}° at mid-run", [{"kind": "joint-offset", "at_capture": 3280, "joint": j, "offset_deg": float(o)}], ("joint", 3280, j))
     for j in (1, 2, 3) for o in (1, 2)
 ]
@@ -175,6 +180,10 @@ def main():
                 js = [x for x in g if x["code"] == "joint-offset-suspected"]
                 first = (f"joint {js[0]['evidence']['joint']} {js[0]['evidence']['offset_deg']:+.2f}° +{js[0]['idx'] - onset}" if js
                          else f"{g[0]['code']} +{g[0]['idx'] - onset}" if g else "")
+                if truth and truth[0] == "encoder":
+                    ch = summary["checked"]
+                    first += (f", {ch['pairs_needs_resampling']} of {ch['pairs_exact'] + ch['pairs_needs_resampling']} pairs"
+                              f" to resample, {ch.get('placed_by_command', 0)} placed by command")
                 geo.append(f"{len(g)}" + (f" ({first})" if first else ""))
                 hits += bool(drift)
                 if drift and truth:

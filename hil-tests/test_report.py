@@ -37,13 +37,17 @@ def test_report_of_a_session_and_of_its_replay_are_identical(hil, tmp_path):
     for needle in ["Table 2", "Table 3", "Residual per light direction", "Gain drift", "Capture quality", "Link", "Configuration",
                    "dark-capture", "gain-step", "<svg", "[probes]", "Light sweeps", "Retake list"]:
         assert needle in html, needle
+    # the sweeps' levels against their layer's prediction, one point per sweep, on the time axis
+    # with the alarms
+    assert html.count("against the layer's prediction") == len(read_jsonl(session / "sweeps.jsonl"))
+    assert "level − layer's prediction [%]" in html
     # self-contained: nothing loaded from anywhere
     assert "http://" not in html.replace('xmlns="http://www.w3.org/2000/svg"', "") and "<script" not in html
     assert str(tmp_path) not in html, "the report must not depend on where the session lives"
 
     caps = list(csv.DictReader(io.StringIO((session / "report" / "captures.csv").read_text())))
     assert len(caps) == len(read_jsonl(session / "captures.jsonl"))
-    assert {"idx", "X", "Y", "Z", "theta_i", "pose_error_deg"} <= set(caps[0])
+    assert {"idx", "X", "Y", "Z", "theta_i", "pose_error_deg", "by_command"} <= set(caps[0])
     alarms = list(csv.DictReader(io.StringIO((session / "report" / "alarms.csv").read_text())))
     assert any(a["code"] == "dark-capture" and a["idx"] == "300" for a in alarms)
     t3 = list(csv.DictReader(io.StringIO((session / "report" / "table3.csv").read_text())))

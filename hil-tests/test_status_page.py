@@ -70,7 +70,13 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
     browser_or_skip()
     from playwright.sync_api import sync_playwright
 
-    rig = hil("page", [{"kind": "dark-frame", "at_capture": 400}], captures=1500, speed=7.0 / 0.012)
+    # a dark frame (a capture-quality alarm) and a short encoder mismatch (a positioning alarm,
+    # ticked on the time plots)
+    faults = [
+        {"kind": "dark-frame", "at_capture": 400},
+        {"kind": "encoder-mismatch", "at_capture": 500, "until_capture": 505, "joint": 2, "offset_deg": 0.3},
+    ]
+    rig = hil("page", faults, captures=1500, speed=7.0 / 0.012)
     session = tmp_path / "page-session"
     # drift probes on, so that the drift chart has an estimate to draw
     daemon = start_daemon(rig, session, daemon_config(tmp_path, "page", every=25), "--http", "127.0.0.1:0")
@@ -95,6 +101,13 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
             # the lamp's stability and joint 3 are said, watched or not (an isotropic sample)
             assert page.text_content("#scatternow") != "—"
             assert "not watched" in page.text_content("#sentinelnow")
+            # the light sweeps: levels against the layer's prediction and joint offsets over time,
+            # the encoder episode as a tick on the same time axis
+            page.wait_for_function("document.querySelectorAll('#sweeplevel circle').length >= 5", timeout=60000)
+            page.wait_for_function("document.querySelectorAll('#joints circle').length > 0", timeout=60000)
+            assert "light directions compared" in page.text_content("#sweepnow")
+            ticked = "(id) => [...document.querySelectorAll(`#${id} line.tick title`)].some((t) => t.textContent.startsWith('encoder-mismatch at'))"
+            page.wait_for_function(f"({ticked})('sweeplevel') && ({ticked})('drift')", timeout=60000)
             # the injected dark frame appears as an alarm with its message
             page.wait_for_selector('#alarms li[data-code="dark-capture"]', timeout=60000)
             text = page.text_content('#alarms li[data-code="dark-capture"]')

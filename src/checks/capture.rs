@@ -1,7 +1,7 @@
-//! The capture stage: where a capture was taken (geometry from the encoder pose, against the
-//! plan and against the commanded pose) and whether it can be used at all (its outcome,
-//! non-finite, clipped and dark pixels, runs of failures). Every later stage works on what this
-//! one measured; it never pairs or compares captures.
+//! The capture stage: where a capture was taken (the encoder pose, or the commanded pose while
+//! an encoder holds a steady offset; against the plan and against the commands) and whether it
+//! can be used at all (its outcome, non-finite, clipped and dark pixels, runs of failures).
+//! Every later stage works on what this one measured; it never pairs or compares captures.
 
 use super::records::{CaptureInput, CaptureRecord, CaptureStatus, Outcome};
 use super::{Checked, Ctx};
@@ -43,6 +43,8 @@ pub(super) struct CaptureStage {
     /// commanded pose.
     pub(super) off_plan: u64,
     pub(super) encoder_mismatch: u64,
+    /// Usable or not, captures placed by the commanded pose (a steady encoder offset).
+    pub(super) placed_by_command: u64,
     consecutive_failures: u32,
     off_plan_episode: Option<Episode>,
     /// One per axis (joints 1–3, wagon): a mismatch on one axis neither ends nor restarts
@@ -53,12 +55,17 @@ pub(super) struct CaptureStage {
 /// The encoder axes, in the order of `enc` and `cmd`.
 const AXES: [&str; 4] = ["joint 1", "joint 2", "joint 3", "wagon"];
 
+/// An encoder offset is steady, and captures are placed by the commanded pose, once it has held
+/// for this many captures: one reading cannot tell a constant offset from a servo still
+/// settling or a pose read mid-move.
+const STEADY_CAPTURES: u64 = 3;
+
 /// What the operator can do when the encoders put a capture off the plan.
 const POSE_OFF_PLAN_ACTION: &str = "Check the arm and the wagon for a collision, a stall or lost steps and re-home them; the captures of the episode are on the retake list.";
 
 /// What the operator can do about an encoder that disagrees with its command on `axis`.
 fn encoder_action(axis: &str) -> String {
-    format!("Check the {axis} encoder, motor and coupling. If the images agree with the commanded pose (a constant encoder offset), re-home or recalibrate the encoder; meanwhile the captures are placed by the encoder pose, so look at their pairs before trusting them.")
+    format!("Check the {axis} encoder, motor and coupling. Once the offset has held for {STEADY_CAPTURES} captures, captures are placed by the commanded pose and their pairs are marked `by_command`: if the positioning checks of the images stay quiet, the arm went where it was told and the encoder needs re-homing or recalibrating; if they name a slip, the captures are where the encoder says and must be retaken.")
 }
 
 /// What the output does about a pose episode's captures: off the plan they are wrong and
@@ -82,16 +89,23 @@ struct Episode {
     last_idx: u64,
     captures: u64,
     worst_deg: f64,
+    /// The signed offset of the first capture, and whether every later one stayed within the
+    /// encoder tolerance of it (encoder episodes only).
+    first_offset: f64,
+    steady: bool,
+    /// Captures of the episode placed by the commanded pose.
+    by_command: u64,
 }
 
 impl Episode {
-    /// Note one capture showing the condition on `axis` with error `deg`: the alarm to raise
-    /// (from `raise`), when it starts an episode.
+    /// Note one capture showing the condition on `axis` with error `deg` (signed: `offset`):
+    /// the alarm to raise (from `raise`), when it starts an episode.
     fn note(
         slot: &mut Option<Episode>,
         axis: &'static str,
         idx: u64,
         deg: f64,
+        offset: f64,
         raise: impl FnOnce() -> Alarm,
     ) -> Option<Alarm> {
         match slot {
@@ -108,6 +122,9 @@ impl Episode {
                     last_idx: idx,
                     captures: 1,
                     worst_deg: deg,
+                    first_offset: offset,
+                    steady: offset.is_finite(),
+                    by_command: 0,
                 });
                 Some(raise())
             }
@@ -130,8 +147,8 @@ impl Episode {
                 Severity::Info,
                 &format!("{code}-cleared"),
                 format!(
-                    "{what} ({}) held for {} capture(s), {} to {}, at most {:.4}°; capture {idx} is within tolerance again",
-                    e.axis, e.captures, e.first_idx, e.last_idx, e.worst_deg
+                    "{what} ({}) held for {} capture(s), {} to {}, at most {:.4}°{}; capture {idx} is within tolerance again",
+                    e.axis, e.captures, e.first_idx, e.last_idx, e.worst_deg, e.by_command_note()
                 ),
             )
             .at(Some(idx), Some(t))
@@ -141,6 +158,7 @@ impl Episode {
                 "first_idx": e.first_idx,
                 "last_idx": e.last_idx,
                 "worst_deg": e.worst_deg,
+                "by_command": e.by_command,
             }))
             .affecting(Affects::Between {
                 from_idx: e.first_idx,
@@ -148,6 +166,17 @@ impl Episode {
                 handling: episode_handling(code),
             }),
         )
+    }
+}
+
+impl Episode {
+    /// ", N placed by the commanded pose" when any were.
+    fn by_command_note(&self) -> String {
+        if self.by_command > 0 {
+            format!(", {} placed by the commanded pose", self.by_command)
+        } else {
+            String::new()
+        }
     }
 }
 
@@ -172,8 +201,8 @@ impl CaptureStage {
                     Severity::Warning,
                     code,
                     format!(
-                        "{what} ({}) has held since capture {}: {} capture(s) to {}, at most {:.4}°",
-                        e.axis, e.first_idx, e.captures, e.last_idx, e.worst_deg
+                        "{what} ({}) has held since capture {}: {} capture(s) to {}, at most {:.4}°{}",
+                        e.axis, e.first_idx, e.captures, e.last_idx, e.worst_deg, e.by_command_note()
                     ),
                 )
                 .with(json!({
@@ -182,6 +211,7 @@ impl CaptureStage {
                     "first_idx": e.first_idx,
                     "last_idx": e.last_idx,
                     "worst_deg": e.worst_deg,
+                    "by_command": e.by_command,
                 }))
                 .advise(
                     &if code == "pose-off-plan" {
@@ -241,14 +271,17 @@ impl CaptureStage {
             angles: None,
             substitute: input.substitute,
             pose_error_deg: None,
+            by_command: false,
             gain_corrected: None,
         };
         if input.probe {
             self.probes += 1;
         }
-        let (measured, pose_err) = self.pose(ctx, input, nominal, alarms);
+        let placed = self.pose(ctx, input, nominal, alarms);
+        let (measured, pose_err) = (placed.incidence, placed.pose_err);
         rec.angles = Some(measured.angles());
         rec.pose_error_deg = Some(pose_err);
+        rec.by_command = placed.by_command;
 
         let stats = match &input.outcome {
             Outcome::Ok { stats, .. } => *stats,
@@ -283,6 +316,7 @@ impl CaptureStage {
             omega_i: measured.omega_i,
             omega_o: measured.omega_o,
             exact_pose: pose_err <= ctx.spec.pair_tolerance_deg,
+            by_command: placed.by_command,
             dark: xyz[1] <= ctx.spec.dark_y,
             substitute: input.substitute.is_some(),
         };
@@ -361,18 +395,28 @@ fn nominal(ctx: &Ctx, entry: usize, substitute: Option<f64>) -> Option<(Incidenc
 }
 
 impl CaptureStage {
-    /// The incidence measured from the encoders (the plan's when they are unusable), its
-    /// largest angle from the plan, and the pose alarms: off the plan, encoders against the
-    /// commands, each raised when it starts and cleared when it ends.
+    /// Where the capture is placed, its largest angle from the plan, whether it was placed by
+    /// the commanded pose, and the pose alarms: encoders against the commands, and the pose
+    /// off the plan, each raised when it starts and cleared when it ends.
+    ///
+    /// A capture is placed by its encoder pose (the plan's when that is unusable) unless every
+    /// encoder that disagrees with its command has done so by one steady offset for
+    /// `STEADY_CAPTURES` captures and the commanded pose is on the plan: then it is placed by
+    /// the commanded pose and flagged, since a constant offset is what a slipped or
+    /// mis-homed encoder gives while the arm still goes where it is told (a servo that stalls
+    /// moves the images too, which the image-based joint checks see). While an encoder
+    /// disagrees, the plan is judged against the commands: the disagreement is the
+    /// encoder-mismatch episode's, and one fault raises one alarm.
     fn pose(
         &mut self,
         ctx: &Ctx,
         input: &CaptureInput,
         nominal: Incidence,
         alarms: &mut Vec<Alarm>,
-    ) -> (Incidence, f64) {
+    ) -> Placed {
         let at = (Some(input.idx), Some(input.t));
-        let measured = match ctx.rig.forward(&Pose {
+        let mismatched = self.encoders(ctx, input, alarms);
+        let encoder = match ctx.rig.forward(&Pose {
             joints_deg: [input.enc[0], input.enc[1], input.enc[2]],
             wagon_deg: input.enc[3],
         }) {
@@ -397,23 +441,60 @@ impl CaptureStage {
                 nominal
             }
         };
-        let pose_err = angle_between(&measured.omega_i, &nominal.omega_i)
-            .max(angle_between(&measured.omega_o, &nominal.omega_o))
-            .to_degrees();
-        if pose_err > ctx.spec.pose_tolerance_deg {
+        let off_plan = |m: &Incidence| {
+            angle_between(&m.omega_i, &nominal.omega_i)
+                .max(angle_between(&m.omega_o, &nominal.omega_o))
+                .to_degrees()
+        };
+        let encoder_err = off_plan(&encoder);
+        let commanded = if mismatched {
+            ctx.rig
+                .forward(&Pose {
+                    joints_deg: [input.cmd[0], input.cmd[1], input.cmd[2]],
+                    wagon_deg: input.cmd[3],
+                })
+                .ok()
+                .map(|m| {
+                    let err = off_plan(&m);
+                    (m, err)
+                })
+        } else {
+            None
+        };
+        let judged_err = commanded.as_ref().map_or(encoder_err, |(_, err)| *err);
+        let placed = match commanded {
+            Some((m, err)) if err <= ctx.spec.pose_tolerance_deg && self.steady_offsets() => {
+                self.placed_by_command += 1;
+                for e in self.encoder_episodes.iter_mut().flatten() {
+                    e.by_command += 1;
+                }
+                Placed {
+                    incidence: m,
+                    pose_err: err,
+                    by_command: true,
+                }
+            }
+            _ => Placed {
+                incidence: encoder,
+                pose_err: encoder_err,
+                by_command: false,
+            },
+        };
+        if judged_err > ctx.spec.pose_tolerance_deg {
             self.off_plan += 1;
-            alarms.extend(Episode::note(&mut self.off_plan_episode, "pose", input.idx, pose_err, || {
+            let what = if mismatched { "commands" } else { "encoders" };
+            alarms.extend(Episode::note(&mut self.off_plan_episode, "pose", input.idx, judged_err, 0.0, || {
                 Alarm::new(
                     AlarmKind::Positioning,
                     Severity::Warning,
                     "pose-off-plan",
                     format!(
-                        "capture {}: the encoders put the lamp/camera {:.3}° from plan entry {} (tolerance {}°); further captures off the plan are counted until it clears",
-                        input.idx, pose_err, input.entry, ctx.spec.pose_tolerance_deg
+                        "capture {}: the {what} put the lamp/camera {:.3}° from plan entry {} (tolerance {}°); further captures off the plan are counted until it clears",
+                        input.idx, judged_err, input.entry, ctx.spec.pose_tolerance_deg
                     ),
                 )
                 .at(at.0, at.1)
-                .with(json!({"pose_error_deg": pose_err, "enc": input.enc, "cmd": input.cmd}))
+                .with(json!({"pose_error_deg": judged_err, "enc": input.enc, "cmd": input.cmd}))
                 .advise(
                     POSE_OFF_PLAN_ACTION,
                     Some(Affects::Since { from_idx: input.idx, handling: Handling::Retake }),
@@ -423,25 +504,34 @@ impl CaptureStage {
             alarms.extend(Episode::clear(
                 &mut self.off_plan_episode,
                 "pose-off-plan",
-                "the encoder pose off the plan",
+                "the pose off the plan",
                 input.idx,
                 input.t,
             ));
         }
+        placed
+    }
+
+    /// Every encoder against its command: each axis's mismatch episode noted, raised or
+    /// cleared. Whether any axis disagrees.
+    fn encoders(&mut self, ctx: &Ctx, input: &CaptureInput, alarms: &mut Vec<Alarm>) -> bool {
+        let at = (Some(input.idx), Some(input.t));
+        let tol = ctx.spec.encoder_tolerance_deg;
         let mut mismatched = false;
         for (k, name) in AXES.iter().copied().enumerate() {
-            let enc_err = (input.enc[k] - input.cmd[k]).abs();
+            let offset = input.enc[k] - input.cmd[k];
             let slot = &mut self.encoder_episodes[k];
-            if enc_err > ctx.spec.encoder_tolerance_deg {
+            // NaN readings count as disagreeing, and never as steady
+            if !(offset.abs() <= tol) {
                 mismatched = true;
-                alarms.extend(Episode::note(slot, name, input.idx, enc_err, || {
+                alarms.extend(Episode::note(slot, name, input.idx, offset.abs(), offset, || {
                     Alarm::new(
                         AlarmKind::Positioning,
                         Severity::Warning,
                         "encoder-mismatch",
                         format!(
-                            "capture {}: {name} encoder reads {:.4}° but {:.4}° was commanded (|Δ| {:.4}° > {}°); further mismatching captures are counted until it clears",
-                            input.idx, input.enc[k], input.cmd[k], enc_err, ctx.spec.encoder_tolerance_deg
+                            "capture {}: {name} encoder reads {:.4}° but {:.4}° was commanded (|Δ| {:.4}° > {tol}°); further mismatching captures are counted until it clears",
+                            input.idx, input.enc[k], input.cmd[k], offset.abs()
                         ),
                     )
                     .at(at.0, at.1)
@@ -451,6 +541,9 @@ impl CaptureStage {
                         Some(Affects::Since { from_idx: input.idx, handling: Handling::Inspect }),
                     )
                 }));
+                if let Some(e) = slot {
+                    e.steady &= (offset - e.first_offset).abs() <= tol;
+                }
             } else {
                 alarms.extend(Episode::clear(
                     slot,
@@ -464,8 +557,24 @@ impl CaptureStage {
         if mismatched {
             self.encoder_mismatch += 1;
         }
-        (measured, pose_err)
+        mismatched
     }
+
+    /// Whether every encoder episode in progress has held one offset (within the encoder
+    /// tolerance of its first) for at least `STEADY_CAPTURES` captures.
+    fn steady_offsets(&self) -> bool {
+        let mut open = self.encoder_episodes.iter().flatten().peekable();
+        open.peek().is_some() && open.all(|e| e.steady && e.captures >= STEADY_CAPTURES)
+    }
+}
+
+/// Where the pose stage placed a capture.
+struct Placed {
+    incidence: Incidence,
+    /// Its largest angle from the plan (degrees).
+    pose_err: f64,
+    /// Placed by the commanded pose (a steady encoder offset), not by the encoders.
+    by_command: bool,
 }
 
 /// The quality alarms of a usable capture: non-finite, clipped and dark pixels.

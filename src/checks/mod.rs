@@ -128,6 +128,8 @@ struct Checked {
     omega_i: Vec3,
     omega_o: Vec3,
     exact_pose: bool,
+    /// Placed by the commanded pose (a steady encoder offset).
+    by_command: bool,
     dark: bool,
     substitute: bool,
 }
@@ -816,6 +818,7 @@ impl Checker {
             drift_interpolated: self.drift.as_ref().map_or(0, |d| d.interpolated),
             pose_off_plan: c.off_plan,
             encoder_mismatch: c.encoder_mismatch,
+            placed_by_command: c.placed_by_command,
             alarms: self.alarms,
         }
     }

@@ -221,6 +221,7 @@ fn score_pair(
         xyz_a: None,
         xyz_b: None,
         diff: None,
+        by_command: first.by_command || second.by_command,
         interpolated: None,
     };
     if let Ok(r) = pair_residual(
@@ -285,6 +286,7 @@ fn score_interpolated(
         xyz_a: None,
         xyz_b: None,
         diff: None,
+        by_command: c.by_command,
         interpolated: None,
     };
     let mut info = Interpolation {

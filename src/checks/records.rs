@@ -124,12 +124,17 @@ pub struct CaptureRecord {
     pub nonfinite: Option<u64>,
     pub clipped: Option<u64>,
     pub negative: Option<u64>,
-    /// Angles measured from the encoder pose.
+    /// Angles of the pose the capture was placed by: the encoder pose, or the commanded pose
+    /// when `by_command`.
     pub angles: Option<Angles>,
     /// θi the rig used instead of the plan's (occlusion substitute).
     pub substitute: Option<f64>,
-    /// Largest angle between a measured and a planned direction (degrees).
+    /// Largest angle between a placed and a planned direction (degrees).
     pub pose_error_deg: Option<f64>,
+    /// Placed by the commanded pose: its encoders disagreed with the commands by a steady
+    /// offset while the commands were on the plan (`checks::capture`).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub by_command: bool,
     /// The XYZ with the gain drift known at check time divided out, when there is an estimate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gain_corrected: Option<GainCorrected>,
@@ -167,6 +172,10 @@ pub struct PairRecord {
     pub xyz_a: Option<Xyz>,
     pub xyz_b: Option<Xyz>,
     pub diff: Option<ColourDifference>,
+    /// Either capture was placed by the commanded pose, not by its encoders: the pair holds
+    /// only if the arm went where it was told.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub by_command: bool,
     /// For an `interpolated` (or `unresolved`) pair: how the partner was made.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub interpolated: Option<Interpolation>,
@@ -270,6 +279,9 @@ pub struct CheckCounts {
     pub pose_off_plan: u64,
     #[serde(default, skip_serializing_if = "is_zero")]
     pub encoder_mismatch: u64,
+    /// Captures placed by the commanded pose during a steady encoder offset.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub placed_by_command: u64,
     pub alarms: u64,
 }
 

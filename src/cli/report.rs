@@ -546,8 +546,60 @@ fn end_hours(inp: &ReportInputs) -> f64 {
         .max(0.1)
 }
 
-/// The light sweeps: each sweep's fitted offset of joints 1 and 2 (± 1 SE) and its gain level
-/// against the earlier sweeps, over controller time, with the drift and positioning alarms.
+/// Which alarms a time plot of the light sweeps marks.
+fn sweep_ticked(a: &Alarm) -> bool {
+    matches!(
+        a.code.as_str(),
+        "joint-offset-suspected" | "gain-step" | "gain-drift" | "encoder-mismatch"
+    )
+}
+
+/// The light sweeps' gain level less what the sweep's θ layer predicts (± 2 SE), over
+/// controller time, with the drift and positioning alarms.
+fn sweep_levels_plot(inp: &ReportInputs) -> String {
+    let t_end = end_hours(inp);
+    let (mut lo, mut hi): (f64, f64) = (-0.5, 0.5);
+    let level = |r: &SweepRecord| r.level_pct - r.level_expected_pct;
+    for r in &inp.sweeps {
+        lo = lo.min(level(r) - 2.0 * r.level_se_pct);
+        hi = hi.max(level(r) + 2.0 * r.level_se_pct);
+    }
+    let (lo, hi) = (lo.max(-10.0), hi.min(10.0));
+    let mut p = Plot::new(
+        720.0,
+        200.0,
+        (0.0, t_end),
+        (lo, hi),
+        "controller time [h]",
+        "level − layer's prediction [%]",
+    );
+    let z = p.sy(0.0);
+    let _ = write!(
+        p.svg,
+        r##"<line x1="{:.1}" y1="{z:.1}" x2="{:.1}" y2="{z:.1}" stroke="#8a96a3" stroke-dasharray="4 3"/>"##,
+        p.sx(0.0),
+        p.sx(t_end)
+    );
+    for r in &inp.sweeps {
+        let v = level(r);
+        let x = p.sx(r.t / 3600.0);
+        let (y, ya, yb) = (
+            p.sy(v.clamp(lo, hi)),
+            p.sy((v - 2.0 * r.level_se_pct).clamp(lo, hi)),
+            p.sy((v + 2.0 * r.level_se_pct).clamp(lo, hi)),
+        );
+        let _ = write!(
+            p.svg,
+            r##"<line x1="{x:.1}" y1="{ya:.1}" x2="{x:.1}" y2="{yb:.1}" stroke="#1f5fa8" stroke-opacity="0.5"/><circle cx="{x:.1}" cy="{y:.1}" r="2.5" fill="#1f5fa8"><title>light {}: {v:+.2} % ± {:.2} against the layer's prediction {:+.2} %</title></circle>"##,
+            r.light, r.level_se_pct, r.level_expected_pct
+        );
+    }
+    alarm_ticks(&mut p, inp.alarms.iter().filter(|a| sweep_ticked(a)));
+    p.finish()
+}
+
+/// The light sweeps: each sweep's fitted offset of joints 1 and 2 (± 1 SE), over controller
+/// time, with the drift and positioning alarms.
 fn sweeps_plot(inp: &ReportInputs) -> String {
     let t_end = end_hours(inp);
     let mut lo: f64 = -0.5;
@@ -592,15 +644,7 @@ fn sweeps_plot(inp: &ReportInputs) -> String {
             );
         }
     }
-    alarm_ticks(
-        &mut p,
-        inp.alarms.iter().filter(|a| {
-            matches!(
-                a.code.as_str(),
-                "joint-offset-suspected" | "gain-step" | "gain-drift" | "encoder-mismatch"
-            )
-        }),
-    );
+    alarm_ticks(&mut p, inp.alarms.iter().filter(|a| sweep_ticked(a)));
     p.finish()
 }
 
@@ -799,9 +843,10 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
 
     if !inp.sweeps.is_empty() {
         let last = inp.sweeps.last();
-        let _ = write!(h, "<h2>Light sweeps</h2><p>{} completed light directions were each compared with the earlier ones (isotropy classes; ARCHITECTURE.md). A slipped arm joint shows as a run of sweeps whose fitted offset (dots ± 1 standard error; blue joint 1, orange joint 2) leaves zero; the estimates are biased towards zero, so read them as a lower bound. Joint 3 cannot be seen on an isotropic sample. Ticks are drift and positioning alarms. The last sweep's gain level against the earlier ones: {}. sweeps.csv has every sweep.</p>",
+        let _ = write!(h, "<h2>Light sweeps</h2><p>{} completed light directions were each compared with the earlier ones (isotropy classes; ARCHITECTURE.md). The first plot is each sweep's gain level less what its θ layer's earlier lights predict (± 2 standard errors): a lamp step moves every later sweep. In the second, a slipped arm joint shows as a run of sweeps whose fitted offset (dots ± 1 standard error; blue joint 1, orange joint 2) leaves zero; the estimates are biased towards zero, so read them as a lower bound. Joint 3 cannot be seen on an isotropic sample. Ticks are drift and positioning alarms. The last sweep's gain level against the earlier ones: {}. sweeps.csv has every sweep.</p>",
             inp.sweeps.len(),
             last.map(|r| format!("{:+.2} % ± {:.2}", r.level_pct, r.level_se_pct)).unwrap_or_default());
+        h.push_str(&sweep_levels_plot(inp));
         h.push_str(&sweeps_plot(inp));
     }
 
@@ -961,12 +1006,12 @@ fn csv_table<T: CsvRow>(records: &[T]) -> String {
 }
 
 impl CsvRow for CaptureRecord {
-    const HEADER: &'static str = "idx,entry,light,camera,probe,t_s,status,theta_i,phi_i,theta_o,phi_o,R,G,B,X,Y,Z,L,a,b,pixels,nonfinite,clipped,pose_error_deg,substitute_theta_i,X_gain_corrected,Y_gain_corrected,Z_gain_corrected,gain,gain_sigma_rel,gain_source,error";
+    const HEADER: &'static str = "idx,entry,light,camera,probe,t_s,status,theta_i,phi_i,theta_o,phi_o,R,G,B,X,Y,Z,L,a,b,pixels,nonfinite,clipped,pose_error_deg,by_command,substitute_theta_i,X_gain_corrected,Y_gain_corrected,Z_gain_corrected,gain,gain_sigma_rel,gain_source,error";
     fn row(&self) -> String {
         let c = self;
         let a = c.angles;
         format!(
-        "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
         c.idx,
         c.entry,
         c.light,
@@ -991,6 +1036,7 @@ impl CsvRow for CaptureRecord {
         opt(c.nonfinite),
         opt(c.clipped),
         opt(c.pose_error_deg),
+        c.by_command,
         opt(c.substitute),
         opt(c.gain_corrected.as_ref().map(|g| g.xyz[0])),
         opt(c.gain_corrected.as_ref().map(|g| g.xyz[1])),
@@ -1004,12 +1050,12 @@ impl CsvRow for CaptureRecord {
 }
 
 impl CsvRow for PairRecord {
-    const HEADER: &'static str = "a,b,entry_a,entry_b,status,t_s,mismatch_deg,abs_dX,abs_dY,abs_dZ,dE76,dC,dH,dE00,sigma_dE00";
+    const HEADER: &'static str = "a,b,entry_a,entry_b,status,t_s,mismatch_deg,abs_dX,abs_dY,abs_dZ,dE76,dC,dH,dE00,sigma_dE00,by_command";
     fn row(&self) -> String {
         let p = self;
         let d = p.diff;
         format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             p.a,
             p.b,
             p.entries[0],
@@ -1024,7 +1070,8 @@ impl CsvRow for PairRecord {
             opt(d.map(|d| d.dc)),
             opt(d.map(|d| d.dh)),
             opt(d.map(|d| d.de2000)),
-            opt(p.interpolated.as_ref().and_then(|i| i.sigma_de2000))
+            opt(p.interpolated.as_ref().and_then(|i| i.sigma_de2000)),
+            p.by_command
         )
     }
 }

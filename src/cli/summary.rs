@@ -32,8 +32,8 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
     if s.checked.pose_off_plan + s.checked.encoder_mismatch > 0 {
         writeln!(
             out,
-            "pose: {} captures off the plan, {} with encoders disagreeing with the commands",
-            s.checked.pose_off_plan, s.checked.encoder_mismatch
+            "pose: {} captures off the plan, {} with encoders disagreeing with the commands ({} of them placed by the commanded pose)",
+            s.checked.pose_off_plan, s.checked.encoder_mismatch, s.checked.placed_by_command
         )?;
     }
     writeln!(out, "Table 2 (means over exact reciprocal pairs):")?;

@@ -9,6 +9,7 @@ use crate::checks::{CaptureRecord, PairRecord};
 use crate::engine::{Output, Summary};
 use crate::measure::alarm::Alarm;
 use crate::measure::plan::SamplingPlan;
+use crate::measure::sweeps::SweepRecord;
 use serde::Serialize;
 use std::collections::VecDeque;
 use std::path::Path;
@@ -46,6 +47,19 @@ pub struct ColourPoint {
     pub se_k_per_h: f64,
 }
 
+/// A completed light sweep: its level against what its layer's pattern predicts, and the
+/// fitted offsets of joints 1 and 2.
+#[derive(Debug, Clone, Serialize)]
+pub struct SweepPoint {
+    pub t_h: f64,
+    pub light: usize,
+    /// The sweep's gain level less the layer's prediction (%), and its standard error.
+    pub level_pct: f64,
+    pub level_se_pct: f64,
+    /// (joint, offset °, standard error °) per fitted joint.
+    pub joints: Vec<(usize, f64, f64)>,
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct GainPoint {
     pub t_h: f64,
@@ -76,6 +90,7 @@ pub struct Snapshot {
     pub drift: Vec<DriftPoint>,
     pub colour: Vec<ColourPoint>,
     pub gain: Vec<GainPoint>,
+    pub sweeps: Vec<SweepPoint>,
 }
 
 /// The aggregator.
@@ -89,6 +104,7 @@ pub(crate) struct StatusModel {
     drift: Vec<DriftPoint>,
     colour: Vec<ColourPoint>,
     gain: Vec<GainPoint>,
+    sweeps: Vec<SweepPoint>,
     last_t: f64,
     last_drift_n: usize,
     last_colour_n: usize,
@@ -117,6 +133,7 @@ impl StatusModel {
             drift: Vec::new(),
             colour: Vec::new(),
             gain: Vec::new(),
+            sweeps: Vec::new(),
             last_t: 0.0,
             last_drift_n: 0,
             last_colour_n: 0,
@@ -139,6 +156,21 @@ impl StatusModel {
         });
         each(&dir.join("pairs.jsonl"), |p: PairRecord| self.pair(&p));
         each(&dir.join("alarms.jsonl"), |a: Alarm| self.alarm(&a));
+        each(&dir.join("sweeps.jsonl"), |r: SweepRecord| self.sweep(&r));
+    }
+
+    fn sweep(&mut self, r: &SweepRecord) {
+        self.sweeps.push(SweepPoint {
+            t_h: r.t / 3600.0,
+            light: r.light,
+            level_pct: r.level_pct - r.level_expected_pct,
+            level_se_pct: r.level_se_pct,
+            joints: r
+                .joints
+                .iter()
+                .map(|j| (j.joint, j.offset_deg, j.se_deg))
+                .collect(),
+        });
     }
 
     fn capture(&mut self, c: &CaptureRecord) {
@@ -181,7 +213,14 @@ impl StatusModel {
             Output::Capture(c) => self.capture(c),
             Output::Pair(p) => self.pair(p),
             Output::Alarm(a) => self.alarm(a),
-            _ => {}
+            Output::Sweep(r) => self.sweep(r),
+            Output::Send(_)
+            | Output::Ingest { .. }
+            | Output::Isotropy(_)
+            | Output::Manifest(_)
+            | Output::ProbePose(_)
+            | Output::SentinelPose(_)
+            | Output::Finished => {}
         }
     }
 
@@ -251,6 +290,7 @@ impl StatusModel {
             drift: self.drift.clone(),
             colour: self.colour.clone(),
             gain: self.gain.clone(),
+            sweeps: self.sweeps.clone(),
         }
     }
 }
@@ -480,6 +520,7 @@ mod tests {
             angles: None,
             substitute: None,
             pose_error_deg: None,
+            by_command: false,
             gain_corrected: None,
         }
     }
@@ -510,6 +551,12 @@ mod tests {
             )
             .at(Some(7), Some(49.0)),
         ));
+        // a completed light sweep 0.3 % above its layer's prediction, joint 2 fitted at +0.4°
+        let sweep: SweepRecord = serde_json::from_str(
+            r#"{"light":1,"idx":161,"t":1134.0,"captures":60,"level_pct":0.5,"level_expected_pct":0.2,"level_se_pct":0.1,"level_z":null,"level_cusum":0.0,"joints":[{"joint":2,"offset_deg":0.4,"se_deg":0.1,"z":null,"cusum":0.0}],"residual_sd":0.0,"thresholds":[3.2,3.5],"model_layers":1,"model_builds":1}"#,
+        )
+        .unwrap();
+        outputs.push(Output::Sweep(sweep));
         for o in &outputs {
             m.record(o);
         }
@@ -525,6 +572,10 @@ mod tests {
         assert_eq!(s.gain.len(), 1);
         assert!((s.gain[0].gain - 0.98).abs() < 1e-12);
         assert_eq!(s.alarms.len(), 1);
+        assert_eq!(s.sweeps.len(), 1);
+        assert!((s.sweeps[0].level_pct - 0.3).abs() < 1e-12);
+        assert_eq!(s.sweeps[0].joints, [(2, 0.4, 0.1)]);
+        assert!((s.sweeps[0].t_h - 0.315).abs() < 1e-12);
         assert!(s.rate_per_h.is_none(), "no rate from one sample");
         summary.checked.captures = 201;
         let s2 = m.snapshot(&summary, 10.0);
@@ -535,13 +586,16 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let mut caps = String::new();
         let mut alarms = String::new();
+        let mut sweeps = String::new();
         for o in &outputs {
             match o {
                 Output::Capture(c) => caps += &(serde_json::to_string(c).unwrap() + "\n"),
                 Output::Alarm(a) => alarms += &(serde_json::to_string(a).unwrap() + "\n"),
+                Output::Sweep(r) => sweeps += &(serde_json::to_string(r).unwrap() + "\n"),
                 _ => {}
             }
         }
+        std::fs::write(dir.join("sweeps.jsonl"), sweeps).unwrap();
         std::fs::write(dir.join("captures.jsonl"), caps).unwrap();
         std::fs::write(dir.join("alarms.jsonl"), alarms + "{torn line").unwrap();
         let mut r = StatusModel::new(&plan, 0.5);
@@ -550,6 +604,7 @@ mod tests {
         assert_eq!(s3.done_per_light, s.done_per_light);
         assert_eq!(s3.alarms.len(), 1);
         assert_eq!(s3.gain.len(), 1);
+        assert_eq!(s3.sweeps.len(), 1);
         let _ = std::fs::remove_dir_all(&dir);
 
         let text = metrics(&s2);
