@@ -45,6 +45,12 @@ SCENARIOS = [
     ("step −3 % early in the 75° layer", [{"kind": "lamp-step", "at_capture": 5200, "step_pct": -3.0}], ("step", 5200, None)),
     ("step −1.5 % late in the 75° layer", [{"kind": "lamp-step", "at_capture": 5900, "step_pct": -1.5}], ("step", 5900, None)),
 ] + [
+    # a lamp decay with a joint slip part-way: the rate must survive the slip
+    (f"decay 0.5 %/h with joint {j} +1° at mid-run",
+     [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 0.5}, {"kind": "joint-offset", "at_capture": 3280, "joint": j, "offset_deg": 1.0}],
+     ("rate", 0, 0.5))
+    for j in (1, 2)
+] + [
     # an encoder reading off while the arm goes where it is told: one episode, no drift or
     # joint alarm, and the pairs kept exact by the commanded pose (joint 4 is the wagon)
     (f"encoder {n} +{o}° at mid-run", [{"kind": "encoder-mismatch", "at_capture": 3280, "joint": j, "offset_deg": o}], ("encoder", 3280, j))

@@ -643,21 +643,36 @@ impl DriftDetector {
                 e.2 += wi * o.d;
                 e.3 += 1;
             }
-            let mut a = DMatrix::<f64>::zeros(n, p);
-            let mut b = DVector::<f64>::zeros(n);
-            for (i, ((o, x), wi)) in self.obs.iter().zip(&rows).zip(&w).enumerate() {
+            // the normal equations of the centred, weighted design, accumulated row by row:
+            // p is at most a few columns, so this costs O(n·p²) without an n × p matrix
+            let mut ata = DMatrix::<f64>::zeros(p, p);
+            let mut atb = DVector::<f64>::zeros(p);
+            let mut xc = vec![0.0; p];
+            for ((o, x), wi) in self.obs.iter().zip(&rows).zip(&w) {
                 let (sw, sx, sy, _) = &acc[&o.bucket];
                 if !(*sw > 0.0) {
                     continue;
                 }
-                let r = wi.sqrt();
                 for j in 0..p {
-                    a[(i, j)] = r * (x[j] - sx[j] / sw);
+                    xc[j] = x[j] - sx[j] / sw;
                 }
-                b[i] = r * (o.d - sy / sw);
+                let yc = o.d - sy / sw;
+                for j in 0..p {
+                    atb[j] += wi * xc[j] * yc;
+                    for l in 0..=j {
+                        ata[(j, l)] += wi * xc[j] * xc[l];
+                    }
+                }
             }
-            let svd = a.clone().svd(true, true);
-            coef = svd.solve(&b, 1e-12).ok()?;
+            for j in 0..p {
+                for l in 0..j {
+                    ata[(l, j)] = ata[(j, l)];
+                }
+            }
+            // a step no pair spans yet has a zero column: the pseudo-inverse leaves its
+            // coefficient at zero and its variance out
+            let pinv = ata.clone().pseudo_inverse(1e-12).ok()?;
+            coef = &pinv * &atb;
             if !coef.iter().all(|c| c.is_finite()) {
                 return None;
             }
@@ -677,13 +692,7 @@ impl DriftDetector {
             scale = huber_reweight(&res, &self.obs, &mut w);
             let dof = (n as f64 - beta.len() as f64 - p as f64).max(1.0);
             let sse: f64 = res.iter().zip(&w).map(|(e, wi)| wi * e * e).sum();
-            let ata = a.transpose() * &a;
-            // a step no pair spans yet has a zero column: its variance is left infinite
-            cov = ata
-                .clone()
-                .pseudo_inverse(1e-12)
-                .ok()?
-                .map(|v| v * sse / dof);
+            cov = pinv.map(|v| v * sse / dof);
             if mount {
                 // the rate's variance with the light's two mount columns left out
                 let keep: Vec<usize> = (0..p).filter(|&j| j != 1 + k && j != 2 + k).collect();
