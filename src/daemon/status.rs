@@ -387,6 +387,21 @@ pub fn metrics(s: &Snapshot) -> String {
         "Controller reboots seen.",
         s.summary.link.reboots as f64,
     );
+    g(
+        "captures_encoder_mismatch",
+        "Captures whose encoders disagreed with the commanded pose.",
+        s.summary.checked.encoder_mismatch as f64,
+    );
+    g(
+        "captures_placed_by_command",
+        "Of those, captures placed by the commanded pose (a steady encoder offset).",
+        s.summary.checked.placed_by_command as f64,
+    );
+    g(
+        "captures_pose_off_plan",
+        "Captures whose pose was off the plan.",
+        s.summary.checked.pose_off_plan as f64,
+    );
     if let Some(r) = s.rate_per_h {
         g(
             "rate_captures_per_hour",
@@ -447,11 +462,26 @@ pub fn metrics(s: &Snapshot) -> String {
                 "The last light sweep's gain level against the earlier ones (%).",
                 r.level_pct,
             );
+            g(
+                "sweep_level_expected_pct",
+                "The level its θ layer's earlier lights predict for it (%); the step test judges the difference.",
+                r.level_expected_pct,
+            );
+            g(
+                "sweep_level_se_pct",
+                "Standard error of the last sweep's level (%).",
+                r.level_se_pct,
+            );
             for j in &r.joints {
                 g(
                     &format!("sweep_joint{}_offset_deg", j.joint),
                     "The last light sweep's fitted offset of this arm joint (degrees; biased towards zero).",
                     j.offset_deg,
+                );
+                g(
+                    &format!("sweep_joint{}_se_deg", j.joint),
+                    "Standard error of that offset (degrees).",
+                    j.se_deg,
                 );
             }
         }
@@ -609,7 +639,8 @@ mod tests {
 
         let text = metrics(&s2);
         assert!(
-            text.contains("goniowatch_captures_remaining 6361\n"),
+            text.contains("goniowatch_captures_remaining 6361\n")
+                && text.contains("goniowatch_captures_placed_by_command 0\n"),
             "{text}"
         );
         assert!(text.contains("# TYPE goniowatch_rate_captures_per_hour gauge"));
@@ -652,6 +683,11 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("goniowatch_sweep_level_pct -0.4\n"), "{text}");
+        assert!(text.contains("goniowatch_sweep_joint2_se_deg "), "{text}");
+        assert!(
+            text.contains("goniowatch_sweep_level_expected_pct "),
+            "{text}"
+        );
 
         // the probes' scatter and the joint-3 sentinel, when they run
         let mut s5 = s2.clone();
