@@ -333,6 +333,18 @@ impl DriftStage {
         self.detector.add_step(t_s / 3600.0);
     }
 
+    /// A joint slip named by the light sweeps, from `t_s` on: later pairs leave the gain fit
+    /// (`DriftDetector::add_pose_break`). The colour fits keep them: a tilt changes the
+    /// luminance of a geometry, hardly its chromaticity ratios.
+    pub(super) fn add_pose_break(&mut self, t_s: f64) {
+        self.detector.add_pose_break(t_s / 3600.0);
+    }
+
+    /// Pairs left out of the gain fit after a named joint slip.
+    pub(super) fn left_out(&self) -> usize {
+        self.detector.left_out
+    }
+
     /// An interpolated pair in the fit: the substitute against its partner interpolated at the
     /// mirrored pose, timed at the mean time of the partner light's captures, in a bucket of its
     /// own per (θ light, θ camera) so that the pair's stationary non-reciprocity is a fixed

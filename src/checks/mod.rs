@@ -677,8 +677,13 @@ impl Checker {
             let mount = self.drift.as_ref().and_then(|d| d.mount());
             let gain = self.drift.as_ref().and_then(|d| d.gain_path());
             let o = sweeps.light_complete(light, level_test, mount.as_ref(), gain.as_ref());
-            if let (Some(drift), Some(t)) = (self.drift.as_mut(), o.step_at_s) {
-                drift.add_step(t);
+            if let Some(drift) = self.drift.as_mut() {
+                if let Some(t) = o.step_at_s {
+                    drift.add_step(t);
+                }
+                if let Some(t) = o.slip_at_s {
+                    drift.add_pose_break(t);
+                }
             }
             out.sweeps.extend(o.record);
             out.alarms.extend(o.alarms);
@@ -816,6 +821,7 @@ impl Checker {
             pairs_unresolved: p.unresolved,
             isotropy_comparisons: self.isotropy.as_ref().map_or(0, |i| i.comparisons),
             drift_interpolated: self.drift.as_ref().map_or(0, |d| d.interpolated),
+            drift_left_out_slip: self.drift.as_ref().map_or(0, |d| d.left_out() as u64),
             pose_off_plan: c.off_plan,
             encoder_mismatch: c.encoder_mismatch,
             placed_by_command: c.placed_by_command,

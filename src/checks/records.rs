@@ -273,6 +273,10 @@ pub struct CheckCounts {
     /// Interpolated pairs fed to the isotropy drift fit (weighted by their spread).
     #[serde(default)]
     pub drift_interpolated: u64,
+    /// Pairs left out of the isotropy drift fit because their later capture comes after a
+    /// named joint slip (the tilt moves the members of a class differently).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub drift_left_out_slip: u64,
     /// Captures whose encoders put them off the plan, and whose encoders disagreed with the
     /// commanded pose (their alarms are raised once per episode).
     #[serde(default, skip_serializing_if = "is_zero")]

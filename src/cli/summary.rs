@@ -69,6 +69,13 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
             "gain drift from isotropy classes: {:+.3} %/h ± {:.3} (standard error, {} comparisons)",
             d.rate_pct_per_h, d.se_pct_per_h, d.pairs
         )?;
+        if s.checked.drift_left_out_slip > 0 {
+            writeln!(
+                out,
+                "  {} comparisons after the named joint slip left out (the tilt moves the members of a class differently); the rate is the one learnt before it",
+                s.checked.drift_left_out_slip
+            )?;
+        }
         if let Some(m) = &s.sample_off_centre {
             let ((cam, cam_az), (light, light_az)) = (m.camera_pct(), m.light_pct());
             writeln!(

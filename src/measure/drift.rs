@@ -344,6 +344,11 @@ pub(crate) struct DriftDetector {
     /// Whether the light's half of the pattern has been told apart from the rate (latched);
     /// until then the rate is not alarmed.
     light_separated: bool,
+    /// The first time (hours) from which the pose is known to have changed (a named joint
+    /// slip): pairs whose later capture is at or after it are left out of the model.
+    pose_break: Option<f64>,
+    /// Pairs left out for that.
+    pub(crate) left_out: usize,
 }
 
 impl DriftDetector {
@@ -364,6 +369,30 @@ impl DriftDetector {
             step_effects: Vec::new(),
             mount: None,
             light_separated: false,
+            pose_break: None,
+            left_out: 0,
+        }
+    }
+
+    /// The pose changed at `t_h` (hours; a named joint slip, placed at the start of the light
+    /// sweep before the first that showed it): pairs whose later capture comes at or after it
+    /// are taken out of the model, now and as they come. Not only the pairs across the slip
+    /// carry it: two members of an isotropy class sit at different absolute azimuths, which a
+    /// tilt moves differently, so pairs wholly after it do too. The model keeps the drift it
+    /// had learnt before the slip (its rate and steps extrapolate) until the session ends; the
+    /// light sweeps still watch the gain's level. An earlier break than the one held moves it.
+    pub(crate) fn add_pose_break(&mut self, t_h: f64) {
+        if !t_h.is_finite() || self.pose_break.is_some_and(|t| t <= t_h) {
+            return;
+        }
+        self.pose_break = Some(t_h);
+        let before = self.obs.len();
+        self.obs.retain(|o| o.t_b_h < t_h);
+        self.left_out += before - self.obs.len();
+        if self.obs.len() >= self.spec.min_pairs {
+            if let Some(est) = self.fit() {
+                self.estimate = Some(est);
+            }
         }
     }
 
@@ -425,6 +454,10 @@ impl DriftDetector {
             && o.sigma.is_finite()
             && o.sigma >= 0.0)
         {
+            return ev;
+        }
+        if self.pose_break.is_some_and(|tau| o.t_b_h >= tau) {
+            self.left_out += 1;
             return ev;
         }
         // CUSUM on the standardized residual of the new pair against the current fit
@@ -891,6 +924,57 @@ mod tests {
             (a.0 - b.0).abs() < 1e-12 && (a.1 / b.1 - 1.0).abs() < 1e-3,
             "{a:?} {b:?}"
         );
+    }
+
+    #[test]
+    fn a_pose_break_keeps_a_slips_pattern_out_of_the_rate() {
+        // −0.5 %/h; from 6.5 h a tilt moves each bucket's later member by its own amount that
+        // grows with the pair's time difference (members at other azimuths move differently)
+        let fit = |break_at: Option<f64>, at_pair: usize| {
+            let mut s = Lcg(11);
+            let mut det = DriftDetector::new(DriftSpec {
+                refit_every: 500,
+                min_pairs: 100,
+                step_detection: false,
+                ..DriftSpec::default()
+            });
+            for i in 0..3000 {
+                if i == at_pair {
+                    if let Some(t) = break_at {
+                        det.add_pose_break(t);
+                    }
+                }
+                let t_b = 13.0 * (i as f64 + 1.0) / 3000.0;
+                let t_a = t_b * s.uniform();
+                let tilt = if t_b >= 6.5 { 0.004 * (t_b - t_a) } else { 0.0 };
+                det.add(PairObservation {
+                    t_a_h: t_a,
+                    t_b_h: t_b,
+                    d: -0.005 * (t_b - t_a) + tilt + 0.005 * s.gauss(),
+                    bucket: ((i % 5) as i64, 0),
+                    sigma: 0.0,
+                    mount: [0.0; 4],
+                });
+            }
+            det
+        };
+        let rate = |d: &DriftDetector| d.estimate().unwrap().rate_pct_per_h;
+        let blind = fit(None, 0);
+        assert!((rate(&blind) + 0.5).abs() > 0.1, "{}", rate(&blind));
+        // named late (two thirds in): the pairs already taken after the break leave as well
+        let told = fit(Some(6.4), 2000);
+        assert!((rate(&told) + 0.5).abs() < 0.02, "{}", rate(&told));
+        assert_eq!(told.left_out, 3000 - 1476);
+        assert_eq!(told.estimate().unwrap().pairs, 1476);
+        // a later break than the one held changes nothing; an earlier one moves it
+        let mut again = fit(Some(6.4), 2000);
+        again.add_pose_break(9.0);
+        assert_eq!(again.left_out, told.left_out);
+        again.add_pose_break(f64::NAN);
+        assert_eq!(again.left_out, told.left_out);
+        again.add_pose_break(6.0);
+        assert!(again.left_out > told.left_out);
+        assert!((rate(&again) + 0.5).abs() < 0.02, "{}", rate(&again));
     }
 
     #[test]

@@ -274,6 +274,9 @@ pub(crate) struct SweepOutcome {
     /// A gain step alarmed in this sweep, placed at the first capture of the sweep where its
     /// CUSUM run began (controller seconds).
     pub step_at_s: Option<f64>,
+    /// A joint slip named in this sweep, placed at the first capture of the sweep before the
+    /// first that showed it, as the retake list places it (controller seconds).
+    pub slip_at_s: Option<f64>,
 }
 
 /// The light-sweep checks in the session summary.
@@ -429,6 +432,16 @@ impl SweepMonitor {
             .filter(|s| s.last_idx < first)
             .max_by_key(|s| s.last_idx)
             .map_or(first, |s| s.first_idx)
+    }
+
+    /// Controller time of `slip_first_idx(last_idx)` (seconds).
+    fn slip_first_t(&self, last_idx: u64) -> Option<f64> {
+        let first = self.slip_first_idx(last_idx);
+        self.sweep_starts
+            .iter()
+            .find(|s| s.first_idx == first)
+            .map(|s| s.first_t)
+            .filter(|t| t.is_finite())
     }
 
     pub(crate) fn summary(&self) -> SweepSummary {
@@ -641,7 +654,8 @@ impl SweepMonitor {
         } else {
             LevelStep::default()
         };
-        self.test_joints(&sweep, &pattern, level_step.alarmed, &mut rec, &mut alarms);
+        let slip_at_s =
+            self.test_joints(&sweep, &pattern, level_step.alarmed, &mut rec, &mut alarms);
         rec.model_layers = self
             .model
             .as_ref()
@@ -654,6 +668,7 @@ impl SweepMonitor {
             record: Some(rec),
             alarms,
             step_at_s: level_step.at_s,
+            slip_at_s,
         }
     }
 
@@ -968,7 +983,7 @@ impl SweepMonitor {
     /// joint with the larger statistic (one positioning alarm per θi layer). A sweep whose level
     /// stepped (`level_alarmed`: a lamp step part-way through it looks like a pattern across its
     /// cameras) raises no positioning alarm; the CUSUMs carry on, so a real offset is named at
-    /// the next sweep.
+    /// the next sweep. When it names a joint: the time the slip is placed at (seconds).
     fn test_joints(
         &mut self,
         sweep: &Sweep,
@@ -976,7 +991,7 @@ impl SweepMonitor {
         level_alarmed: bool,
         rec: &mut SweepRecord,
         alarms: &mut Vec<Alarm>,
-    ) {
+    ) -> Option<f64> {
         let (k, clip) = (self.spec.cusum_k, self.spec.clip);
         let mut crossing: Option<JointCrossing> = None;
         for j in 0..2 {
@@ -1028,9 +1043,11 @@ impl SweepMonitor {
         let crossing = if level_alarmed { None } else { crossing };
         // a crossing in a layer that already has its positioning alarm restarts the CUSUMs
         // without a second alarm (the operator has it; the next layer may raise one again)
+        let mut slip_at_s = None;
         if let Some(x) = &crossing {
             if self.latched.insert(Latch::Joint { layer: sweep.layer }) {
                 alarms.push(self.joint_alarm(sweep, x, rec));
+                slip_at_s = self.slip_first_t(x.since);
             }
             for c in self.joint_cusum.iter_mut() {
                 c.reset();
@@ -1044,6 +1061,7 @@ impl SweepMonitor {
             let active = f.z.is_some() && self.joint_cusum[j].max() > 0.0;
             self.joint_history[j].record(f.offset_deg, active, crossing.is_some());
         }
+        slip_at_s
     }
 
     fn joint_alarm(&self, sweep: &Sweep, x: &JointCrossing, rec: &SweepRecord) -> Alarm {
