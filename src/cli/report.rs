@@ -546,6 +546,19 @@ fn end_hours(inp: &ReportInputs) -> f64 {
         .max(0.1)
 }
 
+/// A plot over controller time (hours, from 0 to `t_end`), with a dashed line at y = 0.
+fn time_plot(h: f64, t_end: f64, y: (f64, f64), ylabel: &str) -> Plot {
+    let mut p = Plot::new(720.0, h, (0.0, t_end), y, "controller time [h]", ylabel);
+    let z = p.sy(0.0);
+    let _ = write!(
+        p.svg,
+        r##"<line x1="{:.1}" y1="{z:.1}" x2="{:.1}" y2="{z:.1}" stroke="#8a96a3" stroke-dasharray="4 3"/>"##,
+        p.sx(0.0),
+        p.sx(t_end)
+    );
+    p
+}
+
 /// Which alarms a time plot of the light sweeps marks.
 fn sweep_ticked(a: &Alarm) -> bool {
     matches!(
@@ -565,21 +578,7 @@ fn sweep_levels_plot(inp: &ReportInputs) -> String {
         hi = hi.max(level(r) + 2.0 * r.level_se_pct);
     }
     let (lo, hi) = (lo.max(-10.0), hi.min(10.0));
-    let mut p = Plot::new(
-        720.0,
-        200.0,
-        (0.0, t_end),
-        (lo, hi),
-        "controller time [h]",
-        "level − layer's prediction [%]",
-    );
-    let z = p.sy(0.0);
-    let _ = write!(
-        p.svg,
-        r##"<line x1="{:.1}" y1="{z:.1}" x2="{:.1}" y2="{z:.1}" stroke="#8a96a3" stroke-dasharray="4 3"/>"##,
-        p.sx(0.0),
-        p.sx(t_end)
-    );
+    let mut p = time_plot(200.0, t_end, (lo, hi), "level − layer's prediction [%]");
     for r in &inp.sweeps {
         let v = level(r);
         let x = p.sx(r.t / 3600.0);
@@ -611,21 +610,7 @@ fn sweeps_plot(inp: &ReportInputs) -> String {
         }
     }
     let (lo, hi) = (lo.max(-5.0), hi.min(5.0));
-    let mut p = Plot::new(
-        720.0,
-        240.0,
-        (0.0, t_end),
-        (lo, hi),
-        "controller time [h]",
-        "fitted joint offset [°]",
-    );
-    let (z0, z1) = (p.sy(0.0), p.sy(0.0));
-    let _ = write!(
-        p.svg,
-        r##"<line x1="{:.1}" y1="{z0:.1}" x2="{:.1}" y2="{z1:.1}" stroke="#8a96a3" stroke-dasharray="4 3"/>"##,
-        p.sx(0.0),
-        p.sx(t_end)
-    );
+    let mut p = time_plot(240.0, t_end, (lo, hi), "fitted joint offset [°]");
     for (joint, colour, dx) in [(1usize, "#1f5fa8", -0.004), (2, "#d9822b", 0.004)] {
         for r in &inp.sweeps {
             let Some(j) = r.joints.iter().find(|j| j.joint == joint) else {
