@@ -39,8 +39,7 @@ pub(super) struct CaptureStage {
     pub(super) failed: u64,
     pub(super) missing: u64,
     pub(super) probes: u64,
-    /// Captures whose encoders put them off the plan, and whose encoders disagreed with the
-    /// commanded pose.
+    /// Captures placed off the plan, and whose encoders disagreed with the commanded pose.
     pub(super) off_plan: u64,
     pub(super) encoder_mismatch: u64,
     /// Usable or not, captures placed by the commanded pose (a steady encoder offset).
@@ -56,16 +55,29 @@ pub(super) struct CaptureStage {
 const AXES: [&str; 4] = ["joint 1", "joint 2", "joint 3", "wagon"];
 
 /// An encoder offset is steady, and captures are placed by the commanded pose, once it has held
-/// for this many captures: one reading cannot tell a constant offset from a servo still
-/// settling or a pose read mid-move.
+/// for this many captures while the axis was commanded to move: one reading cannot tell a
+/// constant offset from a servo still settling or a pose read mid-move, and an axis that was
+/// not moved cannot tell an offset encoder from a stuck one.
 const STEADY_CAPTURES: u64 = 3;
+
+/// The axes the light sweeps watch from the images (joints 1 and 2, isotropic samples).
+const IMAGE_CHECKED: [bool; 4] = [true, true, false, false];
 
 /// What the operator can do when the encoders put a capture off the plan.
 const POSE_OFF_PLAN_ACTION: &str = "Check the arm and the wagon for a collision, a stall or lost steps and re-home them; the captures of the episode are on the retake list.";
 
 /// What the operator can do about an encoder that disagrees with its command on `axis`.
 fn encoder_action(axis: &str) -> String {
-    format!("Check the {axis} encoder, motor and coupling. Once the offset has held for {STEADY_CAPTURES} captures, captures are placed by the commanded pose and their pairs are marked `by_command`: if the positioning checks of the images stay quiet, the arm went where it was told and the encoder needs re-homing or recalibrating; if they name a slip, the captures are where the encoder says and must be retaken.")
+    let verify = if AXES
+        .iter()
+        .zip(IMAGE_CHECKED)
+        .any(|(a, checked)| *a == axis && checked)
+    {
+        "on an isotropic sample the light sweeps check this joint from the images: if they stay quiet, the arm went where it was told and the encoder needs re-homing or recalibrating; if they name a slip, the captures are where the encoder says and must be retaken"
+    } else {
+        "nothing in the images checks this axis, so confirm the pose by hand (a test capture against an earlier one of the same pose) before trusting them"
+    };
+    format!("Check the {axis} encoder, motor and coupling. Once the offset has held for {STEADY_CAPTURES} captures while the axis moved, captures are placed by the commanded pose and their pairs are marked `by_command`; {verify}. Captures placed off the plan before that are retaken.")
 }
 
 /// What the output does about a pose episode's captures: off the plan they are wrong and
@@ -89,23 +101,25 @@ struct Episode {
     last_idx: u64,
     captures: u64,
     worst_deg: f64,
-    /// The signed offset of the first capture, and whether every later one stayed within the
-    /// encoder tolerance of it (encoder episodes only).
-    first_offset: f64,
-    steady: bool,
+    /// Encoder episodes: the current run of captures whose signed offset stayed within the
+    /// encoder tolerance of `run_offset` (its first), how long it is, the command at its start
+    /// and whether the command has since moved by more than the tolerance.
+    run_offset: f64,
+    run_captures: u64,
+    run_cmd: f64,
+    run_moved: bool,
     /// Captures of the episode placed by the commanded pose.
     by_command: u64,
 }
 
 impl Episode {
-    /// Note one capture showing the condition on `axis` with error `deg` (signed: `offset`):
-    /// the alarm to raise (from `raise`), when it starts an episode.
+    /// Note one capture showing the condition on `axis` with error `deg`: the alarm to raise
+    /// (from `raise`), when it starts an episode.
     fn note(
         slot: &mut Option<Episode>,
         axis: &'static str,
         idx: u64,
         deg: f64,
-        offset: f64,
         raise: impl FnOnce() -> Alarm,
     ) -> Option<Alarm> {
         match slot {
@@ -122,8 +136,10 @@ impl Episode {
                     last_idx: idx,
                     captures: 1,
                     worst_deg: deg,
-                    first_offset: offset,
-                    steady: offset.is_finite(),
+                    run_offset: f64::NAN,
+                    run_captures: 0,
+                    run_cmd: f64::NAN,
+                    run_moved: false,
                     by_command: 0,
                 });
                 Some(raise())
@@ -187,7 +203,7 @@ impl CaptureStage {
         let off_plan = self
             .off_plan_episode
             .iter()
-            .map(|e| ("pose-off-plan", "the encoder pose off the plan", e));
+            .map(|e| ("pose-off-plan", "the pose off the plan", e));
         let encoder = self
             .encoder_episodes
             .iter()
@@ -401,12 +417,12 @@ impl CaptureStage {
     ///
     /// A capture is placed by its encoder pose (the plan's when that is unusable) unless every
     /// encoder that disagrees with its command has done so by one steady offset for
-    /// `STEADY_CAPTURES` captures and the commanded pose is on the plan: then it is placed by
-    /// the commanded pose and flagged, since a constant offset is what a slipped or
-    /// mis-homed encoder gives while the arm still goes where it is told (a servo that stalls
-    /// moves the images too, which the image-based joint checks see). While an encoder
-    /// disagrees, the plan is judged against the commands: the disagreement is the
-    /// encoder-mismatch episode's, and one fault raises one alarm.
+    /// `STEADY_CAPTURES` captures while its axis moved, and the commanded pose is on the plan:
+    /// then it is placed by the commanded pose and flagged, since a constant offset that
+    /// follows the commands is what a slipped or mis-homed encoder gives while the arm still
+    /// goes where it is told (a servo that stalls moves the images too, which the light sweeps
+    /// see on joints 1 and 2 of an isotropic sample). The plan is judged against the pose the
+    /// capture is placed by, so a capture placed off it is retaken.
     fn pose(
         &mut self,
         ctx: &Ctx,
@@ -461,7 +477,6 @@ impl CaptureStage {
         } else {
             None
         };
-        let judged_err = commanded.as_ref().map_or(encoder_err, |(_, err)| *err);
         let placed = match commanded {
             Some((m, err)) if err <= ctx.spec.pose_tolerance_deg && self.steady_offsets() => {
                 self.placed_by_command += 1;
@@ -480,10 +495,15 @@ impl CaptureStage {
                 by_command: false,
             },
         };
+        let judged_err = placed.pose_err;
         if judged_err > ctx.spec.pose_tolerance_deg {
             self.off_plan += 1;
-            let what = if mismatched { "commands" } else { "encoders" };
-            alarms.extend(Episode::note(&mut self.off_plan_episode, "pose", input.idx, judged_err, 0.0, || {
+            let what = if placed.by_command {
+                "commands"
+            } else {
+                "encoders"
+            };
+            alarms.extend(Episode::note(&mut self.off_plan_episode, "pose", input.idx, judged_err, || {
                 Alarm::new(
                     AlarmKind::Positioning,
                     Severity::Warning,
@@ -524,7 +544,7 @@ impl CaptureStage {
             // NaN readings count as disagreeing, and never as steady
             if !(offset.abs() <= tol) {
                 mismatched = true;
-                alarms.extend(Episode::note(slot, name, input.idx, offset.abs(), offset, || {
+                alarms.extend(Episode::note(slot, name, input.idx, offset.abs(), || {
                     Alarm::new(
                         AlarmKind::Positioning,
                         Severity::Warning,
@@ -542,7 +562,19 @@ impl CaptureStage {
                     )
                 }));
                 if let Some(e) = slot {
-                    e.steady &= (offset - e.first_offset).abs() <= tol;
+                    // a new run starts when the offset moves (or at the episode's first capture)
+                    let same = e.run_captures > 0
+                        && offset.is_finite()
+                        && (offset - e.run_offset).abs() <= tol;
+                    if same {
+                        e.run_captures += 1;
+                        e.run_moved |= (input.cmd[k] - e.run_cmd).abs() > tol;
+                    } else {
+                        e.run_offset = offset;
+                        e.run_captures = u64::from(offset.is_finite());
+                        e.run_cmd = input.cmd[k];
+                        e.run_moved = false;
+                    }
                 }
             } else {
                 alarms.extend(Episode::clear(
@@ -560,11 +592,12 @@ impl CaptureStage {
         mismatched
     }
 
-    /// Whether every encoder episode in progress has held one offset (within the encoder
-    /// tolerance of its first) for at least `STEADY_CAPTURES` captures.
+    /// Whether every encoder episode in progress is in a run of at least `STEADY_CAPTURES`
+    /// captures of one offset (within the encoder tolerance of the run's first) during which
+    /// its axis was commanded to move.
     fn steady_offsets(&self) -> bool {
         let mut open = self.encoder_episodes.iter().flatten().peekable();
-        open.peek().is_some() && open.all(|e| e.steady && e.captures >= STEADY_CAPTURES)
+        open.peek().is_some() && open.all(|e| e.run_captures >= STEADY_CAPTURES && e.run_moved)
     }
 }
 

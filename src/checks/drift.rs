@@ -336,8 +336,15 @@ impl DriftStage {
     /// A joint slip named by the light sweeps, from `t_s` on: later pairs leave the gain fit
     /// (`DriftDetector::add_pose_break`). The colour fits keep them: a tilt changes the
     /// luminance of a geometry, hardly its chromaticity ratios.
-    pub(super) fn add_pose_break(&mut self, t_s: f64) {
-        self.detector.add_pose_break(t_s / 3600.0);
+    pub(super) fn add_pose_break(
+        &mut self,
+        t_s: f64,
+        at: (Option<u64>, Option<f64>),
+        alarms: &mut Vec<Alarm>,
+    ) {
+        for ev in self.detector.add_pose_break(t_s / 3600.0) {
+            alarms.push(drift_alarm(ev, "isotropy classes", at, None));
+        }
     }
 
     /// Pairs left out of the gain fit after a named joint slip.

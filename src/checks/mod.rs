@@ -682,7 +682,7 @@ impl Checker {
                     drift.add_step(t);
                 }
                 if let Some(t) = o.slip_at_s {
-                    drift.add_pose_break(t);
+                    drift.add_pose_break(t, (Some(input.idx), Some(input.t)), &mut out.alarms);
                 }
             }
             out.sweeps.extend(o.record);

@@ -277,7 +277,7 @@ pub struct CheckCounts {
     /// named joint slip (the tilt moves the members of a class differently).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub drift_left_out_slip: u64,
-    /// Captures whose encoders put them off the plan, and whose encoders disagreed with the
+    /// Captures placed off the plan, and captures whose encoders disagreed with the
     /// commanded pose (their alarms are raised once per episode).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub pose_off_plan: u64,

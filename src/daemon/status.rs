@@ -7,7 +7,7 @@
 
 use crate::checks::{CaptureRecord, PairRecord};
 use crate::engine::{Output, Summary};
-use crate::measure::alarm::Alarm;
+use crate::measure::alarm::{Alarm, AlarmKind};
 use crate::measure::plan::SamplingPlan;
 use crate::measure::sweeps::SweepRecord;
 use serde::Serialize;
@@ -17,6 +17,9 @@ use std::path::Path;
 /// How many recent pairs and alarms the page shows.
 const RECENT_PAIRS: usize = 400;
 const RECENT_ALARMS: usize = 100;
+/// How many drift, positioning and isotropy alarms the time plots mark (from the start: an
+/// early slip must stay on the plots of a long run).
+const TICKED_ALARMS: usize = 1000;
 
 #[derive(Debug, Clone, Serialize)]
 pub struct Direction {
@@ -87,6 +90,9 @@ pub struct Snapshot {
     pub current_light: Option<usize>,
     pub recent_pairs: Vec<RecentPair>,
     pub alarms: Vec<Alarm>,
+    /// The drift, positioning and isotropy alarms, from the start of the run, for the time
+    /// plots' ticks.
+    pub ticked: Vec<Alarm>,
     pub drift: Vec<DriftPoint>,
     pub colour: Vec<ColourPoint>,
     pub gain: Vec<GainPoint>,
@@ -101,6 +107,7 @@ pub(crate) struct StatusModel {
     probe_gain: crate::checks::ProbeGainCurve,
     recent_pairs: VecDeque<RecentPair>,
     alarms: VecDeque<Alarm>,
+    ticked: Vec<Alarm>,
     drift: Vec<DriftPoint>,
     colour: Vec<ColourPoint>,
     gain: Vec<GainPoint>,
@@ -130,6 +137,7 @@ impl StatusModel {
             probe_gain: crate::checks::ProbeGainCurve::new(dark_y),
             recent_pairs: VecDeque::new(),
             alarms: VecDeque::new(),
+            ticked: Vec::new(),
             drift: Vec::new(),
             colour: Vec::new(),
             gain: Vec::new(),
@@ -201,6 +209,13 @@ impl StatusModel {
     }
 
     fn alarm(&mut self, a: &Alarm) {
+        if matches!(
+            a.kind,
+            AlarmKind::Drift | AlarmKind::Positioning | AlarmKind::Isotropy
+        ) && self.ticked.len() < TICKED_ALARMS
+        {
+            self.ticked.push(a.clone());
+        }
         self.alarms.push_back(a.clone());
         while self.alarms.len() > RECENT_ALARMS {
             self.alarms.pop_front();
@@ -287,6 +302,7 @@ impl StatusModel {
             current_light: self.current_light,
             recent_pairs: self.recent_pairs.iter().cloned().collect(),
             alarms: self.alarms.iter().cloned().collect(),
+            ticked: self.ticked.clone(),
             drift: self.drift.clone(),
             colour: self.colour.clone(),
             gain: self.gain.clone(),
@@ -526,7 +542,7 @@ pub fn metrics(s: &Snapshot) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::measure::alarm::{AlarmKind, Severity};
+    use crate::measure::alarm::Severity;
 
     fn capture(idx: u64, entry: usize, light: usize, probe: bool, y: f64) -> CaptureRecord {
         CaptureRecord {
@@ -602,6 +618,8 @@ mod tests {
         assert_eq!(s.gain.len(), 1);
         assert!((s.gain[0].gain - 0.98).abs() < 1e-12);
         assert_eq!(s.alarms.len(), 1);
+        // a capture-quality alarm is not ticked on the time plots
+        assert!(s.ticked.is_empty());
         assert_eq!(s.sweeps.len(), 1);
         assert!((s.sweeps[0].level_pct - 0.3).abs() < 1e-12);
         assert_eq!(s.sweeps[0].joints, [(2, 0.4, 0.1)]);

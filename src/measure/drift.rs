@@ -381,18 +381,27 @@ impl DriftDetector {
     /// tilt moves differently, so pairs wholly after it do too. The model keeps the drift it
     /// had learnt before the slip (its rate and steps extrapolate) until the session ends; the
     /// light sweeps still watch the gain's level. An earlier break than the one held moves it.
-    pub(crate) fn add_pose_break(&mut self, t_h: f64) {
+    /// Returns the rate alarm's change, if the refit without those pairs makes one: no later
+    /// pair refits the model again.
+    pub(crate) fn add_pose_break(&mut self, t_h: f64) -> Vec<DriftEvent> {
         if !t_h.is_finite() || self.pose_break.is_some_and(|t| t <= t_h) {
-            return;
+            return Vec::new();
         }
         self.pose_break = Some(t_h);
         let before = self.obs.len();
         self.obs.retain(|o| o.t_b_h < t_h);
         self.left_out += before - self.obs.len();
-        if self.obs.len() >= self.spec.min_pairs {
-            if let Some(est) = self.fit() {
+        if self.obs.len() < self.spec.min_pairs {
+            // too few pairs before the slip for a rate of their own
+            self.estimate = None;
+            return Vec::new();
+        }
+        match self.fit() {
+            Some(est) => {
                 self.estimate = Some(est);
+                self.rate_events(est)
             }
+            None => Vec::new(),
         }
     }
 
@@ -517,21 +526,30 @@ impl DriftDetector {
             };
             if let Some(est) = fitted {
                 self.estimate = Some(est);
-                let lower = est.rate_pct_per_h.abs() - self.spec.z * est.se_pct_per_h;
-                let identified = self.mount.is_none() || self.light_separated;
-                if !self.rate_alarm && identified && lower > self.spec.rate_tolerance_pct_per_h {
-                    self.rate_alarm = true;
-                    ev.push(DriftEvent::RateSignificant(est));
-                } else if self.rate_alarm
-                    && est.rate_pct_per_h.abs() + self.spec.z * est.se_pct_per_h
-                        < self.spec.rate_tolerance_pct_per_h
-                {
-                    self.rate_alarm = false;
-                    ev.push(DriftEvent::RateCleared(est));
-                }
+                ev.extend(self.rate_events(est));
             }
         }
         ev
+    }
+
+    /// The rate alarm after a refit to `est`: raised when the rate is significant and beyond
+    /// the tolerance (once the mount's light half is told apart from it), cleared with
+    /// hysteresis.
+    fn rate_events(&mut self, est: DriftEstimate) -> Vec<DriftEvent> {
+        let lower = est.rate_pct_per_h.abs() - self.spec.z * est.se_pct_per_h;
+        let identified = self.mount.is_none() || self.light_separated;
+        if !self.rate_alarm && identified && lower > self.spec.rate_tolerance_pct_per_h {
+            self.rate_alarm = true;
+            vec![DriftEvent::RateSignificant(est)]
+        } else if self.rate_alarm
+            && est.rate_pct_per_h.abs() + self.spec.z * est.se_pct_per_h
+                < self.spec.rate_tolerance_pct_per_h
+        {
+            self.rate_alarm = false;
+            vec![DriftEvent::RateCleared(est)]
+        } else {
+            Vec::new()
+        }
     }
 
     /// Adopts a design fit: its bucket effects, scales, steps and mount pattern.
@@ -633,7 +651,7 @@ impl DriftDetector {
 
     /// The same IRLS with one indicator column per known step (a pair spanning τ_k carries
     /// s_k) and, with `mount`, the four mount columns: the centred weighted design solved by
-    /// SVD least squares, the covariance from its pseudo-inverse. Deterministic: fixed passes,
+    /// normal equations and their pseudo-inverse, which is also the covariance. Deterministic: fixed passes,
     /// buckets in BTreeMap order. Pure: the caller decides whether to keep the result.
     fn fit_design(&self, mount: bool) -> Option<DesignFit> {
         let n = self.obs.len();
