@@ -4,7 +4,7 @@
 //!
 //! A capture is listed when its data is wrong and nothing in the output corrects it: it failed
 //! or never appeared; it is dark, has non-finite or clipped pixels beyond the limits; the
-//! encoder pose was off the plan (the whole episode); or an arm joint was found to have slipped
+//! pose was off the plan as placed (the whole episode); or an arm joint was found to have slipped
 //! (every capture since the slip, to the end of the session). Lamp drift and steps are not
 //! listed: the corrected colours divide them out. An entry taken again later, usable and
 //! outside every listed episode, is not listed.
@@ -64,7 +64,7 @@ pub fn retakes(captures: &[CaptureRecord], alarms: &[Alarm]) -> Vec<Retake> {
                     ev.get("last_idx").and_then(|v| v.as_u64()),
                 );
                 for i in r.into_iter().flatten() {
-                    add(i, "the encoder pose was off the plan".into());
+                    add(i, "the pose was off the plan".into());
                 }
                 open_pose = None;
             }
@@ -95,7 +95,7 @@ pub fn retakes(captures: &[CaptureRecord], alarms: &[Alarm]) -> Vec<Retake> {
     }
     if let Some(from) = open_pose {
         for i in (from..=last.unwrap_or(from)).filter(|i| *i >= from) {
-            add(i, "the encoder pose was off the plan".into());
+            add(i, "the pose was off the plan".into());
         }
     }
     // an entry taken again later, usable and not listed itself, needs no retake

@@ -255,6 +255,9 @@ pub(crate) struct SweepMonitor {
     light_phi: Vec<f64>,
     /// Per θi layer, the harmonics of the level pattern its level history was judged with.
     level_model: HashMap<i64, usize>,
+    /// The last joint slip named: its θi layer, the joint, and the first capture it can have
+    /// affected. A level change that begins after it in the same layer is the tilt's.
+    slip: Option<(i64, usize, u64)>,
 }
 
 /// Where a completed sweep lies in the session.
@@ -395,6 +398,7 @@ impl SweepMonitor {
             sweep_starts: Vec::new(),
             light_phi: vec![f64::NAN; lights],
             level_model: HashMap::new(),
+            slip: None,
         }
     }
 
@@ -943,6 +947,39 @@ impl SweepMonitor {
                     && 100.0 * f64::from(sign) * mean >= self.spec.level_tolerance_pct
                     && self.latched.insert(Latch::Level { sign, layer })
                 {
+                    let from_idx = self.sweep_first_idx(run.start);
+                    // a tilt changes cos θi and the footprint over whole sweeps: a level change
+                    // that begins after a slip named in this layer is attributed to the slip
+                    // and is no lamp step for the drift model
+                    if let Some((_, joint, slip_idx)) = self
+                        .slip
+                        .filter(|&(l, _, first)| l == layer && from_idx >= first)
+                    {
+                        alarms.push(
+                            Alarm::new(
+                                AlarmKind::Positioning,
+                                Severity::Info,
+                                "level-after-slip",
+                                format!(
+                                    "light sweep {} (captures up to {}) and the {} before it sit {:+.2} % off the earlier sweeps of θi = {}°, beginning after joint {joint} was named (captures from {slip_idx}): read as the tilt's, not as a lamp step, and not taken into the drift model",
+                                    sweep.light,
+                                    sweep.last_idx,
+                                    run.n.saturating_sub(1),
+                                    100.0 * mean,
+                                    layer as f64 / 1000.0,
+                                ),
+                            )
+                            .at(Some(sweep.last_idx), Some(sweep.last_t))
+                            .with(json!({"source": "light sweeps", "joint": joint, "level_pct": 100.0 * mean, "sweeps": run.n, "since_idx": run.start, "slip_from_idx": slip_idx, "statistic": stat, "threshold": self.h_level}))
+                            .advise(
+                                "Nothing more than for the joint alarm: check the sample clamp and the joint; these captures are already on the retake list. A level change that persists after the joint is fixed is the lamp's.",
+                                Some(Affects::Since { from_idx: slip_idx, handling: Handling::Retake }),
+                            ),
+                        );
+                        self.level_cusum.reset();
+                        step.alarmed = true;
+                        break;
+                    }
                     alarms.push(
                         Alarm::new(
                             AlarmKind::Drift,
@@ -1048,6 +1085,7 @@ impl SweepMonitor {
             if self.latched.insert(Latch::Joint { layer: sweep.layer }) {
                 alarms.push(self.joint_alarm(sweep, x, rec));
                 slip_at_s = self.slip_first_t(x.since);
+                self.slip = Some((sweep.layer, x.joint + 1, self.slip_first_idx(x.since)));
             }
             for c in self.joint_cusum.iter_mut() {
                 c.reset();
@@ -1481,8 +1519,32 @@ mod session_tests {
                 .action
                 .as_deref()
                 .is_some_and(|s| s.contains(&format!("joint {}", joint + 1))));
-            if joint == 1 {
-                assert!(alarms.iter().all(|a| a.code != "gain-step"), "{alarms:?}");
+            // a tilt is no lamp step: a level change that follows the slip in its layer is the
+            // slip's, an info that sends nothing to the drift model (one that comes before the
+            // joint is named is still taken for the lamp's)
+            assert!(
+                alarms
+                    .iter()
+                    .all(|a| a.code != "gain-step" || a.idx < first.idx),
+                "{alarms:?}"
+            );
+            if joint == 0 && onset == 40 * 81 + 40 {
+                // this session's tilt moves the level of the sweeps after it was named
+                assert!(
+                    alarms.iter().any(|a| a.code == "level-after-slip"),
+                    "{alarms:?}"
+                );
+            }
+            for a in alarms.iter().filter(|a| a.code == "level-after-slip") {
+                assert_eq!(a.severity, Severity::Info);
+                assert!(a.idx > first.idx, "{a:?}");
+                assert!(matches!(
+                    a.affects,
+                    Some(Affects::Since {
+                        handling: Handling::Retake,
+                        ..
+                    })
+                ));
             }
         }
     }
