@@ -347,6 +347,18 @@ impl DriftStage {
         }
     }
 
+    /// A step term withdrawn (the light sweeps attributed its level change to a joint slip).
+    pub(super) fn remove_step(
+        &mut self,
+        t_s: f64,
+        at: (Option<u64>, Option<f64>),
+        alarms: &mut Vec<Alarm>,
+    ) {
+        for ev in self.detector.remove_step(t_s / 3600.0) {
+            alarms.push(drift_alarm(ev, "isotropy classes", at, None));
+        }
+    }
+
     /// Pairs left out of the gain fit after a named joint slip.
     pub(super) fn left_out(&self) -> usize {
         self.detector.left_out

@@ -681,6 +681,9 @@ impl Checker {
                 if let Some(t) = o.step_at_s {
                     drift.add_step(t);
                 }
+                for &t in &o.withdrawn_steps_s {
+                    drift.remove_step(t, (Some(input.idx), Some(input.t)), &mut out.alarms);
+                }
                 if let Some(t) = o.slip_at_s {
                     drift.add_pose_break(t, (Some(input.idx), Some(input.t)), &mut out.alarms);
                 }

@@ -421,6 +421,27 @@ impl DriftDetector {
         }
     }
 
+    /// A step term at `t_h` that turned out not to be the lamp's (a joint slip named after it)
+    /// leaves the model; refits at once. Returns the rate alarm's change, if any.
+    pub(crate) fn remove_step(&mut self, t_h: f64) -> Vec<DriftEvent> {
+        let before = self.step_times.len();
+        self.step_times.retain(|&t| (t - t_h).abs() >= 1e-9);
+        if self.step_times.len() == before {
+            return Vec::new();
+        }
+        self.step_effects.retain(|s| (s.t_h - t_h).abs() >= 1e-9);
+        if self.obs.len() < self.spec.min_pairs {
+            return Vec::new();
+        }
+        match self.fit() {
+            Some(est) => {
+                self.estimate = Some(est);
+                self.rate_events(est)
+            }
+            None => Vec::new(),
+        }
+    }
+
     /// The fitted steps (empty without known step times).
     pub(crate) fn steps(&self) -> &[StepEffect] {
         &self.step_effects
@@ -930,6 +951,14 @@ mod tests {
             "{before} {after}"
         );
         assert!(sigma > 0.0 && sigma.is_finite());
+        // a step withdrawn (a slip explained it) leaves the model as if never told; one that
+        // was never added changes nothing
+        let mut withdrawn = fit(true);
+        assert!(withdrawn.remove_step(7.0).is_empty());
+        assert_eq!(withdrawn.steps().len(), 1);
+        withdrawn.remove_step(6.5);
+        assert!(withdrawn.steps().is_empty());
+        assert_eq!(withdrawn.estimate(), blind.estimate());
         // a step time nobody's pairs span yet changes nothing
         let mut late = fit(true);
         late.add_step(20.0);
