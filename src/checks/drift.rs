@@ -262,6 +262,15 @@ fn colour_alarm(e: &ColourDriftEstimate, at: (Option<u64>, Option<f64>)) -> Alar
     .advise(action::COLOUR_DRIFT, Some(Affects::Since { from_idx: 0, handling: Handling::Corrected }))
 }
 
+/// The isotropy model's drift events as alarms.
+fn raise(events: Vec<DriftEvent>, at: (Option<u64>, Option<f64>), alarms: &mut Vec<Alarm>) {
+    alarms.extend(
+        events
+            .into_iter()
+            .map(|ev| drift_alarm(ev, "isotropy classes", at, None)),
+    );
+}
+
 pub(super) struct DriftStage {
     detector: DriftDetector,
     /// The lamp's colour (None when the lamp model cannot be built).
@@ -305,9 +314,8 @@ impl DriftStage {
                     sigma: 0.0,
                     mount: std::array::from_fn(|j| mount[j] - mount0[j]),
                 };
-                for ev in self.detector.add(obs) {
-                    alarms.push(drift_alarm(ev, "isotropy classes", at, None));
-                }
+                let events = self.detector.add(obs);
+                raise(events, at, alarms);
                 if let Some(colour) = self.colour.as_mut() {
                     colour.observe((key.0, key.1), (t0, xyz0), (t_h, xyz), at, alarms);
                 }
@@ -342,9 +350,8 @@ impl DriftStage {
         at: (Option<u64>, Option<f64>),
         alarms: &mut Vec<Alarm>,
     ) {
-        for ev in self.detector.add_pose_break(t_s / 3600.0) {
-            alarms.push(drift_alarm(ev, "isotropy classes", at, None));
-        }
+        let events = self.detector.add_pose_break(t_s / 3600.0);
+        raise(events, at, alarms);
     }
 
     /// A step term withdrawn (the light sweeps attributed its level change to a joint slip).
@@ -354,9 +361,8 @@ impl DriftStage {
         at: (Option<u64>, Option<f64>),
         alarms: &mut Vec<Alarm>,
     ) {
-        for ev in self.detector.remove_step(t_s / 3600.0) {
-            alarms.push(drift_alarm(ev, "isotropy classes", at, None));
-        }
+        let events = self.detector.remove_step(t_s / 3600.0);
+        raise(events, at, alarms);
     }
 
     /// Pairs left out of the gain fit after a named joint slip.
@@ -435,9 +441,8 @@ impl DriftStage {
             return;
         }
         let at = (Some(p.capture.idx), Some(p.capture.t));
-        for ev in self.detector.add(obs) {
-            alarms.push(drift_alarm(ev, "isotropy classes", at, None));
-        }
+        let events = self.detector.add(obs);
+        raise(events, at, alarms);
         self.interpolated += 1;
     }
 

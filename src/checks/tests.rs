@@ -439,6 +439,35 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
 }
 
 #[test]
+fn a_nan_encoder_reading_is_a_mismatch_never_a_steady_offset() {
+    // the wagon's encoder reports NaN for captures 30..=60: every capture keeps its record,
+    // the episode is raised once and cleared once, and no capture is placed by the commands
+    let mut ch = checker();
+    let mut codes = Vec::new();
+    for mut input in session(100) {
+        if (30..=60).contains(&input.idx) {
+            input.enc[3] = f64::NAN;
+        }
+        let out = ch.check(&input);
+        let rec = out.capture.as_ref().expect("every capture has its record");
+        assert!(!rec.by_command, "{rec:?}");
+        codes.extend(
+            out.alarms
+                .iter()
+                .filter(|a| a.code.starts_with("encoder-mismatch"))
+                .map(|a| format!("{}@{}", a.code, a.idx.unwrap_or(u64::MAX))),
+        );
+    }
+    assert_eq!(
+        codes,
+        ["encoder-mismatch@30", "encoder-mismatch-cleared@61"],
+        "{codes:?}"
+    );
+    assert_eq!(ch.counts().encoder_mismatch, 31);
+    assert_eq!(ch.counts().placed_by_command, 0);
+}
+
+#[test]
 fn encoder_episodes_are_kept_per_axis() {
     // the wagon reads 0.3° off from capture 50 on; joint 2 alternates 0.2° and 0.4° off from
     // capture 100 on, so the worst axis changes on every capture

@@ -509,13 +509,7 @@ fn colour_plot(inp: &ReportInputs) -> String {
             line.join(" ")
         );
     }
-    let y0 = p.sy(0.0);
-    let _ = write!(
-        p.svg,
-        r##"<line x1="{:.1}" y1="{y0:.1}" x2="{:.1}" y2="{y0:.1}" stroke="#8a96a3" stroke-dasharray="4 3"/>"##,
-        p.sx(0.0),
-        p.sx(t_end)
-    );
+    zero_line(&mut p, t_end);
     alarm_ticks(&mut p, inp.alarms.iter());
     p.finish()
 }
@@ -546,9 +540,8 @@ fn end_hours(inp: &ReportInputs) -> f64 {
         .max(0.1)
 }
 
-/// A plot over controller time (hours, from 0 to `t_end`), with a dashed line at y = 0.
-fn time_plot(h: f64, t_end: f64, y: (f64, f64), ylabel: &str) -> Plot {
-    let mut p = Plot::new(720.0, h, (0.0, t_end), y, "controller time [h]", ylabel);
+/// A dashed line at y = 0 across a time plot, from 0 to `t_end` hours.
+fn zero_line(p: &mut Plot, t_end: f64) {
     let z = p.sy(0.0);
     let _ = write!(
         p.svg,
@@ -556,6 +549,12 @@ fn time_plot(h: f64, t_end: f64, y: (f64, f64), ylabel: &str) -> Plot {
         p.sx(0.0),
         p.sx(t_end)
     );
+}
+
+/// A plot over controller time (hours, from 0 to `t_end`), with a dashed line at y = 0.
+fn time_plot(h: f64, t_end: f64, y: (f64, f64), ylabel: &str) -> Plot {
+    let mut p = Plot::new(720.0, h, (0.0, t_end), y, "controller time [h]", ylabel);
+    zero_line(&mut p, t_end);
     p
 }
 

@@ -396,6 +396,15 @@ impl DriftDetector {
             self.estimate = None;
             return Vec::new();
         }
+        self.refit_now()
+    }
+
+    /// Refit at once after the model changed (a step or a pose break): the new estimate, once
+    /// there are enough pairs, and the rate alarm's change, if any.
+    fn refit_now(&mut self) -> Vec<DriftEvent> {
+        if self.obs.len() < self.spec.min_pairs {
+            return Vec::new();
+        }
         match self.fit() {
             Some(est) => {
                 self.estimate = Some(est);
@@ -430,16 +439,7 @@ impl DriftDetector {
             return Vec::new();
         }
         self.step_effects.retain(|s| (s.t_h - t_h).abs() >= 1e-9);
-        if self.obs.len() < self.spec.min_pairs {
-            return Vec::new();
-        }
-        match self.fit() {
-            Some(est) => {
-                self.estimate = Some(est);
-                self.rate_events(est)
-            }
-            None => Vec::new(),
-        }
+        self.refit_now()
     }
 
     /// The fitted steps (empty without known step times).
