@@ -21,7 +21,7 @@ use crate::measure::drift::{
     PairObservation, StepEffect,
 };
 use crate::measure::lamp::LampColour;
-use crate::measure::probes::UNSTABLE_FACTOR;
+use crate::measure::probes::{colour_fit_spec, UNSTABLE_FACTOR};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::collections::HashMap;
@@ -120,17 +120,17 @@ impl ColourStage {
     }
 
     /// The colour fits of the drift probes: one geometry (the probe pose), so one bucket, a
-    /// refit at every probe once there are `min_probes`.
-    pub(super) fn probes(spec: &ColourDriftSpec, min_probes: usize) -> Option<Self> {
+    /// refit at every probe once there are `min_probes`, the residual scale floored at
+    /// `scale_floor` (`colour_fit_spec`).
+    pub(super) fn probes(
+        spec: &ColourDriftSpec,
+        min_probes: usize,
+        scale_floor: f64,
+    ) -> Option<Self> {
         Self::new(
             "probes",
             spec.clone(),
-            DriftSpec {
-                min_pairs: min_probes.max(3),
-                refit_every: 1,
-                step_detection: false,
-                ..DriftSpec::default()
-            },
+            colour_fit_spec(min_probes, scale_floor),
         )
     }
 
@@ -199,10 +199,10 @@ impl ColourStage {
         };
         self.estimate = Some(e.clone());
         let (tol, z) = (self.spec.tolerance_k_per_h, self.spec.z);
-        if !self.alarm && e.k_per_h.abs() - z * e.se_k_per_h > tol {
+        if !self.alarm && rate.exceeds(tol, z) {
             self.alarm = true;
             alarms.push(colour_alarm(&e, at));
-        } else if self.alarm && e.k_per_h.abs() + z * e.se_k_per_h < tol {
+        } else if self.alarm && rate.within(tol, z) {
             self.alarm = false;
             alarms.push(
                 Alarm::new(

@@ -331,7 +331,13 @@ impl Checker {
                 },
             ),
             probe_colour: (probes.every > 0)
-                .then(|| drift::ColourStage::probes(&spec.colour_drift, probes.min_probes))
+                .then(|| {
+                    drift::ColourStage::probes(
+                        &spec.colour_drift,
+                        probes.min_probes,
+                        probes.design_scatter_pct / 100.0,
+                    )
+                })
                 .flatten(),
             probes: ProbeDrift::new(probes),
             plan,

@@ -79,6 +79,11 @@ pub(crate) struct DriftSpec {
     /// exceeds this (% of luminance per unit tan θ).
     #[serde(default = "mount_min_pct")]
     pub mount_min_pct: f64,
+    /// The residual scale the rate's standard error assumes is at least this (ln units): a
+    /// source whose scatter is known (the probes' design scatter) keeps a fit of a few
+    /// observations from judging its rate by a scale that happens to be small.
+    #[serde(skip)]
+    pub scale_floor: f64,
 }
 
 fn mount_min_pct() -> f64 {
@@ -103,6 +108,7 @@ impl Default for DriftSpec {
             step_detection: true,
             mount_terms: false,
             mount_min_pct: mount_min_pct(),
+            scale_floor: 0.0,
         }
     }
 }
@@ -658,7 +664,7 @@ impl DriftDetector {
             // variance of r: σ² / Sxx with the weighted residual variance
             let dof = (n as f64 - beta.len() as f64 - 1.0).max(1.0);
             let sse: f64 = res.iter().zip(&w).map(|(e, wi)| wi * e * e).sum();
-            se = (sse / dof / sxx).sqrt();
+            se = ((sse / dof).max(self.spec.scale_floor.powi(2)) / sxx).sqrt();
         }
         self.bucket_scale = bucket_scales(&self.obs, &res);
         self.beta = beta;
@@ -764,12 +770,21 @@ impl DriftDetector {
             scale = huber_reweight(&res, &self.obs, &mut w);
             let dof = (n as f64 - beta.len() as f64 - p as f64).max(1.0);
             let sse: f64 = res.iter().zip(&w).map(|(e, wi)| wi * e * e).sum();
-            cov = pinv.map(|v| v * sse / dof);
+            // v · sse / dof in that order, as without a floor: the fits replay to the bit
+            let floor = self.spec.scale_floor.powi(2);
+            let scaled = |v: f64| {
+                if floor > sse / dof {
+                    v * floor
+                } else {
+                    v * sse / dof
+                }
+            };
+            cov = pinv.map(scaled);
             if mount {
                 // the rate's variance with the light's two mount columns left out
                 let keep: Vec<usize> = (0..p).filter(|&j| j != 1 + k && j != 2 + k).collect();
                 let sub = ata.select_rows(keep.iter()).select_columns(keep.iter());
-                let v0 = sub.pseudo_inverse(1e-12).ok()?[(0, 0)] * sse / dof;
+                let v0 = scaled(sub.pseudo_inverse(1e-12).ok()?[(0, 0)]);
                 inflation = (cov[(0, 0)] / v0).max(0.0).sqrt();
             }
         }
@@ -823,6 +838,46 @@ struct DesignFit {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_scale_floor_bounds_the_rate_standard_error_of_a_few_quiet_observations() {
+        // four probes on a line but for 0.01 % of noise: their own scale would make a
+        // 0.04 %/h slope look like several standard errors
+        let obs = |i: usize| PairObservation {
+            t_a_h: 0.0,
+            t_b_h: 0.5 * (i + 1) as f64,
+            d: 0.0005 * 0.5 * (i + 1) as f64 + if i.is_multiple_of(2) { 1e-4 } else { -1e-4 },
+            bucket: (0, 0),
+            sigma: 0.0,
+            mount: [0.0; 4],
+        };
+        let spec = DriftSpec {
+            min_pairs: 4,
+            refit_every: 1,
+            step_detection: false,
+            ..DriftSpec::default()
+        };
+        let fit = |floor: f64| {
+            let mut d = DriftDetector::new(DriftSpec {
+                scale_floor: floor,
+                ..spec.clone()
+            });
+            for i in 0..4 {
+                d.add(obs(i));
+            }
+            d.estimate().unwrap()
+        };
+        let (own, floored) = (fit(0.0), fit(0.003));
+        assert_eq!(own.rate_pct_per_h, floored.rate_pct_per_h);
+        assert!(own.rate_pct_per_h / own.se_pct_per_h > 3.0, "{own:?}");
+        // σ ≥ 0.3 %: the SE is at least 0.3 % / √Sxx (Sxx of 0.5, 1, 1.5, 2 h is 1.25 h²)
+        let bound = 100.0 * 0.003 / 1.25f64.sqrt();
+        assert!(floored.se_pct_per_h >= bound * (1.0 - 1e-9), "{floored:?}");
+        assert!(
+            floored.rate_pct_per_h / floored.se_pct_per_h < 1.0,
+            "{floored:?}"
+        );
+    }
 
     #[test]
     fn mount_coordinates_stay_finite_at_grazing_and_bad_directions() {

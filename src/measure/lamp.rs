@@ -41,6 +41,19 @@ pub struct CctRate {
     pub se_k_per_h: f64,
 }
 
+impl CctRate {
+    /// The colour-drift alarm's rule: the rate exceeds `tolerance_k_per_h` by `z` standard
+    /// errors (the daemon's `colour-drift` and `goniowatch plan`'s simulation of it).
+    pub fn exceeds(&self, tolerance_k_per_h: f64, z: f64) -> bool {
+        self.k_per_h.abs() - z * self.se_k_per_h > tolerance_k_per_h
+    }
+
+    /// The clearing rule: the rate is within `tolerance_k_per_h` by `z` standard errors.
+    pub fn within(&self, tolerance_k_per_h: f64, z: f64) -> bool {
+        self.k_per_h.abs() + z * self.se_k_per_h < tolerance_k_per_h
+    }
+}
+
 impl LampColour {
     /// The model for a lamp whose reference colour temperature is `reference_k` kelvin
     /// (1000–20,000 K).

@@ -9,7 +9,7 @@
 //! when a new probe departs from the segment's prediction by more than `step_sigmas` residual
 //! standard deviations and `step_pct`; the segment then restarts at that probe.
 
-use super::drift::{DriftEstimate, DriftEvent};
+use super::drift::{DriftEstimate, DriftEvent, DriftSpec};
 use super::geometry::{angle_between, mirror, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -378,6 +378,26 @@ impl ProbeDrift {
         } else {
             None
         }
+    }
+}
+
+/// The drift probes' two colour fits (ln X/Y and ln Z/Y against the probe pose's original
+/// capture): one geometry, so one bucket; refit at every probe once there are `min_probes`
+/// (at least 3); rate only, and no rate alarm of their own: the colour alarm is decided on the
+/// combined colour-temperature rate (`CctRate::exceeds`). The residual scale is floored at the
+/// probes' design scatter (`scale_floor`, ln units), which the chromaticity ratios are assumed
+/// to share: with 4 probes a fit has 2 degrees of freedom, and judging it by its own scale
+/// would raise a false colour alarm in several runs in a hundred. Shared by the daemon's colour
+/// check and `goniowatch plan`'s simulation of it.
+pub(crate) fn colour_fit_spec(min_probes: usize, scale_floor: f64) -> DriftSpec {
+    DriftSpec {
+        scale_floor,
+        min_pairs: min_probes.max(3),
+        refit_every: 1,
+        step_detection: false,
+        rate_tolerance_pct_per_h: f64::INFINITY,
+        mount_terms: false,
+        ..DriftSpec::default()
     }
 }
 
