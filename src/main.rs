@@ -2,7 +2,9 @@
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use goniowatch::cli::commands::{average_file, plan_summary, AverageOutcome, ProbePlanSummary};
+use goniowatch::cli::commands::{
+    average_file, plan_summary, AverageOutcome, ProbePlanSummary, ProbeScatter,
+};
 use goniowatch::config::Config;
 use goniowatch::measure::averaging::Roi;
 use goniowatch::measure::probe_plan::{CadenceFigures, DetectionTarget, ProbePlan};
@@ -191,6 +193,17 @@ struct PlanArgs {
     /// Target: fault-free runs with a probe alarm, at most this share.
     #[arg(long, default_value_t = 0.05)]
     target_false_alarms: f64,
+    /// The scatter of one probe's ln X/Y and of its ln Z/Y against its original capture, % SD
+    /// each (measure it: the colour fits' residual scale). Default: the luminance scatter.
+    #[arg(long)]
+    colour_scatter_pct: Option<f64>,
+    /// Target: a drift of the lamp's colour temperature of this size (K/h; 0: no colour
+    /// target) ...
+    #[arg(long, default_value_t = -20.0, allow_hyphen_values = true)]
+    target_colour_k_per_h: f64,
+    /// ... flagged before this fraction of the run.
+    #[arg(long, default_value_t = 0.15)]
+    target_colour_by: f64,
 }
 
 /// Exit codes (documented in README.md).
@@ -457,6 +470,9 @@ fn plan_command(args: PlanArgs, out: &mut impl Write) -> Result<ExitCode> {
         target_step_pct,
         target_step_within,
         target_false_alarms,
+        colour_scatter_pct,
+        target_colour_k_per_h,
+        target_colour_by,
     } = args;
     let cfg = load_config(config.as_deref())?;
     let target = DetectionTarget {
@@ -465,11 +481,17 @@ fn plan_command(args: PlanArgs, out: &mut impl Write) -> Result<ExitCode> {
         step_pct: target_step_pct,
         step_within_captures: target_step_within,
         false_alarms_per_run: target_false_alarms,
+        colour_k_per_h: target_colour_k_per_h,
+        colour_by_fraction: target_colour_by,
         ..DetectionTarget::default()
     };
+    let luminance_pct = probe_scatter_pct.unwrap_or(cfg.probes.design_scatter_pct);
     let s = plan_summary(
         &cfg,
-        probe_scatter_pct.unwrap_or(cfg.probes.design_scatter_pct),
+        ProbeScatter {
+            luminance_pct,
+            chromaticity_pct: colour_scatter_pct.unwrap_or(luminance_pct),
+        },
         &target,
     )?;
     if json {
@@ -554,18 +576,32 @@ fn print_probe_plan(
     };
     writeln!(
         out,
-        "\nDrift probes: a re-capture every N captures of {pose}; {} s {}; probe scatter {} %",
+        "\nDrift probes: a re-capture every N captures of {pose}; {} s {}; probe scatter {} %{}",
         p.session.seconds_per_probe,
         if p.sentinel {
             "per round (the lamp probe, then a joint-3 sentinel: the sample is anisotropic)"
         } else {
             "each"
         },
-        p.session.scatter_pct
+        p.session.scatter_pct,
+        p.session.colour.as_ref().map_or(String::new(), |c| format!(
+            ", chromaticity scatter {} % (ln X/Y, ln Z/Y; a {} K lamp)",
+            c.scatter_pct, c.lamp_cct_k
+        ))
     )?;
+    let colour_target = match &p.session.colour {
+        Some(c) if t.colour_k_per_h != 0.0 => format!(
+            ", a {:+} K/h colour drift before {:.0} % of the run (colour-drift: tolerance {} K/h, z = {})",
+            t.colour_k_per_h,
+            100.0 * t.colour_by_fraction,
+            c.tolerance_k_per_h,
+            c.z
+        ),
+        _ => String::new(),
+    };
     writeln!(
         out,
-        "target: a {} %/h decay flagged before {:.0} % of the run and a {:+} % step within {} captures, each in {:.0} % of runs; at most {:.0} false alarms in 100 runs ({} simulated runs per cadence through the daemon's probe detector: z = {}, step_sigmas = {}, step_pct = {})",
+        "target: a {} %/h decay flagged before {:.0} % of the run and a {:+} % step within {} captures{colour_target}, each in {:.0} % of runs; at most {:.0} false alarms in 100 runs ({} simulated runs per cadence through the daemon's probe detector: z = {}, step_sigmas = {}, step_pct = {})",
         t.decay_pct_per_h,
         100.0 * t.decay_by_fraction,
         t.step_pct,
@@ -579,11 +615,21 @@ fn print_probe_plan(
     )?;
     writeln!(
         out,
-        "  every   probes   run time +   false alarms/run   decay in time (median at)   step in time (median delay)"
+        "  every   probes   run time +   false alarms/run   decay in time (median at)   step in time (median delay)   colour in time (median at)"
     )?;
     let row = |c: &CadenceFigures| {
+        let colour = c
+            .colour_in_time
+            .map_or("     –              ".to_string(), |x| {
+                format!(
+                    "{:>5.0} % ({:>5})",
+                    100.0 * x,
+                    c.colour_median_fraction
+                        .map_or("–".to_string(), |f| format!("{:.0} %", 100.0 * f))
+                )
+            });
         format!(
-            "  {:>5}   {:>6}   {:>4.2} h {:>4.1} %   {:>16.3}   {:>5.0} % ({:>5})            {:>5.0} % ({:>5})  {}",
+            "  {:>5}   {:>6}   {:>4.2} h {:>4.1} %   {:>16.3}   {:>5.0} % ({:>5})            {:>5.0} % ({:>5})              {colour}           {}",
             c.every,
             c.probes_per_run,
             c.overhead_h,
@@ -619,7 +665,7 @@ fn print_probe_plan(
     if p.isotropic_sample {
         writeln!(
             out,
-            "(an isotropic sample: its isotropy classes and light sweeps watch the lamp without probes)"
+            "(an isotropic sample: its isotropy classes and light sweeps watch the lamp without probes, and the classes its colour, so the probes are designed for the luminance target only)"
         )?;
     } else {
         writeln!(

@@ -147,6 +147,59 @@ fn plan_designs_the_probe_cadence_or_says_why_no_cadence_can() {
 }
 
 #[test]
+fn plan_designs_anisotropic_probes_for_the_colour_target_too() {
+    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim-anisotropic.toml");
+    let every = |extra: &[&str]| {
+        let out = bin()
+            .args(["plan", "--json", "--config", cfg])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let design = v["probes"]["design"].clone();
+        assert_eq!(design["outcome"], "recommended", "{design}");
+        (design["cadence"]["every"].as_u64().unwrap(), design)
+    };
+    // the default target includes a −20 K/h colour drift before 15 % of the run, which only
+    // the probes watch on an anisotropic sample: denser probes than the luminance target asks
+    let (with_colour, design) = every(&[]);
+    let (luminance_only, _) = every(&["--target-colour-k-per-h", "0"]);
+    assert!(
+        with_colour < luminance_only,
+        "{with_colour} {luminance_only}"
+    );
+    assert!(
+        design["cadence"]["colour_in_time"].as_f64().unwrap() >= 0.9,
+        "{design}"
+    );
+    // the sparser cadences tried missed the colour target
+    let tried = design["tried"].as_array().unwrap();
+    assert!(tried
+        .iter()
+        .filter(|c| c["every"].as_u64().unwrap() >= luminance_only)
+        .all(|c| c["colour_in_time"].as_f64().unwrap() < 0.9));
+    // an isotropic sample's colour is its isotropy classes' job: no colour figures
+    let out = bin().args(["plan", "--json"]).output().unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        v["probes"]["design"]["cadence"]["colour_in_time"],
+        serde_json::Value::Null
+    );
+    // a deadline that cannot be stated is a usage error naming the value
+    let out = bin()
+        .args(["plan", "--config", cfg, "--target-colour-by", "0"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("colour_by_fraction"));
+}
+
+#[test]
 fn bad_config_names_the_field_and_exits_2() {
     let dir = std::env::temp_dir().join(format!("gw-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -206,10 +206,10 @@ pub(crate) fn sentinel(cfg: &Config) -> bool {
 /// The probe plan: the design over the candidate cadences and the configured cadence's figures.
 fn probe_plan(
     cfg: &Config,
-    scatter_pct: f64,
+    scatter: ProbeScatter,
     target: &crate::measure::probe_plan::DetectionTarget,
 ) -> anyhow::Result<ProbePlanSummary> {
-    use crate::measure::probe_plan::{cadence_figures, design, ProbeSession};
+    use crate::measure::probe_plan::{cadence_figures, design, ColourProbes, ProbeSession};
     use anyhow::Context;
     let plan = cfg.plan()?;
     let session = ProbeSession {
@@ -232,7 +232,15 @@ fn probe_plan(
         } else {
             plan.direction_count() as u64
         },
-        scatter_pct,
+        scatter_pct: scatter.luminance_pct,
+        // an isotropic sample's colour is watched by its isotropy classes without probes
+        // (BENCHMARKS.md, "The lamp's colour drift"): the probes are not designed for it
+        colour: (!cfg.sample.isotropic).then_some(ColourProbes {
+            lamp_cct_k: cfg.checks.colour_drift.lamp_cct_k,
+            tolerance_k_per_h: cfg.checks.colour_drift.tolerance_k_per_h,
+            z: cfg.checks.colour_drift.z,
+            scatter_pct: scatter.chromaticity_pct,
+        }),
     };
     let design = design(&session, &cfg.probes, target)
         .context("cannot design the drift probes (--probe-scatter-pct, --target-…)")?;
@@ -249,9 +257,18 @@ fn probe_plan(
     })
 }
 
+/// The probes' scatter against their original capture that `plan` designs for (% SD).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProbeScatter {
+    /// Of the luminance ratio.
+    pub luminance_pct: f64,
+    /// Of ln X/Y and of ln Z/Y, each.
+    pub chromaticity_pct: f64,
+}
+
 pub fn plan_summary(
     cfg: &Config,
-    probe_scatter_pct: f64,
+    probe_scatter: ProbeScatter,
     target: &crate::measure::probe_plan::DetectionTarget,
 ) -> anyhow::Result<PlanSummary> {
     let plan = cfg.plan()?;
@@ -296,6 +313,6 @@ pub fn plan_summary(
         substitutes,
         unreachable,
         drift_from_pairs: drift_from_pairs(&cfg.plan)?,
-        probes: probe_plan(cfg, probe_scatter_pct, target)?,
+        probes: probe_plan(cfg, probe_scatter, target)?,
     })
 }

@@ -8,17 +8,24 @@
 //! its scale from the segment's own few residuals and its step rule has a floor in %, so
 //! closed-form ARL formulas do not describe it; its behaviour is measured, not approximated.
 //!
+//! The colour target runs the daemon's colour check on the same probes (`checks::drift`: rate
+//! fits of ln X/Y and ln Z/Y against the probe pose's original, turned into a colour-temperature
+//! rate by the lamp model): a lamp whose colour temperature moves linearly, through the same
+//! Planck model, with the probes' chromaticity scatter.
+//!
 //! Deterministic: every run draws from a SplitMix64 seeded by (cadence, scenario, run), so the
 //! same inputs print the same plan on every machine.
 
-use super::drift::DriftEvent;
-use super::probes::{ProbeDrift, ProbeSpec};
+use super::drift::{DriftDetector, DriftEvent, PairObservation};
+use super::lamp::LampColour;
+use super::probes::{colour_fit_spec, ProbeDrift, ProbeSpec};
 use super::stats::SplitMix64;
 use serde::Serialize;
 
 /// What the probes must achieve. The defaults are the daemon's design target: a 1 %/h decay
-/// flagged before a quarter of the run, a −2 % step within 300 captures, in 9 runs of 10 each,
-/// and at most one false alarm in 20 fault-free runs.
+/// flagged before a quarter of the run, a −2 % step within 300 captures and a −20 K/h colour
+/// drift before 15 % of the run, in 9 runs of 10 each, and at most one false alarm in 20
+/// fault-free runs.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct DetectionTarget {
     /// A linear decay of the gain (%/h; its sign does not matter to the detector).
@@ -33,6 +40,10 @@ pub struct DetectionTarget {
     pub false_alarms_per_run: f64,
     /// The share of runs that must meet each detection target.
     pub power: f64,
+    /// A linear drift of the lamp's colour temperature (K/h; 0: no colour target) ...
+    pub colour_k_per_h: f64,
+    /// ... flagged (`colour-drift`) before this fraction of the run.
+    pub colour_by_fraction: f64,
 }
 
 impl Default for DetectionTarget {
@@ -44,6 +55,8 @@ impl Default for DetectionTarget {
             step_within_captures: 300,
             false_alarms_per_run: 0.05,
             power: 0.9,
+            colour_k_per_h: -20.0,
+            colour_by_fraction: 0.15,
         }
     }
 }
@@ -64,6 +77,19 @@ pub struct ProbeSession {
     pub probes_from: u64,
     /// The scatter of one probe's luminance against its original (% SD of the ratio): camera
     /// noise, lamp flicker and the rig's repeatability at the probe pose together.
+    pub scatter_pct: f64,
+    /// The colour check on the probes; None: the plan has no colour target.
+    pub colour: Option<ColourProbes>,
+}
+
+/// The colour check the probes feed (`[checks.colour_drift]`) and their chromaticity scatter.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ColourProbes {
+    /// The lamp's colour temperature at the start (K): the lamp model's reference.
+    pub lamp_cct_k: f64,
+    pub tolerance_k_per_h: f64,
+    pub z: f64,
+    /// The scatter of a probe's ln X/Y and of its ln Z/Y against its original (% SD each).
     pub scatter_pct: f64,
 }
 
@@ -86,6 +112,11 @@ pub struct CadenceFigures {
     /// (None when fewer than half were flagged at all).
     pub step_in_time: f64,
     pub step_median_delay: Option<f64>,
+    /// Share of colour-drift runs flagged before the deadline, and the median time of the flag
+    /// as a fraction of the run (None without a colour target, or the median when fewer than
+    /// half were flagged before twice the deadline).
+    pub colour_in_time: Option<f64>,
+    pub colour_median_fraction: Option<f64>,
     pub meets: bool,
 }
 
@@ -93,7 +124,8 @@ pub struct CadenceFigures {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "outcome", rename_all = "snake_case")]
 pub enum ProbePlan {
-    /// The sparsest cadence that meets every part of the target.
+    /// The sparsest cadence that meets every part of the target; `tried` holds the cadences
+    /// tried, sparsest first, up to it.
     Recommended {
         cadence: CadenceFigures,
         tried: Vec<CadenceFigures>,
@@ -204,6 +236,123 @@ fn simulate(
     out
 }
 
+/// The lamp's ln X/Y and ln Z/Y relative to the start, for a colour temperature moving by
+/// `k_per_h`: at the probe pose's original capture and at each probe of the cadence `every`
+/// (the lamp model is evaluated once per cadence, not once per simulated run).
+struct LampChroma {
+    anchor: [f64; 2],
+    probes: Vec<[f64; 2]>,
+}
+
+fn lamp_chroma(
+    s: &ProbeSession,
+    (c, model): (&ColourProbes, &LampColour),
+    every: u64,
+    k_per_h: f64,
+) -> LampChroma {
+    let at = |t_h: f64| model.log_chromaticity(c.lamp_cct_k + k_per_h * t_h);
+    let mut out = LampChroma {
+        anchor: [0.0; 2],
+        probes: Vec::new(),
+    };
+    let (mut regular, mut probes) = (0u64, 0u64);
+    while regular < s.captures {
+        if regular == s.anchor {
+            out.anchor = at(time_h(s, regular, probes));
+        }
+        regular += 1;
+        if probe_due(s, every, regular) {
+            out.probes.push(at(time_h(s, regular, probes)));
+            probes += 1;
+        }
+    }
+    out
+}
+
+/// The run time (h) after `regular` captures and `probes` probes.
+fn time_h(s: &ProbeSession, regular: u64, probes: u64) -> f64 {
+    (regular as f64 * s.seconds_per_capture + probes as f64 * s.seconds_per_probe) / 3600.0
+}
+
+/// Whether a probe is taken once `regular` regular captures are in.
+fn probe_due(s: &ProbeSession, every: u64, regular: u64) -> bool {
+    regular.is_multiple_of(every) && regular < s.captures && regular >= s.probes_from
+}
+
+/// One simulated run of the colour check on the probes (the lamp's luminance kept: the check
+/// reads chromaticity only): the regular capture count after which `colour-drift` was first
+/// raised, if it was before `horizon` regular captures.
+fn simulate_colour(
+    s: &ProbeSession,
+    spec: &ProbeSpec,
+    (c, model): (&ColourProbes, &LampColour),
+    every: u64,
+    lamp: &LampChroma,
+    horizon: u64,
+    rng: &mut SplitMix64,
+) -> Option<u64> {
+    let sigma = c.scatter_pct / 100.0;
+    let noisy = |m: [f64; 2], rng: &mut SplitMix64| {
+        [m[0] + sigma * rng.gauss(), m[1] + sigma * rng.gauss()]
+    };
+    let fit = DriftDetector::new(colour_fit_spec(
+        spec.min_probes,
+        spec.design_scatter_pct / 100.0,
+    ));
+    let mut fits = [fit.clone(), fit];
+    let mut orig: Option<(f64, [f64; 2])> = None;
+    let (mut regular, mut probes, mut judged) = (0u64, 0u64, 0usize);
+    while regular < s.captures.min(horizon) {
+        if regular == s.anchor {
+            orig = Some((time_h(s, regular, probes), noisy(lamp.anchor, rng)));
+        }
+        regular += 1;
+        if !probe_due(s, every, regular) {
+            continue;
+        }
+        let t = time_h(s, regular, probes);
+        let m = lamp
+            .probes
+            .get(probes as usize)
+            .copied()
+            .unwrap_or([0.0; 2]);
+        probes += 1;
+        let Some((t0, c0)) = orig else {
+            continue;
+        };
+        let now = noisy(m, rng);
+        for (k, fit) in fits.iter_mut().enumerate() {
+            fit.add(PairObservation {
+                t_a_h: t0,
+                t_b_h: t,
+                d: now[k] - c0[k],
+                bucket: (0, 0),
+                sigma: 0.0,
+                mount: [0.0; 4],
+            });
+        }
+        let (Some(u), Some(v)) = (fits[0].estimate(), fits[1].estimate()) else {
+            continue;
+        };
+        // judged at each refit, as the daemon does
+        if u.pairs == judged {
+            continue;
+        }
+        judged = u.pairs;
+        let (u, v) = (
+            (u.rate_pct_per_h / 100.0, u.se_pct_per_h / 100.0),
+            (v.rate_pct_per_h / 100.0, v.se_pct_per_h / 100.0),
+        );
+        if model
+            .cct_rate(u, v, t)
+            .is_some_and(|r| r.exceeds(c.tolerance_k_per_h, c.z))
+        {
+            return Some(regular);
+        }
+    }
+    None
+}
+
 /// The first step alarm of the target's sign after `onset`: its delay in regular captures.
 fn step_after(events: &[(u64, DriftEvent)], onset: u64, target: &DetectionTarget) -> Option<u64> {
     let sign: i8 = if target.step_pct < 0.0 { -1 } else { 1 };
@@ -239,8 +388,26 @@ pub fn cadence_figures(
     let mut decay_at = Vec::new();
     let mut step_ok = 0u64;
     let mut step_delay = Vec::new();
+    // the colour check, when the plan has a colour target and the lamp model can be built
+    let colour_model = s
+        .colour
+        .as_ref()
+        .filter(|_| target.colour_k_per_h != 0.0)
+        .and_then(|c| Some((c, LampColour::new(c.lamp_cct_k).ok()?)));
+    let colour = colour_model.as_ref().map(|(c, m)| (*c, m));
+    let lamps = colour.map(|c| {
+        (
+            lamp_chroma(s, c, every, 0.0),
+            lamp_chroma(s, c, every, target.colour_k_per_h),
+        )
+    });
+    let mut colour_ok = 0u64;
+    let mut colour_at = Vec::new();
+    // a drifting run is followed to twice the deadline: enough for the median of a cadence
+    // that nearly meets it, without refitting to the end of the run
+    let horizon = (2.0 * target.colour_by_fraction * s.captures as f64).ceil() as u64;
     for run in 0..RUNS {
-        if !simulate(
+        let gain_false = !simulate(
             s,
             spec,
             target,
@@ -248,9 +415,23 @@ pub fn cadence_figures(
             Scenario::FaultFree,
             &mut seed(1, run),
         )
-        .is_empty()
-        {
+        .is_empty();
+        // a fault-free run's colour check: the same lamp, its own scatter draws
+        let colour_false = colour.zip(lamps.as_ref()).is_some_and(|(c, (steady, _))| {
+            simulate_colour(s, spec, c, every, steady, s.captures, &mut seed(4, run)).is_some()
+        });
+        if gain_false || colour_false {
             false_runs += 1;
+        }
+        if let Some((c, (_, drifting))) = colour.zip(lamps.as_ref()) {
+            let at = simulate_colour(s, spec, c, every, drifting, horizon, &mut seed(5, run));
+            if let Some(at) = at {
+                let fraction = at as f64 / s.captures as f64;
+                colour_at.push(fraction);
+                if fraction <= target.colour_by_fraction {
+                    colour_ok += 1;
+                }
+            }
         }
         let decay = simulate(s, spec, target, every, Scenario::Decay, &mut seed(2, run));
         if let Some((at, _)) = decay
@@ -280,6 +461,7 @@ pub fn cadence_figures(
     let false_alarms_per_run = false_runs as f64 / n;
     let decay_in_time = decay_ok as f64 / n;
     let step_in_time = step_ok as f64 / n;
+    let colour_in_time = colour.map(|_| colour_ok as f64 / n);
     let half = |v: &Vec<f64>| v.len() as f64 >= n / 2.0;
     CadenceFigures {
         every,
@@ -299,9 +481,16 @@ pub fn cadence_figures(
         } else {
             None
         },
+        colour_median_fraction: if half(&colour_at) {
+            median(colour_at)
+        } else {
+            None
+        },
+        colour_in_time,
         meets: false_alarms_per_run <= target.false_alarms_per_run
             && decay_in_time >= target.power
-            && step_in_time >= target.power,
+            && step_in_time >= target.power
+            && colour_in_time.is_none_or(|c| c >= target.power),
     }
 }
 
@@ -345,6 +534,29 @@ fn check(s: &ProbeSession, target: &DetectionTarget) -> Result<(), ProbePlanErro
     if !(target.power > 0.0 && target.power <= 1.0) {
         return bad("power", "in (0, 1]");
     }
+    if !(target.colour_k_per_h.is_finite() && target.colour_k_per_h.abs() < 10_000.0) {
+        return bad("colour_k_per_h", "within ±10,000 (0: no colour target)");
+    }
+    if !(target.colour_by_fraction > 0.0 && target.colour_by_fraction <= 1.0) {
+        return bad("colour_by_fraction", "in (0, 1]");
+    }
+    if let Some(c) = &s.colour {
+        if !(c.scatter_pct > 0.0 && c.scatter_pct < 100.0) {
+            return bad("colour.scatter_pct", "between 0 and 100 (exclusive)");
+        }
+        if !(c.z > 0.0 && c.z.is_finite()) {
+            return bad("checks.colour_drift.z", "a positive number");
+        }
+        if !(c.tolerance_k_per_h >= 0.0 && c.tolerance_k_per_h.is_finite()) {
+            return bad(
+                "checks.colour_drift.tolerance_k_per_h",
+                "zero or a positive number",
+            );
+        }
+        if !(c.lamp_cct_k.is_finite() && (1000.0..=20_000.0).contains(&c.lamp_cct_k)) {
+            return bad("checks.colour_drift.lamp_cct_k", "1000 to 20,000 K");
+        }
+    }
     Ok(())
 }
 
@@ -355,10 +567,12 @@ fn unreachable_reason(
     target: &DetectionTarget,
     tried: &[CadenceFigures],
 ) -> String {
+    let colour_ok = |c: &CadenceFigures| c.colour_in_time.is_none_or(|x| x >= target.power);
     let score = |c: &CadenceFigures| {
         (c.false_alarms_per_run <= target.false_alarms_per_run) as u8
             + (c.decay_in_time >= target.power) as u8
             + (c.step_in_time >= target.power) as u8
+            + colour_ok(c) as u8
     };
     // max_by_key keeps the last of equals: the densest
     let Some(best) = tried.iter().max_by_key(|c| score(c)) else {
@@ -390,6 +604,21 @@ fn unreachable_reason(
             spec.z
         ));
     }
+    if let (Some(share), Some(c)) = (best.colour_in_time, &s.colour) {
+        if share < target.power {
+            why.push(format!(
+                "a {:+} K/h colour drift is flagged before {:.0} % of the run in {:.0} % of runs (target {:.0} %): the colour-temperature rate must exceed the tolerance ({} K/h) by z ({}) standard errors, judged from the {}th probe on, with {} % chromaticity scatter per probe; a later deadline, or probes with less scatter",
+                target.colour_k_per_h,
+                100.0 * target.colour_by_fraction,
+                100.0 * share,
+                100.0 * target.power,
+                c.tolerance_k_per_h,
+                c.z,
+                spec.min_probes.max(3),
+                c.scatter_pct
+            ));
+        }
+    }
     if best.false_alarms_per_run > target.false_alarms_per_run {
         why.push(format!(
             "{:.1} % of fault-free runs raise a probe alarm (target at most {:.1} %): raise [probes] step_sigmas or z",
@@ -413,21 +642,21 @@ pub fn design(
     target: &DetectionTarget,
 ) -> Result<ProbePlan, ProbePlanError> {
     check(s, target)?;
-    let tried: Vec<CadenceFigures> = CADENCES
-        .iter()
-        .filter(|&&every| every < s.captures)
-        .map(|&every| cadence_figures(s, spec, target, every))
-        .collect();
-    match tried.iter().find(|c| c.meets) {
-        Some(c) => Ok(ProbePlan::Recommended {
-            cadence: c.clone(),
-            tried,
-        }),
-        None => Ok(ProbePlan::Unreachable {
-            reason: unreachable_reason(s, spec, target, &tried),
-            tried,
-        }),
+    // sparsest first, up to the first that meets: a denser cadence costs more run time and
+    // (with the colour check's fits refitted at every probe) more design time
+    let mut tried = Vec::new();
+    for &every in CADENCES.iter().filter(|&&every| every < s.captures) {
+        let c = cadence_figures(s, spec, target, every);
+        if c.meets {
+            tried.push(c.clone());
+            return Ok(ProbePlan::Recommended { cadence: c, tried });
+        }
+        tried.push(c);
     }
+    Ok(ProbePlan::Unreachable {
+        reason: unreachable_reason(s, spec, target, &tried),
+        tried,
+    })
 }
 
 #[cfg(test)]
@@ -442,6 +671,21 @@ mod tests {
             anchor: 11,
             probes_from: 0,
             scatter_pct,
+            colour: None,
+        }
+    }
+
+    /// The UBO session whose probes also feed the colour check (a 3000 K lamp, the default
+    /// tolerance and z), with `colour_pct` chromaticity scatter.
+    fn ubo_colour(scatter_pct: f64, colour_pct: f64) -> ProbeSession {
+        ProbeSession {
+            colour: Some(ColourProbes {
+                lamp_cct_k: 3000.0,
+                tolerance_k_per_h: 5.0,
+                z: 4.0,
+                scatter_pct: colour_pct,
+            }),
+            ..ubo(scatter_pct)
         }
     }
 
@@ -518,6 +762,52 @@ mod tests {
     }
 
     #[test]
+    fn the_colour_target_asks_for_denser_probes_and_names_itself_when_missed() {
+        let spec = ProbeSpec::default();
+        let t = DetectionTarget::default();
+        // a probe every 200 meets the luminance target (the design without colour recommends
+        // it) ...
+        let luminance = cadence_figures(&ubo(0.3), &spec, &t, 200);
+        assert!(
+            luminance.meets && luminance.colour_in_time.is_none(),
+            "{luminance:?}"
+        );
+        // ... but −20 K/h before 15 % of the run is judged from the colour fits' 4th probe on,
+        // at 12 % of the run at best: most runs miss it
+        let sparse = cadence_figures(&ubo_colour(0.3, 0.3), &spec, &t, 200);
+        assert!(!sparse.meets, "{sparse:?}");
+        assert!(sparse.colour_in_time.unwrap() < 0.5, "{sparse:?}");
+        assert_eq!(
+            (sparse.decay_in_time, sparse.step_in_time),
+            (luminance.decay_in_time, luminance.step_in_time)
+        );
+        let dense = cadence_figures(&ubo_colour(0.3, 0.3), &spec, &t, 75);
+        assert!(dense.meets, "{dense:?}");
+        assert!(dense.colour_in_time.unwrap() >= 0.9);
+        assert!(dense.colour_median_fraction.unwrap() <= 0.15);
+        // the colour fits' scale floor keeps fault-free runs quiet: the colour check adds no
+        // false alarm to the luminance checks' at this cadence
+        let quiet = cadence_figures(&ubo(0.3), &spec, &t, 75);
+        assert_eq!(dense.false_alarms_per_run, quiet.false_alarms_per_run);
+        // the reason names the colour target when it is the part that fails
+        let why = unreachable_reason(&ubo_colour(0.3, 0.3), &spec, &t, &[sparse]);
+        assert!(why.contains("-20 K/h colour drift"), "{why}");
+        assert!(
+            !why.contains("step is flagged") && !why.contains("decay"),
+            "{why}"
+        );
+        // no colour target: the same as no colour check
+        let none = DetectionTarget {
+            colour_k_per_h: 0.0,
+            ..t
+        };
+        assert_eq!(
+            cadence_figures(&ubo_colour(0.3, 0.3), &spec, &none, 200),
+            cadence_figures(&ubo(0.3), &spec, &none, 200)
+        );
+    }
+
+    #[test]
     fn bad_inputs_are_refused_with_the_field() {
         let t = DetectionTarget::default();
         let spec = ProbeSpec::default();
@@ -544,6 +834,24 @@ mod tests {
         assert!(matches!(
             design(&ubo(0.3), &spec, &bad),
             Err(ProbePlanError::Invalid { field: "power", .. })
+        ));
+        let bad = DetectionTarget {
+            colour_k_per_h: f64::NAN,
+            ..t
+        };
+        assert!(matches!(
+            design(&ubo(0.3), &spec, &bad),
+            Err(ProbePlanError::Invalid {
+                field: "colour_k_per_h",
+                ..
+            })
+        ));
+        assert!(matches!(
+            design(&ubo_colour(0.3, -1.0), &spec, &t),
+            Err(ProbePlanError::Invalid {
+                field: "colour.scatter_pct",
+                ..
+            })
         ));
     }
 }
