@@ -768,28 +768,12 @@ impl SweepMonitor {
     /// for (±2 % at θi = 75° on the realistic preset), and consecutive sweeps share it, so
     /// unmodelled it adds up in the CUSUM. `None` while no harmonic is fitted.
     fn expected_level(&self, sweep: &Sweep, r: &Reference) -> Option<LayerPattern> {
-        let mut lights: Vec<usize> = sweep
-            .past
-            .iter()
-            .filter(|&&k| self.captures[k].layer == sweep.layer)
-            .map(|&k| self.captures[k].light)
-            .collect();
-        lights.sort_unstable();
-        lights.dedup();
         let phi = |l: usize| self.light_phi.get(l).copied().unwrap_or(f64::NAN);
-        lights.retain(|&l| phi(l).is_finite() && r.light.get(l).is_some_and(|v| v.is_finite()));
         let here = phi(sweep.light);
         if !here.is_finite() {
             return None;
         }
-        // the layer's azimuth step: the smallest gap between the azimuths seen
-        let mut az: Vec<f64> = lights.iter().map(|&l| phi(l).rem_euclid(TAU)).collect();
-        az.sort_by(f64::total_cmp);
-        let step = az
-            .windows(2)
-            .map(|w| w[1] - w[0])
-            .filter(|g| *g > 1e-6)
-            .fold(f64::INFINITY, f64::min);
+        let (lights, step) = self.layer_lights(sweep, sweep.layer, r);
         let harmonics: Vec<f64> = [(4.0, PATTERN_MIN_LIGHTS[0]), (2.0, PATTERN_MIN_LIGHTS[1])]
             .into_iter()
             .filter(|&(h, min)| lights.len() >= min && TAU / h >= PATTERN_SAMPLES_PER_PERIOD * step)
@@ -834,19 +818,40 @@ impl SweepMonitor {
             .map(|&k| self.captures[k].layer)
             .filter(|&l| l < sweep.layer)
             .max()?;
+        let (lights, step) = self.layer_lights(sweep, below, r);
+        if lights.len() < PATTERN_MIN_LIGHTS[1] || TAU / 2.0 < PATTERN_SAMPLES_PER_PERIOD * step {
+            return None;
+        }
+        let harmonics: &[f64] = if TAU / 4.0 >= PATTERN_SAMPLES_PER_PERIOD * step {
+            &[2.0, 4.0]
+        } else {
+            &[2.0]
+        };
+        if lights.len() <= 1 + 2 * harmonics.len() {
+            return None;
+        }
+        let phi = |l: usize| self.light_phi.get(l).copied().unwrap_or(f64::NAN);
+        let azimuths: Vec<f64> = lights.iter().map(|&l| phi(l)).collect();
+        let values: Vec<f64> = lights.iter().map(|&l| r.light[l]).collect();
+        let f = pattern_fit(&azimuths, &values, harmonics, None, 0.0)?;
+        let amplitude = f.coef[1].hypot(f.coef[2]);
+        (amplitude_t(&f.coef, &f.cov, 1) >= BORROW_SIGMAS)
+            .then_some([f.coef[1] / amplitude, f.coef[2] / amplitude])
+    }
+
+    /// The earlier lights of θi layer `layer` with a finite azimuth and a finite effect L
+    /// (sorted), and the layer's azimuth step: the smallest gap between their azimuths.
+    fn layer_lights(&self, sweep: &Sweep, layer: i64, r: &Reference) -> (Vec<usize>, f64) {
         let phi = |l: usize| self.light_phi.get(l).copied().unwrap_or(f64::NAN);
         let mut lights: Vec<usize> = sweep
             .past
             .iter()
-            .filter(|&&k| self.captures[k].layer == below)
+            .filter(|&&k| self.captures[k].layer == layer)
             .map(|&k| self.captures[k].light)
             .collect();
         lights.sort_unstable();
         lights.dedup();
         lights.retain(|&l| phi(l).is_finite() && r.light.get(l).is_some_and(|v| v.is_finite()));
-        if lights.len() < PATTERN_MIN_LIGHTS[1] {
-            return None;
-        }
         let mut az: Vec<f64> = lights.iter().map(|&l| phi(l).rem_euclid(TAU)).collect();
         az.sort_by(f64::total_cmp);
         let step = az
@@ -854,30 +859,7 @@ impl SweepMonitor {
             .map(|w| w[1] - w[0])
             .filter(|g| *g > 1e-6)
             .fold(f64::INFINITY, f64::min);
-        if TAU / 2.0 < PATTERN_SAMPLES_PER_PERIOD * step {
-            return None;
-        }
-        let fourth = TAU / 4.0 >= PATTERN_SAMPLES_PER_PERIOD * step;
-        let row = |p: f64| -> Vec<f64> {
-            let mut v = vec![1.0, (2.0 * p).cos(), (2.0 * p).sin()];
-            if fourth {
-                v.push((4.0 * p).cos());
-                v.push((4.0 * p).sin());
-            }
-            v
-        };
-        let (n, cols) = (lights.len(), if fourth { 5 } else { 3 });
-        if n <= cols {
-            return None;
-        }
-        let rows: Vec<Vec<f64>> = lights.iter().map(|&l| row(phi(l))).collect();
-        let x = DMatrix::from_fn(n, cols, |i, j| rows[i][j]);
-        let y = DVector::from_iterator(n, lights.iter().map(|&l| r.light[l]));
-        let b = x.clone().svd(true, true).solve(&y, 1e-9).ok()?;
-        let sigma2 = (&y - &x * &b).norm_squared() / (n - cols) as f64;
-        let cov = (x.transpose() * &x).pseudo_inverse(1e-12).ok()? * sigma2;
-        let amplitude = b[1].hypot(b[2]);
-        (amplitude_t(&b, &cov, 1) >= BORROW_SIGMAS).then_some([b[1] / amplitude, b[2] / amplitude])
+        (lights, step)
     }
 
     /// The captures of a just completed sweep and of the earlier completed ones.
