@@ -194,7 +194,8 @@ struct PlanArgs {
     #[arg(long, default_value_t = 0.05)]
     target_false_alarms: f64,
     /// The scatter of one probe's ln X/Y and of its ln Z/Y against its original capture, % SD
-    /// each (measure it: the colour fits' residual scale). Default: the luminance scatter.
+    /// each (measure it on fault-free sessions: `benches/probe_scatter.py`). Default: the luminance
+    /// scatter.
     #[arg(long)]
     colour_scatter_pct: Option<f64>,
     /// Target: a drift of the lamp's colour temperature of this size (K/h; 0: no colour

@@ -112,9 +112,9 @@ pub struct CadenceFigures {
     /// (None when fewer than half were flagged at all).
     pub step_in_time: f64,
     pub step_median_delay: Option<f64>,
-    /// Share of colour-drift runs flagged before the deadline, and the median time of the flag
-    /// as a fraction of the run (None without a colour target, or the median when fewer than
-    /// half were flagged before twice the deadline).
+    /// Share of colour-drift runs flagged before the deadline (None without a colour target),
+    /// and the median time of the flag as a fraction of the run, over the runs flagged before
+    /// twice the deadline (None when fewer than half were).
     pub colour_in_time: Option<f64>,
     pub colour_median_fraction: Option<f64>,
     pub meets: bool,
@@ -171,10 +171,6 @@ fn simulate(
     rng: &mut SplitMix64,
 ) -> Vec<(u64, DriftEvent)> {
     let sigma = s.scatter_pct / 100.0;
-    // time (h) after `regular` captures and `probes` probes
-    let time_h = |regular: u64, probes: u64| {
-        (regular as f64 * s.seconds_per_capture + probes as f64 * s.seconds_per_probe) / 3600.0
-    };
     let gain = |regular: u64, t_h: f64| -> f64 {
         match scenario {
             Scenario::FaultFree => 1.0,
@@ -199,12 +195,12 @@ fn simulate(
     while regular < s.captures {
         // the regular capture `regular` is taken
         if regular == s.anchor {
-            let t = time_h(regular, probes);
+            let t = time_h(s, regular, probes);
             orig = Some((t, gain(regular, t) * (sigma * rng.gauss()).exp()));
         }
         regular += 1;
-        if regular.is_multiple_of(every) && regular < s.captures && regular >= s.probes_from {
-            let t = time_h(regular, probes);
+        if probe_due(s, every, regular) {
+            let t = time_h(s, regular, probes);
             probes += 1;
             if let Some((t0, y0)) = orig {
                 let y = gain(regular, t) * (sigma * rng.gauss()).exp();
@@ -537,7 +533,10 @@ fn check(s: &ProbeSession, target: &DetectionTarget) -> Result<(), ProbePlanErro
     if !(target.colour_k_per_h.is_finite() && target.colour_k_per_h.abs() < 10_000.0) {
         return bad("colour_k_per_h", "within ±10,000 (0: no colour target)");
     }
-    if !(target.colour_by_fraction > 0.0 && target.colour_by_fraction <= 1.0) {
+    if target.colour_k_per_h != 0.0
+        && s.colour.is_some()
+        && !(target.colour_by_fraction > 0.0 && target.colour_by_fraction <= 1.0)
+    {
         return bad("colour_by_fraction", "in (0, 1]");
     }
     if let Some(c) = &s.colour {
@@ -607,7 +606,7 @@ fn unreachable_reason(
     if let (Some(share), Some(c)) = (best.colour_in_time, &s.colour) {
         if share < target.power {
             why.push(format!(
-                "a {:+} K/h colour drift is flagged before {:.0} % of the run in {:.0} % of runs (target {:.0} %): the colour-temperature rate must exceed the tolerance ({} K/h) by z ({}) standard errors, judged from the {}th probe on, with {} % chromaticity scatter per probe; a later deadline, or probes with less scatter",
+                "a {:+} K/h colour drift is flagged before {:.0} % of the run in {:.0} % of runs (target {:.0} %): the colour-temperature rate must exceed the tolerance ({} K/h) by z ({}) standard errors, judged once the fits have {} probes, with {} % chromaticity scatter per probe and the fits' scale floored at [probes] design_scatter_pct ({} %); a later deadline, or design_scatter_pct set to the probes' measured scatter if it is lower",
                 target.colour_k_per_h,
                 100.0 * target.colour_by_fraction,
                 100.0 * share,
@@ -615,7 +614,8 @@ fn unreachable_reason(
                 c.tolerance_k_per_h,
                 c.z,
                 spec.min_probes.max(3),
-                c.scatter_pct
+                c.scatter_pct,
+                spec.design_scatter_pct
             ));
         }
     }

@@ -386,8 +386,8 @@ impl ProbeDrift {
 /// (at least 3); rate only, and no rate alarm of their own: the colour alarm is decided on the
 /// combined colour-temperature rate (`CctRate::exceeds`). The residual scale is floored at the
 /// probes' design scatter (`scale_floor`, ln units), which the chromaticity ratios are assumed
-/// to share: with 4 probes a fit has 2 degrees of freedom, and judging it by its own scale
-/// would raise a false colour alarm in several runs in a hundred. Shared by the daemon's colour
+/// to share: with 4 probes a fit has 2 degrees of freedom, and a scale estimated from so few
+/// residuals is often small enough to make a steady lamp's rate look significant. Shared by the daemon's colour
 /// check and `goniowatch plan`'s simulation of it.
 pub(crate) fn colour_fit_spec(min_probes: usize, scale_floor: f64) -> DriftSpec {
     DriftSpec {

@@ -356,7 +356,9 @@ const TRIM_SCALES: f64 = 3.0;
 const PATTERN_MIN_LIGHTS: [usize; 2] = [6, 10];
 
 /// A θi layer's level pattern at the current light (`SweepMonitor::expected_level`): the level
-/// it predicts, the prediction's standard deviation, and how many harmonics it has.
+/// it predicts, the prediction's standard deviation, and its model (`harmonics`: its columns
+/// beyond the constant, so a harmonic entering and the borrowed 2nd harmonic entering or
+/// leaving each change it).
 #[derive(Debug, Clone)]
 struct LayerPattern {
     level: f64,
@@ -373,14 +375,21 @@ const BORROW_SIGMAS: f64 = 3.0;
 
 /// The amplitude of a (cos, sin) coefficient pair in units of its standard error along its
 /// own direction, from the coefficients `b` and their covariance `cov` (columns `i`, `i + 1`).
+/// 0 for a zero amplitude or a zero or non-finite variance (an exact fit has no phase to lend).
 fn amplitude_t(b: &DVector<f64>, cov: &DMatrix<f64>, i: usize) -> f64 {
     let (c, s) = (b[i], b[i + 1]);
     let a = c.hypot(s);
+    if !(a > 0.0 && a.is_finite()) {
+        return 0.0;
+    }
     let u = [c / a, s / a];
     let var = u[0] * u[0] * cov[(i, i)]
         + 2.0 * u[0] * u[1] * cov[(i, i + 1)]
         + u[1] * u[1] * cov[(i + 1, i + 1)];
-    a / var.max(0.0).sqrt()
+    if !(var > 0.0 && var.is_finite()) {
+        return 0.0;
+    }
+    a / var.sqrt()
 }
 
 /// A layer's level pattern fit: the pattern, the coefficients and their covariance.
@@ -415,6 +424,9 @@ fn pattern_fit(
         azimuths.len(),
         1 + 2 * harmonics.len() + borrowed.is_some() as usize,
     );
+    if n <= cols || values.len() != n {
+        return None;
+    }
     let rows: Vec<Vec<f64>> = azimuths.iter().map(|&p| row(p)).collect();
     let x = DMatrix::from_fn(n, cols, |i, j| rows[i][j]);
     let y = DVector::from_column_slice(values);
@@ -782,8 +794,6 @@ impl SweepMonitor {
         if harmonics.is_empty() {
             return None;
         }
-        // while the layer is too short an arc to fit its own 2nd harmonic, the 2nd harmonic
-        // with the phase of the layer below enters with its amplitude alone
         let values: Vec<f64> = lights.iter().map(|&l| r.light[l]).collect();
         let azimuths: Vec<f64> = lights.iter().map(|&l| phi(l)).collect();
         // while the layer is too short an arc to fit its own 2nd harmonic, it takes the 2nd
@@ -836,7 +846,7 @@ impl SweepMonitor {
         let f = pattern_fit(&azimuths, &values, harmonics, None, 0.0)?;
         let amplitude = f.coef[1].hypot(f.coef[2]);
         (amplitude_t(&f.coef, &f.cov, 1) >= BORROW_SIGMAS)
-            .then_some([f.coef[1] / amplitude, f.coef[2] / amplitude])
+            .then(|| [f.coef[1] / amplitude, f.coef[2] / amplitude])
     }
 
     /// The earlier lights of θi layer `layer` with a finite azimuth and a finite effect L
@@ -1759,6 +1769,8 @@ mod session_tests {
         let (_, alarms) = run_outlined(Fault::Step(0.97), onset, 76, 1, true, (0.003, 1.0));
         assert!(
             alarms.iter().any(|a| a.code == "gain-step"
+                && a.idx
+                    .is_some_and(|i| i as usize >= onset && (i as usize) < onset + 5 * 81)
                 && a.evidence["level_pct"].as_f64().is_some_and(|v| v < 0.0)),
             "{alarms:?}"
         );
