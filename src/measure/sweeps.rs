@@ -1357,6 +1357,23 @@ mod tests {
     }
 
     #[test]
+    fn an_amplitude_is_judged_along_its_own_direction_and_a_degenerate_one_lends_no_phase() {
+        // coefficients (const, cos, sin) = (1, 3, 4): amplitude 5 along (0.6, 0.8)
+        let b = DVector::from_vec(vec![1.0, 3.0, 4.0]);
+        let cov = DMatrix::from_diagonal(&DVector::from_vec(vec![1.0, 0.25, 4.0]));
+        // variance along (0.6, 0.8): 0.36·0.25 + 0.64·4 = 2.65
+        assert!((amplitude_t(&b, &cov, 1) - 5.0 / 2.65f64.sqrt()).abs() < 1e-12);
+        let zero = DVector::from_vec(vec![1.0, 0.0, 0.0]);
+        assert_eq!(amplitude_t(&zero, &cov, 1), 0.0);
+        // an exact fit (no variance) or a broken one has no phase to lend
+        assert_eq!(amplitude_t(&b, &DMatrix::zeros(3, 3), 1), 0.0);
+        let nan = DMatrix::from_element(3, 3, f64::NAN);
+        assert_eq!(amplitude_t(&b, &nan, 1), 0.0);
+        // too few lights for the model: no pattern
+        assert!(pattern_fit(&[0.0, 1.0, 2.0], &[0.0; 3], &[4.0], None, 0.5).is_none());
+    }
+
+    #[test]
     fn thresholds_follow_the_false_alarm_budget() {
         let rig = Rig::new(Default::default()).unwrap();
         let m = SweepMonitor::new(SweepSpec::default(), rig.clone(), 81);
