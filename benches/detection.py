@@ -58,6 +58,11 @@ SCENARIOS = [
 ] + [
     (f"joint {j} +{o}° at mid-run", [{"kind": "joint-offset", "at_capture": 3280, "joint": j, "offset_deg": float(o)}], ("joint", 3280, j))
     for j in (1, 2, 3) for o in (1, 2)
+] + [
+    # both signs at three onsets: early (light sweep 20, θi = 45°), mid-run, and in the θi = 75° layer
+    (f"joint {j} {'+' if o > 0 else '−'}1° {where}", [{"kind": "joint-offset", "at_capture": at, "joint": j, "offset_deg": float(o)}], ("joint", at, j))
+    for j in (1, 2) for o in (1, -1) for where, at in (("early", 1700), ("at mid-run", 3280), ("late in the 75° layer", 5200))
+    if (o, at) != (1, 3280)
 ]
 
 
@@ -81,6 +86,8 @@ def curve(captures_path):
 
 
 def slug(name):
+    # a negative angle is spelt out so that both signs of a joint offset keep their own folder
+    name = re.sub(r"−(?=[0-9.]+°)", "minus ", name)
     return re.sub(r"[^a-z0-9.]+", "-", name.lower()).strip("-")
 
 
@@ -141,6 +148,33 @@ def run(tmp, name, material, preset, faults, seed, every, keep=None, config="sim
     return r.returncode, alarms, summary, daemon_cpu, pts
 
 
+def joint_summary(runs):
+    """Per sample and joint: named with the right joint and sign within 600 captures of the
+    onset (the first `joint-offset-suspected` after it), and the estimate against the truth."""
+    print("\nJoint offsets: the first `joint-offset-suspected` after the onset, per sample and joint "
+          "(both signs, every onset of the rows above).\n")
+    print("| sample | joint | runs | named right within 600 | named wrong (joint or sign) | not named | estimate / truth: median (range) | estimate within ±30 % |")
+    print("|---|---|---|---|---|---|---|---|")
+    for key in dict.fromkeys((r[0], r[1]) for r in runs):
+        rows = [r for r in runs if (r[0], r[1]) == key]
+        right, wrong, missed, ratios = 0, 0, 0, []
+        for _, joint, offset, _, a, onset in rows:
+            if a is None:
+                missed += 1
+                continue
+            e = a["evidence"]
+            if e["joint"] == joint and e["offset_deg"] * offset > 0:
+                if a["idx"] - onset <= 600:
+                    right += 1
+                ratios.append(e["offset_deg"] / offset)
+            else:
+                wrong += 1
+        ratios.sort()
+        within = sum(1 for q in ratios if abs(q - 1) <= 0.3)
+        med = (f"{ratios[len(ratios) // 2]:.2f} ({ratios[0]:.2f}–{ratios[-1]:.2f})" if ratios else "–")
+        print(f"| {key[0]} | {key[1]} | {len(rows)} | {right} | {wrong} | {missed} | {med} | {within} of {len(ratios)} named right |", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=3)
@@ -149,6 +183,7 @@ def main():
     ap.add_argument("--every", type=int, default=100)
     ap.add_argument("--presets", default="realistic,clean")
     ap.add_argument("--only", help="run only the scenarios whose name contains this text")
+    ap.add_argument("--match", help="run only the scenarios whose name matches this regular expression")
     ap.add_argument("--keep", help="keep the recorded sessions in this folder")
     ap.add_argument("--replay", help="re-evaluate the sessions kept in this folder instead of running the rig")
     a = ap.parse_args()
@@ -160,10 +195,13 @@ def main():
     print("| preset | scenario | runs with a drift alarm (first code) | first alarm: captures after onset (hours) | final rate %/h (truth) | positioning / outlier alarms after onset (first: joint, estimate, captures after onset) | daemon CPU per capture |")
     print("|---|---|---|---|---|---|---|")
     curves = []
+    joint_runs = []
     for material, preset in [(m, p) for m in a.materials.split(",") for p in a.presets.split(",")]:
         label = preset if material == "walkway" else f"{preset}, {material}"
         for name, faults, truth in SCENARIOS:
             if a.only and a.only not in name:
+                continue
+            if a.match and not re.search(a.match, name):
                 continue
             hits, delays, rates, cpu, geo, kinds = 0, [], [], [], [], []
             runs = 0
@@ -191,6 +229,9 @@ def main():
                     first += (f", {ch['pairs_needs_resampling']} of {ch['pairs_exact'] + ch['pairs_needs_resampling']} pairs"
                               f" to resample, {ch.get('placed_by_command', 0)} placed by command")
                 geo.append(f"{len(g)}" + (f" ({first})" if first else ""))
+                if truth and truth[0] == "joint":
+                    offset = next(f["offset_deg"] for f in faults if f["kind"] == "joint-offset")
+                    joint_runs.append((label, truth[2], offset, name, js[0] if js else None, onset))
                 hits += bool(drift)
                 if drift and truth:
                     onset = truth[1]
@@ -211,6 +252,8 @@ def main():
             if runs == 0:
                 continue
             print(f"| {label} | {name} | {hits} of {runs} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
+    if joint_runs:
+        joint_summary(joint_runs)
     if curves:
         # the estimate's error against hours into the run; truth up to t: the mean ln-gain slope
         # of the linear decay 1 − a·t over [0, t]

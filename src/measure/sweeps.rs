@@ -215,6 +215,26 @@ struct JointCrossing {
     mean_se: f64,
     sweeps: usize,
     since: u64,
+    /// Sweeps behind `mean` (see `SweepMonitor::slip_estimate`), and the CUSUM run's own mean.
+    estimate_sweeps: usize,
+    run_mean: f64,
+}
+
+/// The start of the most likely last segment of a mean shift of sign `sign` in equally scaled
+/// `values`: the k that maximises sign · Σ_{i≥k} vᵢ / √(n − k) (the likelihood-ratio change
+/// point). `None` for no values.
+fn change_point(values: &[f64], sign: f64) -> Option<usize> {
+    (0..values.len())
+        .map(|k| {
+            let tail = &values[k..];
+            (
+                k,
+                sign * tail.iter().sum::<f64>() / (tail.len() as f64).sqrt(),
+            )
+        })
+        .filter(|(_, t)| t.is_finite())
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(k, _)| k)
 }
 
 /// An alarm already raised, which is not raised again: a gain step per sign and θi layer, a
@@ -263,12 +283,15 @@ pub(crate) struct SweepMonitor {
     level_steps: Vec<(i64, u64, Option<f64>, f64)>,
 }
 
-/// Where a completed sweep lies in the session.
+/// Where a completed sweep lies in the session, and the joint offsets its pattern fit gave
+/// (NaN where it gave none).
 #[derive(Debug, Clone, Copy)]
 struct SweepSpan {
+    light: usize,
     first_idx: u64,
     last_idx: u64,
     first_t: f64,
+    offsets: [f64; 2],
 }
 
 /// What testing one completed sweep gave.
@@ -674,9 +697,11 @@ impl SweepMonitor {
             return nothing;
         };
         self.sweep_starts.push(SweepSpan {
+            light,
             first_idx: sweep.first_idx,
             last_idx: sweep.last_idx,
             first_t: sweep.first_t,
+            offsets: [f64::NAN; 2],
         });
         let known = Known { mount, gain };
         let reference = self.backfit(&sweep.past, &known);
@@ -750,8 +775,14 @@ impl SweepMonitor {
         } else {
             LevelStep::default()
         };
-        let (slip_at_s, withdrawn_steps_s) =
-            self.test_joints(&sweep, &pattern, level_step.alarmed, &mut rec, &mut alarms);
+        let (slip_at_s, withdrawn_steps_s) = self.test_joints(
+            &sweep,
+            &pattern,
+            level_step.alarmed,
+            &known,
+            &mut rec,
+            &mut alarms,
+        );
         rec.model_layers = self
             .model
             .as_ref()
@@ -1154,6 +1185,7 @@ impl SweepMonitor {
         sweep: &Sweep,
         pattern: &PatternFit,
         level_alarmed: bool,
+        known: &Known,
         rec: &mut SweepRecord,
         alarms: &mut Vec<Alarm>,
     ) -> (Option<f64>, Vec<f64>) {
@@ -1164,6 +1196,9 @@ impl SweepMonitor {
             let Some(bse) = pattern.se(j + 1).filter(|v| v.is_finite() && *v > 0.0) else {
                 continue;
             };
+            if let Some(span) = self.sweep_starts.last_mut() {
+                span.offsets[j] = b;
+            }
             let mut fit = JointFit {
                 joint: j + 1,
                 offset_deg: b,
@@ -1197,6 +1232,8 @@ impl SweepMonitor {
                                 mean_se,
                                 sweeps: run.n,
                                 since: run.start,
+                                estimate_sweeps: run.n,
+                                run_mean: mean,
                             });
                         }
                     }
@@ -1205,7 +1242,11 @@ impl SweepMonitor {
             }
             rec.joints.push(fit);
         }
-        let crossing = if level_alarmed { None } else { crossing };
+        let crossing = if level_alarmed {
+            None
+        } else {
+            crossing.map(|x| self.slip_estimate(x, known))
+        };
         // a crossing in a layer that already has its positioning alarm restarts the CUSUMs
         // without a second alarm (the operator has it; the next layer may raise one again)
         let (mut slip_at_s, mut withdrawn) = (None, Vec::new());
@@ -1257,6 +1298,76 @@ impl SweepMonitor {
         (slip_at_s, withdrawn)
     }
 
+    /// The slip's size from the sweeps that show it, each against a reference that holds none
+    /// of them. The CUSUM run's own mean underestimates it twice over: a run starts at the first
+    /// positive excursion, often a sweep or two before the slip, and each of its later sweeps is
+    /// compared with class effects F that already average in the slipped captures before it
+    /// (a class's first members after the slip hide it completely). So the run is cut at its
+    /// change point (`change_point` on the sweeps' offsets), and every sweep from there on is
+    /// fitted again against the F + L + C reference of the captures taken before the sweep
+    /// preceding the change point (`slip_first_idx`); the estimate is the mean of those fits
+    /// from their own change point. Where no refit is possible (too few captures with a class
+    /// member before the cut) it is the mean of the run's own offsets from their change point.
+    /// Detection is unchanged: only the alarm's size and its standard error come from here.
+    fn slip_estimate(&self, mut x: JointCrossing, known: &Known) -> JointCrossing {
+        let j = x.joint;
+        let sign = if x.mean < 0.0 { -1.0 } else { 1.0 };
+        let run: Vec<SweepSpan> = self
+            .sweep_starts
+            .iter()
+            .filter(|s| s.last_idx >= x.since && s.offsets[j].is_finite())
+            .copied()
+            .collect();
+        let values: Vec<f64> = run.iter().map(|s| s.offsets[j]).collect();
+        let Some(k) = change_point(&values, sign) else {
+            return x;
+        };
+        let mean_of = |v: &[(f64, f64)]| {
+            let m = v.len() as f64;
+            (
+                v.iter().map(|r| r.0).sum::<f64>() / m,
+                v.iter().map(|r| r.1 * r.1).sum::<f64>().sqrt() / m,
+            )
+        };
+        // the sweep taken before the change point may hold the slip's start without showing it
+        // (`slip_first_idx`), so the reference stops before it too
+        let cut = self.slip_first_idx(run[k].last_idx);
+        let past: Vec<usize> = (0..self.captures.len())
+            .filter(|&i| {
+                let c = &self.captures[i];
+                c.idx < cut && self.completed.get(c.light).copied().unwrap_or(false)
+            })
+            .collect();
+        let reference = self.backfit(&past, known);
+        let refits: Vec<(f64, f64)> = run[k..]
+            .iter()
+            .filter_map(|s| {
+                let current: Vec<usize> = (0..self.captures.len())
+                    .filter(|&i| self.captures[i].light == s.light)
+                    .collect();
+                let (_, rows) = self.residuals(&current, &reference, known);
+                let fit = self.pattern_fit(rows);
+                let se = fit.se(j + 1).filter(|v| v.is_finite() && *v > 0.0)?;
+                Some((fit.beta[j + 1], se))
+            })
+            .collect();
+        let refitted: Vec<f64> = refits.iter().map(|r| r.0).collect();
+        let (used, se_fallback) = match change_point(&refitted, sign) {
+            Some(k2) => (refits[k2..].to_vec(), None),
+            None => (
+                values[k..].iter().map(|&v| (v, 0.0)).collect(),
+                Some(x.mean_se),
+            ),
+        };
+        let (mean, se) = mean_of(&used);
+        if mean.is_finite() && sign * mean > 0.0 {
+            x.mean = mean;
+            x.mean_se = se_fallback.unwrap_or(se);
+            x.estimate_sweeps = used.len();
+        }
+        x
+    }
+
     fn joint_alarm(&self, sweep: &Sweep, x: &JointCrossing, rec: &SweepRecord) -> Alarm {
         let from_idx = self.slip_first_idx(x.since);
         let other: Vec<serde_json::Value> = rec
@@ -1270,10 +1381,11 @@ impl SweepMonitor {
             Severity::Warning,
             "joint-offset-suspected",
             format!(
-                "joint {} looks offset by about {:+.2}° (± {:.2}°, an underestimate): the pattern across the cameras of light sweep {} and the {} before it follows that joint's sensitivity while the encoders agree with the commands; a slipped joint or a moved sample is likely (CUSUM {:.1} > {:.1})",
+                "joint {} looks offset by about {:+.2}° (± {:.2}°, from {} light sweep(s) against the captures before the slip): the pattern across the cameras of light sweep {} and the {} before it follows that joint's sensitivity while the encoders agree with the commands; a slipped joint or a moved sample is likely (CUSUM {:.1} > {:.1})",
                 x.joint + 1,
                 x.mean,
                 x.mean_se,
+                x.estimate_sweeps,
                 sweep.light,
                 x.sweeps.saturating_sub(1),
                 x.statistic,
@@ -1281,7 +1393,7 @@ impl SweepMonitor {
             ),
         )
         .at(Some(sweep.last_idx), Some(sweep.last_t))
-        .with(json!({"joint": x.joint + 1, "offset_deg": x.mean, "se_deg": x.mean_se, "sweeps": x.sweeps, "since_idx": x.since, "statistic": x.statistic, "threshold": self.h_joint, "other_joints": other}))
+        .with(json!({"joint": x.joint + 1, "offset_deg": x.mean, "se_deg": x.mean_se, "estimate_sweeps": x.estimate_sweeps, "run_mean_deg": x.run_mean, "sweeps": x.sweeps, "since_idx": x.since, "statistic": x.statistic, "threshold": self.h_joint, "other_joints": other}))
         .advise(
             &format!(
                 "Pause the run; check the sample clamp and arm joint {} (re-home the joint if it slipped, re-seat the sample if it moved), then resume; every capture since {from_idx} (the light sweep before the first one that showed it) is on the retake list.",
@@ -1295,6 +1407,20 @@ impl SweepMonitor {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_change_point_starts_the_shifted_tail() {
+        // a CUSUM run that began on two small excursions before the shift
+        assert_eq!(change_point(&[0.2, 0.05, 0.7, 0.9], 1.0), Some(2));
+        assert_eq!(change_point(&[-0.2, -0.05, -0.7, -0.9], -1.0), Some(2));
+        // a shift held from the start keeps every value; one late outlier alone is not a tail
+        assert_eq!(change_point(&[1.0, 1.1, 0.9, 1.0], 1.0), Some(0));
+        assert_eq!(change_point(&[0.9, 1.0, 1.0, 1.3], 1.0), Some(0));
+        // the other sign's tail is not taken
+        assert_eq!(change_point(&[0.8, 0.9, -0.1], -1.0), Some(2));
+        assert_eq!(change_point(&[], 1.0), None);
+        assert_eq!(change_point(&[f64::NAN, 1.0], 1.0), Some(1));
+    }
 
     #[test]
     fn scale_history_holds_back_a_developing_run() {
@@ -1553,8 +1679,21 @@ mod session_tests {
         last_light: usize,
         seed: u64,
         level_test: bool,
-        (outline, second): (f64, f64),
+        outline: (f64, f64),
     ) -> (Vec<SweepRecord>, Vec<Alarm>) {
+        let (_, records, alarms) = run_monitor(fault, onset, last_light, seed, level_test, outline);
+        (records, alarms)
+    }
+
+    /// `run_outlined`, and the monitor as the session left it.
+    fn run_monitor(
+        fault: Fault,
+        onset: usize,
+        last_light: usize,
+        seed: u64,
+        level_test: bool,
+        (outline, second): (f64, f64),
+    ) -> (SweepMonitor, Vec<SweepRecord>, Vec<Alarm>) {
         let plan = SamplingPlan::ubo();
         let rig = Rig::new(Default::default()).unwrap();
         let mut m = SweepMonitor::new(SweepSpec::default(), rig.clone(), plan.direction_count());
@@ -1630,7 +1769,7 @@ mod session_tests {
                 mount: [0.0; 4],
             });
         }
-        (records, alarms)
+        (m, records, alarms)
     }
 
     /// Mid-run, inside light sweep 46 (the θi = 60° layer's tenth).
@@ -1675,6 +1814,14 @@ mod session_tests {
                 est * deg > 0.0 && est.abs() < 1.5 * deg.abs(),
                 "estimate {est}"
             );
+            // the estimate comes from the sweeps that show the slip, and says how many; the
+            // CUSUM run's own mean stays in the evidence
+            let used = first.evidence["estimate_sweeps"].as_u64().unwrap();
+            assert!(
+                used >= 1 && used <= first.evidence["sweeps"].as_u64().unwrap(),
+                "{first:?}"
+            );
+            assert!(first.evidence["run_mean_deg"].as_f64().unwrap() * deg > 0.0);
             let at = first.idx.unwrap() as usize;
             assert!(at >= onset && at < onset + 4 * 81, "{at}");
             // what to do names the joint; the captures since the run began are retaken
