@@ -803,6 +803,11 @@ impl Checker {
     pub fn table2(&self) -> &Table2 {
         &self.pairs.table2
     }
+    /// Table 2 over the exact pairs with a capture placed by the commanded pose (a subset of
+    /// `table2`): they hold only if the arm went where it was told.
+    pub(crate) fn by_command_table(&self) -> &Table2 {
+        &self.pairs.by_command_table
+    }
     pub(crate) fn isotropy_table(&self) -> Table2 {
         self.isotropy
             .as_ref()

@@ -29,6 +29,8 @@ pub(super) struct PendingPartner {
 #[derive(Debug, Clone, Default)]
 pub(super) struct PairStage {
     pub(super) table2: Table2,
+    /// The exact pairs of `table2` with a capture placed by the commanded pose.
+    pub(super) by_command_table: Table2,
     pub(super) interpolated_table: Table2,
     /// ΔE00 of exact pairs so far, sorted, per pair geometry (the two nominal θ): real data are
     /// less reciprocal toward grazing angles, so an outlier is judged against its own geometry.
@@ -69,6 +71,9 @@ impl PairStage {
         let pair = score_pair(ctx, partner, capture, [partner_entry, entry], capture.t);
         if let (Some(d), PairStatus::Exact) = (&pair.diff, pair.status) {
             self.table2.add(d);
+            if pair.by_command {
+                self.by_command_table.add(d);
+            }
             // the outlier test judges what the off-centre mount's pattern, once modelled, does
             // not explain; Table 2 keeps the pair as measured
             let de = match (mount, pair.xyz_a, pair.xyz_b) {

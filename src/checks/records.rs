@@ -225,6 +225,11 @@ pub struct Table2 {
 }
 
 impl Table2 {
+    /// No pair taken yet.
+    pub fn is_empty(&self) -> bool {
+        self.pairs == 0
+    }
+
     /// Take one difference into the running means. A difference with a non-finite value is
     /// left out: one NaN would poison every mean for the rest of the run.
     pub(crate) fn add(&mut self, d: &ColourDifference) {

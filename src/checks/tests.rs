@@ -286,7 +286,7 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
     // while the arm goes where it is told (the images are at the commanded pose)
     let mut ch = checker();
     let (mut seen, mut all) = (Vec::new(), Vec::new());
-    let (mut by_command, mut pairs_by_command) = (Vec::new(), 0);
+    let (mut by_command, mut pairs_by_command, mut exact_by_command) = (Vec::new(), 0, 0);
     for mut input in session(400) {
         let i = input.idx;
         if (30..=40).contains(&i) {
@@ -310,6 +310,7 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
                 by_command.contains(&p.a) || by_command.contains(&p.b)
             );
             pairs_by_command += usize::from(p.by_command);
+            exact_by_command += usize::from(p.by_command && p.status == PairStatus::Exact);
         }
         all.extend(out.alarms);
     }
@@ -320,6 +321,14 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
     let expected: Vec<u64> = (37..=40).chain(81..400).collect();
     assert_eq!(by_command, expected);
     assert!(pairs_by_command >= 10, "{pairs_by_command}");
+    // Table 2 keeps them, and reports them apart as well (here every completed pair has one:
+    // the first partners come after capture 81)
+    assert_eq!(ch.by_command_table().pairs as usize, exact_by_command);
+    assert!(
+        exact_by_command > 0 && ch.table2().pairs as usize >= exact_by_command,
+        "{exact_by_command} of {}",
+        ch.table2().pairs
+    );
     // the encoder's episode asks for a look; the captures placed off the plan by their
     // encoders before the offset was trusted are an episode of their own and are retaken
     assert_eq!(

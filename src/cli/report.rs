@@ -781,6 +781,9 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
 
     let _ = write!(h, "<h2>Reciprocity (the paper's Table 2)</h2><p class=muted>Means over pairs after the cosine re-correction; XYZ on the configured scale, L*a*b* under the configured white.</p>");
     let mut sets: Vec<(&str, &Table2)> = vec![("exact reciprocal pairs", &s.table2)];
+    if !s.by_command.is_empty() {
+        sets.push(("of which placed by the commanded pose", &s.by_command));
+    }
     if s.interpolated.pairs > 0 {
         sets.push(("substitutes vs interpolated partner", &s.interpolated));
     }
@@ -1143,6 +1146,7 @@ pub(crate) fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, Strin
     let mut t2 = String::from("set,pairs,abs_dX,abs_dY,abs_dZ,dE76,dC,dH,dE00\n");
     for (name, t) in [
         ("exact", &s.table2),
+        ("exact_by_command", &s.by_command),
         ("interpolated", &s.interpolated),
         ("isotropy", &s.isotropy),
     ] {

@@ -47,6 +47,14 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
         "  {:<8.3} {:<8.3} {:<8.3} {:<8.3} {:<8.3} {:<8.3} {:<8.3}",
         t.abs_dx, t.abs_dy, t.abs_dz, t.de76, t.dc, t.dh, t.de2000
     )?;
+    if !s.by_command.is_empty() {
+        let t = &s.by_command;
+        writeln!(
+            out,
+            "  of which placed by the commanded pose (a steady encoder offset): ΔE*ab {:.3}  ΔE00 {:.3} over {}",
+            t.de76, t.de2000, t.pairs
+        )?;
+    }
     if s.checked.pairs_interpolated + s.checked.pairs_unresolved > 0 {
         let t = &s.interpolated;
         writeln!(
@@ -172,4 +180,40 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
         l.resyncs
     )?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::checks::Table2;
+
+    fn printed(s: &Summary) -> String {
+        let mut out = Vec::new();
+        print_summary(s, &mut out).unwrap();
+        String::from_utf8(out).unwrap()
+    }
+
+    #[test]
+    fn pairs_placed_by_command_are_reported_apart_only_when_there_are_any() {
+        let mut s = Summary::default();
+        assert!(!printed(&s).contains("commanded pose"));
+        s.by_command = Table2 {
+            pairs: 7,
+            de76: 0.69,
+            de2000: 0.57,
+            ..Table2::default()
+        };
+        let text = printed(&s);
+        let line = text
+            .lines()
+            .find(|l| l.contains("placed by the commanded pose"))
+            .unwrap_or_else(|| panic!("{text}"));
+        assert!(
+            line.contains("ΔE*ab 0.690") && line.contains("ΔE00 0.570") && line.ends_with("over 7"),
+            "{line}"
+        );
+        // it follows Table 2's own line
+        let t2 = text.find("Table 2").unwrap();
+        assert!(text.find(line).unwrap() > t2);
+    }
 }

@@ -97,6 +97,10 @@ pub struct Summary {
     /// Table 2 over the occlusion substitutes' interpolated pairs.
     #[serde(default)]
     pub interpolated: Table2,
+    /// Table 2 over the exact pairs with a capture placed by the commanded pose during a steady
+    /// encoder offset (a subset of `table2`; absent when there are none).
+    #[serde(default, skip_serializing_if = "Table2::is_empty")]
+    pub by_command: Table2,
     /// Gain drift estimate from the probes (%/h), when probes are enabled.
     pub probe_drift: Option<crate::measure::drift::DriftEstimate>,
     /// The pose the daemon chose for the probes (none configured), once chosen.
@@ -302,6 +306,7 @@ impl Engine {
             table2: self.checker.table2().clone(),
             isotropy: self.checker.isotropy_table().clone(),
             interpolated: self.checker.interpolated_table().clone(),
+            by_command: self.checker.by_command_table().clone(),
             probe_drift: self.checker.probe_drift(),
             probe_pose: self.probe_pose,
             joint3_sentinel: self.checker.sentinel(),

@@ -115,6 +115,15 @@ SCENARIOS = {
         {},
         False,
     ),
+    "encoder-offset": (
+        "the wagon's encoder reads +0.5 deg off from capture 200 while the wagon goes where it is "
+        "told, no probes: one encoder-mismatch episode, the captures placed by the commanded "
+        "pose and their pairs in Table 2's by-command subset",
+        [{"kind": "encoder-mismatch", "at_capture": 200, "joint": 4, "offset_deg": 0.5}],
+        {"captures": 400},
+        {},
+        False,
+    ),
     "joint3-sentinel": (
         "a brushed (anisotropic) sample with drift probes every 25 captures; arm joint 3 turns by "
         "+1 deg at capture 300: the sentinel probe after each lamp probe names joint 3",
