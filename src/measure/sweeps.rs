@@ -1679,21 +1679,8 @@ mod session_tests {
         last_light: usize,
         seed: u64,
         level_test: bool,
-        outline: (f64, f64),
-    ) -> (Vec<SweepRecord>, Vec<Alarm>) {
-        let (_, records, alarms) = run_monitor(fault, onset, last_light, seed, level_test, outline);
-        (records, alarms)
-    }
-
-    /// `run_outlined`, and the monitor as the session left it.
-    fn run_monitor(
-        fault: Fault,
-        onset: usize,
-        last_light: usize,
-        seed: u64,
-        level_test: bool,
         (outline, second): (f64, f64),
-    ) -> (SweepMonitor, Vec<SweepRecord>, Vec<Alarm>) {
+    ) -> (Vec<SweepRecord>, Vec<Alarm>) {
         let plan = SamplingPlan::ubo();
         let rig = Rig::new(Default::default()).unwrap();
         let mut m = SweepMonitor::new(SweepSpec::default(), rig.clone(), plan.direction_count());
@@ -1769,7 +1756,7 @@ mod session_tests {
                 mount: [0.0; 4],
             });
         }
-        (m, records, alarms)
+        (records, alarms)
     }
 
     /// Mid-run, inside light sweep 46 (the θi = 60° layer's tenth).
