@@ -414,6 +414,16 @@ pub fn metrics(s: &Snapshot) -> String {
         s.summary.checked.placed_by_command as f64,
     );
     g(
+        "table2_by_command_pairs",
+        "Of the exact pairs, those with a capture placed by the commanded pose.",
+        s.summary.by_command.pairs as f64,
+    );
+    g(
+        "table2_by_command_de2000_mean",
+        "Mean CIEDE2000 over the exact pairs with a capture placed by the commanded pose (0 without any).",
+        s.summary.by_command.de2000,
+    );
+    g(
         "captures_pose_off_plan",
         "Captures whose pose was off the plan.",
         s.summary.checked.pose_off_plan as f64,
@@ -658,7 +668,8 @@ mod tests {
         let text = metrics(&s2);
         assert!(
             text.contains("goniowatch_captures_remaining 6361\n")
-                && text.contains("goniowatch_captures_placed_by_command 0\n"),
+                && text.contains("goniowatch_captures_placed_by_command 0\n")
+                && text.contains("goniowatch_table2_by_command_pairs 0\n"),
             "{text}"
         );
         assert!(text.contains("# TYPE goniowatch_rate_captures_per_hour gauge"));
