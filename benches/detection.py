@@ -63,7 +63,21 @@ SCENARIOS = [
     (f"joint {j} {'+' if o > 0 else '−'}1° {where}", [{"kind": "joint-offset", "at_capture": at, "joint": j, "offset_deg": float(o)}], ("joint", at, j))
     for j in (1, 2) for o in (1, -1) for where, at in (("early", 1700), ("at mid-run", 3280), ("late in the 75° layer", 5200))
     if (o, at) != (1, 3280)
+] + [
+    # the wagon (axis 4): an offset of either sign, and backlash, at the same three onsets
+    (f"wagon {name} {where}", [dict(fault, at_capture=at)], ("joint", at, 4))
+    for name, fault in (("+1°", {"kind": "wagon-offset", "offset_deg": 1.0}),
+                        ("−1°", {"kind": "wagon-offset", "offset_deg": -1.0}),
+                        ("backlash 1°", {"kind": "wagon-backlash", "backlash_deg": 1.0}))
+    for where, at in (("early", 1700), ("at mid-run", 3280), ("late in the 75° layer", 5200))
 ]
+
+
+def fault_size(faults):
+    """The positioning fault's size in degrees: a joint's or the wagon's offset, or the wagon's
+    backlash (its lag against the direction of motion)."""
+    f = next(f for f in faults if f["kind"] in ("joint-offset", "wagon-offset", "wagon-backlash"))
+    return f.get("offset_deg", f.get("backlash_deg"))
 
 
 CURVE_H = [1, 2, 3, 4, 6, 8, 10, 12]
@@ -230,7 +244,7 @@ def main():
                               f" to resample, {ch.get('placed_by_command', 0)} placed by command")
                 geo.append(f"{len(g)}" + (f" ({first})" if first else ""))
                 if truth and truth[0] == "joint":
-                    offset = next(f["offset_deg"] for f in faults if f["kind"] == "joint-offset")
+                    offset = fault_size(faults)
                     joint_runs.append((label, truth[2], offset, name, js[0] if js else None, onset))
                 hits += bool(drift)
                 if drift and truth:

@@ -94,6 +94,9 @@ class Controller:
         self.captures: list[CaptureRecord] = []
         self.probes: list[int] = []
         self.prev_cmd: list[float] | None = None
+        # the wagon's last direction of motion (+1, -1; 0 before it first moved): the backlash
+        # lag persists while the wagon stands still
+        self.wagon_move = 0.0
         self.material = PRESETS[sc.material]
         self.realism = REALISM[sc.realism]
         w, h = sc.image_size
@@ -274,6 +277,8 @@ class Controller:
         cmd, _, _, sub = sc.rig.plan_pose(ld, cd)
         true_pose = list(cmd)
         enc = list(cmd)
+        if self.prev_cmd is not None and cmd[3] != self.prev_cmd[3]:
+            self.wagon_move = math.copysign(1.0, cmd[3] - self.prev_cmd[3])
         for _, f in faults:
             if f.kind == "joint-offset":
                 j = int(f.p("joint", 1)) - 1
@@ -283,10 +288,8 @@ class Controller:
             elif f.kind == "encoder-mismatch":
                 j = int(f.p("joint", 1)) - 1
                 enc[j] += float(f.p("offset_deg", 0.5))
-            elif f.kind == "wagon-backlash" and self.prev_cmd is not None:
-                move = cmd[3] - self.prev_cmd[3]
-                if move != 0:
-                    true_pose[3] -= math.copysign(float(f.p("backlash_deg", 0.5)), move)
+            elif f.kind == "wagon-backlash" and self.wagon_move != 0.0:
+                true_pose[3] -= math.copysign(float(f.p("backlash_deg", 0.5)), self.wagon_move)
         self.prev_cmd = list(cmd)
         self.send("POSE", {"t": f"{self.t:.3f}", "cmd": P.fmt_pose(cmd), "enc": P.fmt_pose(enc)}, event=True)
 
