@@ -274,6 +274,10 @@ pub struct Checker {
     sentinel_spec: Option<SentinelSettings>,
     /// The pole light's sweep was complete and no pose qualified as the sentinel.
     sentinel_unavailable: bool,
+    /// The wagon's last commanded position and direction of motion (+1, −1; 0 before it
+    /// first moved), over every capture (probes too: the wagon moves for them as well).
+    wagon_last_cmd: Option<f64>,
+    wagon_dir: f64,
     alarms: u64,
 }
 
@@ -344,6 +348,8 @@ impl Checker {
             rig,
             colour,
             spec,
+            wagon_last_cmd: None,
+            wagon_dir: 0.0,
             alarms: 0,
         }
     }
@@ -363,6 +369,13 @@ impl Checker {
             input.probe && self.sentinel.as_ref().map(|s| s.pose().entry) == Some(input.entry);
         if input.probe && !sentinel {
             self.last_lamp_probe = None;
+        }
+        let w = input.cmd[3];
+        if w.is_finite() {
+            if let Some(last) = self.wagon_last_cmd.filter(|last| *last != w) {
+                self.wagon_dir = (w - last).signum();
+            }
+            self.wagon_last_cmd = Some(w);
         }
         match self.capture.check(&ctx, input, &mut out.alarms) {
             Verdict::NotInPlan => {}
@@ -644,6 +657,7 @@ impl Checker {
                         omega_i: m.nominal.omega_i,
                         omega_o: m.nominal.omega_o,
                         cmd: input.cmd,
+                        wagon_dir: self.wagon_dir,
                         y: c.xyz[1],
                         mount,
                     });

@@ -21,5 +21,6 @@ pub mod reciprocity;
 pub mod resample;
 pub mod sentinel;
 pub mod shepard;
+pub mod smooth_brdf;
 pub mod stats;
 pub mod sweeps;
