@@ -413,6 +413,11 @@ fn group_means(values: &[f64], groups: &[usize], n: usize) -> Vec<f64> {
 /// A capture's sensitivity beyond this many robust scales of its sweep's is left out of the fit.
 const LEVERAGE_CAP: f64 = 6.0;
 
+/// A slip's size is taken from the smooth model's fit of a sweep only when its standard error
+/// is at most this (degrees; twice the joint tolerance); a looser fit falls back to the
+/// interpolant's.
+const SMOOTH_SE_MAX_DEG: f64 = 0.5;
+
 /// Residual trimming of the per-sweep fit: passes, and the cut in robust residual scales.
 const TRIM_PASSES: usize = 2;
 const TRIM_SCALES: f64 = 3.0;
@@ -1424,11 +1429,21 @@ impl SweepMonitor {
                 let current: Vec<usize> = (0..self.captures.len())
                     .filter(|&i| self.captures[i].light == s.light)
                     .collect();
-                // the size from the smooth model's sensitivities, the wagon's among them
+                // the size from the smooth model's sensitivities, the wagon's among them; where
+                // that fit is too loose (a θi layer with too few lights for the model to know
+                // its slope in θi), the interpolant's
                 let (_, rows) = self.residuals(&current, &reference, known, Model::Smooth);
                 let fit = self.pattern_fit(rows.iter().filter_map(Row::with_wagon).collect());
-                let se = fit.se(j + 1).filter(|v| v.is_finite() && *v > 0.0)?;
-                Some((fit.beta[j + 1], se))
+                let smooth = fit
+                    .se(j + 1)
+                    .filter(|v| v.is_finite() && *v > 0.0 && *v <= SMOOTH_SE_MAX_DEG)
+                    .map(|se| (fit.beta[j + 1], se));
+                smooth.or_else(|| {
+                    let (_, rows) = self.residuals(&current, &reference, known, Model::Interpolant);
+                    let fit = self.pattern_fit(rows.iter().map(Row::joints).collect());
+                    let se = fit.se(j + 1).filter(|v| v.is_finite() && *v > 0.0)?;
+                    Some((fit.beta[j + 1], se))
+                })
             })
             .collect();
         let refitted: Vec<f64> = refits.iter().map(|r| r.0).collect();
