@@ -2012,6 +2012,12 @@ mod session_tests {
         };
         for seed in [1, 2] {
             let (m, _, _) = simulate(Fault::None, usize::MAX, 48, seed, true, (0.0, 0.0));
+            for (model, axes) in [(Model::Smooth, 3), (Model::Interpolant, 2)] {
+                for axis in 0..axes {
+                    let (corr, slope) = score(&m, model, axis);
+                    eprintln!("seed {seed} {model:?} axis {axis}: correlation {corr:.2}, slope {slope:.2}");
+                }
+            }
             for axis in 0..3 {
                 let (corr, slope) = score(&m, Model::Smooth, axis);
                 assert!(corr > 0.95, "seed {seed} axis {axis}: {corr}");
