@@ -80,8 +80,8 @@ fn coordinates(omega_i: &Vec3, omega_o: &Vec3) -> (f64, f64, f64) {
 }
 
 impl SmoothBrdf {
-    /// Fits every θi layer that has enough nodes for a constant and a slope (at least
-    /// `NODES_PER_TERM` · 4). `None` when no layer has; non-finite nodes are skipped.
+    /// Fits every θi layer that has enough nodes for a constant and a slope in u (degree 1: at
+    /// least `NODES_PER_TERM` · 2). `None` when no layer has; non-finite nodes are skipped.
     pub(crate) fn fit(nodes: &[Node]) -> Option<Self> {
         let mut rows: Vec<(f64, f64, f64, f64)> = nodes
             .iter()
