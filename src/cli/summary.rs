@@ -48,28 +48,23 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
         t.abs_dx, t.abs_dy, t.abs_dz, t.de76, t.dc, t.dh, t.de2000
     )?;
     if !s.by_command.is_empty() {
-        let t = &s.by_command;
-        writeln!(
+        subset_line(
             out,
-            "  of which placed by the commanded pose (a steady encoder offset): ΔE*ab {:.3}  ΔE00 {:.3} over {}",
-            t.de76, t.de2000, t.pairs
+            "  of which placed by the commanded pose (a steady encoder offset)",
+            &s.by_command,
+            "",
         )?;
     }
     if s.checked.pairs_interpolated + s.checked.pairs_unresolved > 0 {
-        let t = &s.interpolated;
-        writeln!(
+        subset_line(
             out,
-            "occlusion substitutes vs interpolated partners: ΔE*ab {:.3}  ΔE00 {:.3} over {} ({} unresolved)",
-            t.de76, t.de2000, t.pairs, s.checked.pairs_unresolved
+            "occlusion substitutes vs interpolated partners",
+            &s.interpolated,
+            &format!(" ({} unresolved)", s.checked.pairs_unresolved),
         )?;
     }
     if s.isotropy.pairs > 0 {
-        let t = &s.isotropy;
-        writeln!(
-            out,
-            "isotropy (capture vs class mean): ΔE*ab {:.3}  ΔE00 {:.3} over {}",
-            t.de76, t.de2000, t.pairs
-        )?;
+        subset_line(out, "isotropy (capture vs class mean)", &s.isotropy, "")?;
     }
     if let Some(d) = &s.isotropy_drift {
         writeln!(
@@ -180,6 +175,20 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
         l.resyncs
     )?;
     Ok(())
+}
+
+/// One line for a subset of the pairs: its label, mean ΔE*ab and ΔE00, the count, and `tail`.
+fn subset_line(
+    out: &mut impl std::io::Write,
+    label: &str,
+    t: &crate::checks::Table2,
+    tail: &str,
+) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "{label}: ΔE*ab {:.3}  ΔE00 {:.3} over {}{tail}",
+        t.de76, t.de2000, t.pairs
+    )
 }
 
 #[cfg(test)]
