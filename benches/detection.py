@@ -36,6 +36,9 @@ SCENARIOS = [
     ("no fault", [], None),
     ("decay 0.5 %/h", [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 0.5}], ("rate", 0, 0.5)),
     ("decay 1 %/h", [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 1.0}], ("rate", 0, 1.0)),
+    # an exponential decay g = exp(−r·t): its ln-gain slope is −r at every time
+    ("exponential decay 0.5 %/h", [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 0.5, "model": "exponential"}], ("rate-exp", 0, 0.5)),
+    ("exponential decay 1 %/h", [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 1.0, "model": "exponential"}], ("rate-exp", 0, 1.0)),
     ("step −2 % at mid-run", [{"kind": "lamp-step", "at_capture": 3280, "step_pct": -2.0}], ("step", 3280, None)),
     ("step −3 % at mid-run", [{"kind": "lamp-step", "at_capture": 3280, "step_pct": -3.0}], ("step", 3280, None)),
     ("step −1.5 % at mid-run", [{"kind": "lamp-step", "at_capture": 3280, "step_pct": -1.5}], ("step", 3280, None)),
@@ -146,6 +149,8 @@ def run(tmp, name, material, preset, faults, seed, every, keep=None, config="sim
     sim = subprocess.Popen([sys.executable, "-m", "goniosim", "run", sc, "--linger", "60"], cwd=os.path.join(REPO, "sim"),
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     while not os.path.exists(f"{d}/port"):
+        if sim.poll() is not None:
+            sys.exit(f"the simulator exited ({sim.returncode}) before opening its port: is `pip install -r sim/requirements.txt` done?")
         time.sleep(0.05)
     c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     r = subprocess.run([BIN, "run", "--config", cfg, "--session", f"{d}/s", "--port", f"{d}/port",
@@ -200,6 +205,7 @@ def main():
     ap.add_argument("--match", help="run only the scenarios whose name matches this regular expression")
     ap.add_argument("--keep", help="keep the recorded sessions in this folder")
     ap.add_argument("--replay", help="re-evaluate the sessions kept in this folder instead of running the rig")
+    ap.add_argument("--json", help="also write one record per run to this file (for benches/detection_curves.py)")
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="gw-detect-")
     path = f"probes every {a.every} captures" if a.every else "no probes: isotropy classes"
@@ -210,6 +216,7 @@ def main():
     print("|---|---|---|---|---|---|---|")
     curves = []
     joint_runs = []
+    records = []
     for material, preset in [(m, p) for m in a.materials.split(",") for p in a.presets.split(",")]:
         label = preset if material == "walkway" else f"{preset}, {material}"
         for name, faults, truth in SCENARIOS:
@@ -227,8 +234,8 @@ def main():
                     code, alarms, summary, daemon_cpu, pts = got
                 else:
                     code, alarms, summary, daemon_cpu, pts = run(tmp, name, material, preset, faults, seed, a.every, a.keep)
-                if truth and truth[0] == "rate" and not a.every:
-                    curves.append((label, name, seed, truth[2], pts))
+                if truth and truth[0] in ("rate", "rate-exp") and not a.every:
+                    curves.append((label, name, seed, truth, pts))
                 runs += 1
                 cpu.append(1000 * daemon_cpu / max(1, summary["checked"]["captures"]))
                 drift = [x for x in alarms if x["kind"] == "drift" and x["code"] != "gain-drift-cleared"]
@@ -246,6 +253,7 @@ def main():
                 if truth and truth[0] == "joint":
                     offset = fault_size(faults)
                     joint_runs.append((label, truth[2], offset, name, js[0] if js else None, onset))
+                records.append(run_record(material, preset, name, faults, truth, seed, alarms, summary, key))
                 hits += bool(drift)
                 if drift and truth:
                     onset = truth[1]
@@ -262,6 +270,8 @@ def main():
             if truth and truth[0] == "rate":
                 # ln of a linear gain decay averaged over the run (13 h)
                 truth_rate = f" ({100 * math.log(1 - truth[2] / 100 * 12.76) / 12.76:+.3f})"
+            elif truth and truth[0] == "rate-exp":
+                truth_rate = f" ({-truth[2]:+.3f})"
             rate = ", ".join(rates) + truth_rate
             if runs == 0:
                 continue
@@ -275,16 +285,53 @@ def main():
               "(estimate − truth), ± its standard error; – where no estimate existed yet.\n")
         print("| preset | scenario | seed | " + " | ".join(f"{h} h" for h in CURVE_H) + " |")
         print("|---|---|---|" + "---|" * len(CURVE_H))
-        for preset, name, seed, rate, pts in curves:
+        for preset, name, seed, (form, _, rate), pts in curves:
             cells = []
             for h in CURVE_H:
                 if h in pts:
-                    truth_h = 100 * math.log(1 - rate / 100 * h) / h
+                    truth_h = -rate if form == "rate-exp" else 100 * math.log(1 - rate / 100 * h) / h
                     cells.append(f"{pts[h][0] - truth_h:+.3f} ± {pts[h][1]:.3f}")
                 else:
                     cells.append("–")
             print(f"| {preset} | {name} | {seed} | " + " | ".join(cells) + " |", flush=True)
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(records, f, indent=1)
     shutil.rmtree(tmp, ignore_errors=True)
+
+
+def run_record(material, preset, name, faults, truth, seed, alarms, summary, key):
+    """One run for `--json`: the fault, and the first drift and positioning alarms before and
+    after its onset (a fault-free run's onset is 0: every alarm is a false one)."""
+    onset = truth[1] if truth else 0
+    drift = sorted((x for x in alarms if x["kind"] == "drift" and x["code"] != "gain-drift-cleared" and x["idx"] is not None),
+                   key=lambda x: x["idx"])
+    geo = sorted((x for x in alarms if x["kind"] == "positioning" and x["severity"] != "info" and x["idx"] is not None),
+                 key=lambda x: x["idx"])
+    first = lambda xs, after: next((x for x in xs if (x["idx"] >= onset) == after), None)
+
+    def brief(x):
+        if x is None:
+            return None
+        e = x.get("evidence") or {}
+        return {"idx": x["idx"], "code": x["code"], "joint": e.get("joint"), "offset_deg": e.get("offset_deg"),
+                "rate_pct_per_h": e.get("rate_pct_per_h"), "level_pct": e.get("level_pct")}
+
+    fault = None
+    if faults:
+        kinds = {"rate": ("lamp-decay",), "rate-exp": ("lamp-decay",), "step": ("lamp-step",), "encoder": ("encoder-mismatch",),
+                 "joint": ("joint-offset", "wagon-offset", "wagon-backlash")}[truth[0]]
+        f = next(f for f in faults if f["kind"] in kinds)
+        fault = {"kind": truth[0], "onset": onset, "size": next((f[k] for k in ("step_pct", "rate_pct_per_h", "offset_deg", "backlash_deg") if k in f), None),
+                 "axis": truth[2] if truth[0] in ("joint", "encoder") else None}
+    pd = summary.get(key) or {}
+    return {"material": material, "preset": preset, "scenario": name, "seed": seed, "fault": fault,
+            "captures": summary["checked"]["captures"],
+            "drift_before": brief(first(drift, False)) if truth else None,
+            "positioning_before": brief(first(geo, False)) if truth else None,
+            "drift_after": brief(first(drift, True)), "positioning_after": brief(first(geo, True)),
+            "final_rate_pct_per_h": pd.get("rate_pct_per_h"),
+            "steps": [100 * math.expm1(st["ln_size"]) for st in summary.get("isotropy_steps") or []]}
 
 
 if __name__ == "__main__":
