@@ -116,6 +116,25 @@ impl Default for DriftSpec {
 /// A bucket's effect must rest on this many pairs before its new pairs feed the CUSUM.
 const MIN_BUCKET_PAIRS: usize = 8;
 
+/// The isotropy rate alarm's rule: raised when the rate is significant, `|rate| > z·se` (z
+/// guards the repeated looks of a whole run), and its estimate is beyond `tolerance`, the
+/// smallest rate worth an alarm. This fit rests on thousands of comparisons, so its standard
+/// error is itself well determined and a z test on it keeps its false-alarm rate; asking the
+/// lower confidence bound to clear the tolerance as well would ask twice for the same certainty
+/// (a rate of twice the tolerance would be held back until its standard error is an eighth of
+/// the rate, where the z test alone needs a quarter). The probes' fits keep that stricter rule
+/// (`probes::ProbeDrift`, `lamp::CctRate::exceeds`): they rest on a few probes, whose standard
+/// error is uncertain in its turn.
+fn rate_alarm_raised(rate: f64, se: f64, tolerance: f64, z: f64) -> bool {
+    rate.abs() > z * se && rate.abs() > tolerance
+}
+
+/// The clearing rule: the rate is within `tolerance` by `z` standard errors (the hysteresis
+/// keeps one alarm from chattering about the tolerance).
+fn rate_alarm_cleared(rate: f64, se: f64, tolerance: f64, z: f64) -> bool {
+    rate.abs() + z * se < tolerance
+}
+
 /// One observation: a pair's log luminance ratio between its two capture times.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub(crate) struct PairObservation {
@@ -563,15 +582,17 @@ impl DriftDetector {
     /// the tolerance (once the mount's light half is told apart from it), cleared with
     /// hysteresis.
     fn rate_events(&mut self, est: DriftEstimate) -> Vec<DriftEvent> {
-        let lower = est.rate_pct_per_h.abs() - self.spec.z * est.se_pct_per_h;
+        let (r, se, tol, z) = (
+            est.rate_pct_per_h,
+            est.se_pct_per_h,
+            self.spec.rate_tolerance_pct_per_h,
+            self.spec.z,
+        );
         let identified = self.mount.is_none() || self.light_separated;
-        if !self.rate_alarm && identified && lower > self.spec.rate_tolerance_pct_per_h {
+        if !self.rate_alarm && identified && rate_alarm_raised(r, se, tol, z) {
             self.rate_alarm = true;
             vec![DriftEvent::RateSignificant(est)]
-        } else if self.rate_alarm
-            && est.rate_pct_per_h.abs() + self.spec.z * est.se_pct_per_h
-                < self.spec.rate_tolerance_pct_per_h
-        {
+        } else if self.rate_alarm && rate_alarm_cleared(r, se, tol, z) {
             self.rate_alarm = false;
             vec![DriftEvent::RateCleared(est)]
         } else {
@@ -838,6 +859,26 @@ struct DesignFit {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_rate_alarm_needs_significance_and_size_and_clears_inside_the_tolerance() {
+        // significant and beyond the tolerance, either sign
+        assert!(rate_alarm_raised(0.5, 0.1, 0.25, 4.0));
+        assert!(rate_alarm_raised(-0.5, 0.1, 0.25, 4.0));
+        // the lower bound below the tolerance no longer holds it back
+        assert!(rate_alarm_raised(0.5, 0.12, 0.25, 4.0));
+        // beyond the tolerance but not significant; significant but within the tolerance
+        assert!(!rate_alarm_raised(0.5, 0.13, 0.25, 4.0));
+        assert!(!rate_alarm_raised(0.2, 0.01, 0.25, 4.0));
+        // a NaN estimate or error never raises; an infinite tolerance switches it off
+        assert!(!rate_alarm_raised(f64::NAN, 0.01, 0.25, 4.0));
+        assert!(!rate_alarm_raised(0.5, f64::NAN, 0.25, 4.0));
+        assert!(!rate_alarm_raised(0.5, 0.01, f64::INFINITY, 4.0));
+        // cleared only when the whole z band is inside the tolerance
+        assert!(rate_alarm_cleared(0.05, 0.04, 0.25, 4.0));
+        assert!(!rate_alarm_cleared(0.05, 0.06, 0.25, 4.0));
+        assert!(!rate_alarm_cleared(f64::NAN, 0.01, 0.25, 4.0));
+    }
 
     #[test]
     fn the_scale_floor_bounds_the_rate_standard_error_of_a_few_quiet_observations() {
