@@ -14,10 +14,11 @@ session (DIR/<scenario>[-<material>]-<preset>-<seed>/s, with its captures); `--r
 sessions with the current binary through `goniowatch replay` (byte-identical to a live run of
 that binary on the same rig data), in seconds per session instead of a minute: the way to
 re-measure detection after a change to the checks. With `--replay` the CPU column is the
-replay's (decoding included) per capture."""
+replay's (decoding included) per capture. `--jobs N` runs or replays N sessions at once (each
+run's CPU is its own, but a busy machine slows every run's clock, not its results); `--json FILE`
+writes one record per run for `benches/detection_curves.py`."""
 
 import argparse
-import resource
 import json
 import math
 import os
@@ -26,6 +27,8 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import threading
+from concurrent.futures import ThreadPoolExecutor
 import time
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -119,15 +122,12 @@ def replay(keep, name, material, preset, seed):
     if not os.path.isdir(os.path.join(d, "s")):
         return None
     out = tempfile.mkdtemp(prefix="gw-replay-")
-    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    r = subprocess.run([BIN, "replay", f"{d}/s", "--out", f"{out}/r", "--quiet"], capture_output=True, text=True, timeout=900)
-    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
+    _, cpu = timed([BIN, "replay", f"{d}/s", "--out", f"{out}/r", "--quiet"])
     alarms = [json.loads(l) for l in open(f"{out}/r/alarms.jsonl") if l.strip()]
     summary = json.load(open(f"{out}/r/summary.json"))
     pts = curve(f"{out}/r/captures.jsonl")
     shutil.rmtree(out, ignore_errors=True)
-    return r.returncode, alarms, summary, cpu, pts
+    return alarms, summary, cpu, pts
 
 
 def run(tmp, name, material, preset, faults, seed, every, keep=None, config="sim.toml"):
@@ -152,11 +152,8 @@ def run(tmp, name, material, preset, faults, seed, every, keep=None, config="sim
         if sim.poll() is not None:
             sys.exit(f"the simulator exited ({sim.returncode}) before opening its port: is `pip install -r sim/requirements.txt` done?")
         time.sleep(0.05)
-    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    r = subprocess.run([BIN, "run", "--config", cfg, "--session", f"{d}/s", "--port", f"{d}/port",
-                        "--capture-root", f"{d}/cap", "--quiet"], capture_output=True, text=True, timeout=900)
-    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    daemon_cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
+    _, daemon_cpu = timed([BIN, "run", "--config", cfg, "--session", f"{d}/s", "--port", f"{d}/port",
+                           "--capture-root", f"{d}/cap", "--quiet"])
     sim.terminate()
     sim.wait()
     alarms = [json.loads(l) for l in open(f"{d}/s/alarms.jsonl") if l.strip()]
@@ -164,7 +161,21 @@ def run(tmp, name, material, preset, faults, seed, every, keep=None, config="sim
     pts = curve(f"{d}/s/captures.jsonl")
     if not keep:
         shutil.rmtree(d, ignore_errors=True)
-    return r.returncode, alarms, summary, daemon_cpu, pts
+    return alarms, summary, daemon_cpu, pts
+
+
+def timed(cmd, timeout=900):
+    """Runs `cmd` (its output discarded) and returns its exit code and the CPU seconds it and its
+    own children used (from wait4 on it alone, so that runs in parallel keep their own times)."""
+    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    killer = threading.Timer(timeout, p.kill)
+    killer.start()
+    try:
+        _, status, ru = os.wait4(p.pid, 0)
+    finally:
+        killer.cancel()
+    p.returncode = os.waitstatus_to_exitcode(status)
+    return p.returncode, ru.ru_utime + ru.ru_stime
 
 
 def joint_summary(runs):
@@ -206,6 +217,7 @@ def main():
     ap.add_argument("--keep", help="keep the recorded sessions in this folder")
     ap.add_argument("--replay", help="re-evaluate the sessions kept in this folder instead of running the rig")
     ap.add_argument("--json", help="also write one record per run to this file (for benches/detection_curves.py)")
+    ap.add_argument("--jobs", type=int, default=1, help="runs (or replays) at once; the CPU column stays per run")
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="gw-detect-")
     path = f"probes every {a.every} captures" if a.every else "no probes: isotropy classes"
@@ -217,65 +229,72 @@ def main():
     curves = []
     joint_runs = []
     records = []
-    for material, preset in [(m, p) for m in a.materials.split(",") for p in a.presets.split(",")]:
+    rows = [(material, preset, name, faults, truth)
+            for material, preset in [(m, p) for m in a.materials.split(",") for p in a.presets.split(",")]
+            for name, faults, truth in SCENARIOS
+            if not (a.only and a.only not in name) and not (a.match and not re.search(a.match, name))]
+    seeds = range(a.first_seed, a.first_seed + a.seeds)
+
+    def one(task):
+        material, preset, name, faults, truth, seed = task
+        if a.replay:
+            return replay(a.replay, name, material, preset, seed)
+        return run(tmp, name, material, preset, faults, seed, a.every, a.keep)
+
+    # every run of a row is done before its line is printed; rows keep their order
+    pool = ThreadPoolExecutor(max_workers=max(1, a.jobs))
+    pending = [[pool.submit(one, (*row, seed)) for seed in seeds] for row in rows]
+    for (material, preset, name, faults, truth), futures in zip(rows, pending):
         label = preset if material == "walkway" else f"{preset}, {material}"
-        for name, faults, truth in SCENARIOS:
-            if a.only and a.only not in name:
+        hits, delays, rates, cpu, geo, kinds = 0, [], [], [], [], []
+        runs = 0
+        for seed, fut in zip(seeds, futures):
+            got = fut.result()
+            if got is None:
                 continue
-            if a.match and not re.search(a.match, name):
-                continue
-            hits, delays, rates, cpu, geo, kinds = 0, [], [], [], [], []
-            runs = 0
-            for seed in range(a.first_seed, a.first_seed + a.seeds):
-                if a.replay:
-                    got = replay(a.replay, name, material, preset, seed)
-                    if got is None:
-                        continue
-                    code, alarms, summary, daemon_cpu, pts = got
-                else:
-                    code, alarms, summary, daemon_cpu, pts = run(tmp, name, material, preset, faults, seed, a.every, a.keep)
-                if truth and truth[0] in ("rate", "rate-exp") and not a.every:
-                    curves.append((label, name, seed, truth, pts))
-                runs += 1
-                cpu.append(1000 * daemon_cpu / max(1, summary["checked"]["captures"]))
-                drift = [x for x in alarms if x["kind"] == "drift" and x["code"] != "gain-drift-cleared"]
-                kinds.append(min(drift, key=lambda x: x["idx"] or 0)["code"] if drift else "–")
-                onset = truth[1] if truth else 0
-                g = [x for x in alarms if x["kind"] in ("positioning", "reciprocity-outlier") and (x["idx"] or 0) >= onset]
-                js = [x for x in g if x["code"] == "joint-offset-suspected"]
-                first = (f"joint {js[0]['evidence']['joint']} {js[0]['evidence']['offset_deg']:+.2f}° +{js[0]['idx'] - onset}" if js
-                         else f"{g[0]['code']} +{g[0]['idx'] - onset}" if g else "")
-                if truth and truth[0] == "encoder":
-                    ch = summary["checked"]
-                    first += (f", {ch['pairs_needs_resampling']} of {ch['pairs_exact'] + ch['pairs_needs_resampling']} pairs"
-                              f" to resample, {ch.get('placed_by_command', 0)} placed by command")
-                geo.append(f"{len(g)}" + (f" ({first})" if first else ""))
-                if truth and truth[0] == "joint":
-                    offset = fault_size(faults)
-                    joint_runs.append((label, truth[2], offset, name, js[0] if js else None, onset))
-                records.append(run_record(material, preset, name, faults, truth, seed, alarms, summary, key))
-                hits += bool(drift)
-                if drift and truth:
-                    onset = truth[1]
-                    first = min(x["idx"] for x in drift if x["idx"] is not None)
-                    delays.append(first - onset)
-                pd = summary.get(key) or {}
-                if "rate_pct_per_h" in pd:
-                    steps = "".join(f" (step {100 * math.expm1(st['ln_size']):+.2f} % at {st['t_h']:.2f} h)"
-                                    for st in summary.get("isotropy_steps") or [])
-                    rates.append(f"{pd['rate_pct_per_h']:+.3f}{steps}")
-            delay = (f"{sorted(delays)[len(delays) // 2]} ({sorted(delays)[len(delays) // 2] * T_CAPTURE_H:.2f} h), "
-                     f"max {max(delays)}") if delays else "–"
-            truth_rate = ""
-            if truth and truth[0] == "rate":
-                # ln of a linear gain decay averaged over the run (13 h)
-                truth_rate = f" ({100 * math.log(1 - truth[2] / 100 * 12.76) / 12.76:+.3f})"
-            elif truth and truth[0] == "rate-exp":
-                truth_rate = f" ({-truth[2]:+.3f})"
-            rate = ", ".join(rates) + truth_rate
-            if runs == 0:
-                continue
-            print(f"| {label} | {name} | {hits} of {runs} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
+            alarms, summary, daemon_cpu, pts = got
+            if truth and truth[0] in ("rate", "rate-exp") and not a.every:
+                curves.append((label, name, seed, truth, pts))
+            runs += 1
+            cpu.append(1000 * daemon_cpu / max(1, summary["checked"]["captures"]))
+            drift = [x for x in alarms if x["kind"] == "drift" and x["code"] != "gain-drift-cleared"]
+            kinds.append(min(drift, key=lambda x: x["idx"] or 0)["code"] if drift else "–")
+            onset = truth[1] if truth else 0
+            g = [x for x in alarms if x["kind"] in ("positioning", "reciprocity-outlier") and (x["idx"] or 0) >= onset]
+            js = [x for x in g if x["code"] == "joint-offset-suspected"]
+            first = (f"joint {js[0]['evidence']['joint']} {js[0]['evidence']['offset_deg']:+.2f}° +{js[0]['idx'] - onset}" if js
+                     else f"{g[0]['code']} +{g[0]['idx'] - onset}" if g else "")
+            if truth and truth[0] == "encoder":
+                ch = summary["checked"]
+                first += (f", {ch['pairs_needs_resampling']} of {ch['pairs_exact'] + ch['pairs_needs_resampling']} pairs"
+                          f" to resample, {ch.get('placed_by_command', 0)} placed by command")
+            geo.append(f"{len(g)}" + (f" ({first})" if first else ""))
+            if truth and truth[0] == "joint":
+                offset = fault_size(faults)
+                joint_runs.append((label, truth[2], offset, name, js[0] if js else None, onset))
+            records.append(run_record(material, preset, name, faults, truth, seed, alarms, summary, key))
+            hits += bool(drift)
+            if drift and truth:
+                onset = truth[1]
+                first = min(x["idx"] for x in drift if x["idx"] is not None)
+                delays.append(first - onset)
+            pd = summary.get(key) or {}
+            if "rate_pct_per_h" in pd:
+                steps = "".join(f" (step {100 * math.expm1(st['ln_size']):+.2f} % at {st['t_h']:.2f} h)"
+                                for st in summary.get("isotropy_steps") or [])
+                rates.append(f"{pd['rate_pct_per_h']:+.3f}{steps}")
+        delay = (f"{sorted(delays)[len(delays) // 2]} ({sorted(delays)[len(delays) // 2] * T_CAPTURE_H:.2f} h), "
+                 f"max {max(delays)}") if delays else "–"
+        truth_rate = ""
+        if truth and truth[0] == "rate":
+            # ln of a linear gain decay averaged over the run (13 h)
+            truth_rate = f" ({100 * math.log(1 - truth[2] / 100 * 12.76) / 12.76:+.3f})"
+        elif truth and truth[0] == "rate-exp":
+            truth_rate = f" ({-truth[2]:+.3f})"
+        rate = ", ".join(rates) + truth_rate
+        if runs == 0:
+            continue
+        print(f"| {label} | {name} | {hits} of {runs} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
     if joint_runs:
         joint_summary(joint_runs)
     if curves:
