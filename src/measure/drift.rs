@@ -118,8 +118,8 @@ const MIN_BUCKET_PAIRS: usize = 8;
 
 /// The isotropy rate alarm's rule: raised when the rate is significant, `|rate| > z·se` (z
 /// guards the repeated looks of a whole run), and its estimate is beyond `tolerance`, the
-/// smallest rate worth an alarm. This fit rests on thousands of comparisons, so its standard
-/// error is itself well determined and a z test on it keeps its false-alarm rate; asking the
+/// smallest rate worth an alarm. This fit rests on hundreds to thousands of comparisons, so its
+/// standard error is itself well determined and a z test on it keeps its false-alarm rate; asking the
 /// lower confidence bound to clear the tolerance as well would ask twice for the same certainty
 /// (a rate of twice the tolerance would be held back until its standard error is an eighth of
 /// the rate, where the z test alone needs a quarter). The probes' fits keep that stricter rule
@@ -865,7 +865,7 @@ mod tests {
         // significant and beyond the tolerance, either sign
         assert!(rate_alarm_raised(0.5, 0.1, 0.25, 4.0));
         assert!(rate_alarm_raised(-0.5, 0.1, 0.25, 4.0));
-        // the lower bound below the tolerance no longer holds it back
+        // a lower bound below the tolerance does not hold it back
         assert!(rate_alarm_raised(0.5, 0.12, 0.25, 4.0));
         // beyond the tolerance but not significant; significant but within the tolerance
         assert!(!rate_alarm_raised(0.5, 0.13, 0.25, 4.0));
@@ -1200,6 +1200,27 @@ mod tests {
                 .iter()
                 .any(|(_, e)| matches!(e, DriftEvent::RateSignificant(_))));
         }
+    }
+
+    #[test]
+    fn a_decay_of_twice_the_tolerance_is_raised_once_significant_before_its_bound_clears() {
+        // −0.5 %/h against the 0.25 %/h tolerance: the alarm comes at the first refit where the
+        // rate is 4 SEs from zero, and in these runs that is while |r| − 4·SE is still inside the
+        // tolerance (the bound rule would have waited)
+        let mut earlier = 0;
+        for seed in 1..=4 {
+            let (_, events) = run(-0.5, None, seed);
+            let Some((_, DriftEvent::RateSignificant(e))) = events
+                .iter()
+                .find(|(_, e)| matches!(e, DriftEvent::RateSignificant(_)))
+            else {
+                panic!("seed {seed}: no rate alarm: {events:?}");
+            };
+            assert!(e.rate_pct_per_h < -0.25, "{e:?}");
+            assert!(e.rate_pct_per_h.abs() > 4.0 * e.se_pct_per_h, "{e:?}");
+            earlier += usize::from(e.rate_pct_per_h.abs() - 4.0 * e.se_pct_per_h <= 0.25);
+        }
+        assert!(earlier >= 1, "every alarm waited for the bound");
     }
 
     #[test]
