@@ -15,7 +15,7 @@ sessions with the current binary through `goniowatch replay` (byte-identical to 
 that binary on the same rig data), in seconds per session instead of a minute: the way to
 re-measure detection after a change to the checks. With `--replay` the CPU column is the
 replay's (decoding included) per capture. `--jobs N` runs or replays N sessions at once (each
-run's CPU is its own, but a busy machine slows every run's clock, not its results); `--json FILE`
+run's CPU is its own; keep N at or below the cores: a live run's link has wall-clock timeouts); `--json FILE`
 writes one record per run for `benches/detection_curves.py`."""
 
 import argparse
@@ -27,7 +27,6 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import threading
 from concurrent.futures import ThreadPoolExecutor
 import time
 
@@ -148,14 +147,16 @@ def run(tmp, name, material, preset, faults, seed, every, keep=None, config="sim
     open(cfg, "w").write(re.sub(r"(?m)^every = 0$", f"every = {every}", text))
     sim = subprocess.Popen([sys.executable, "-m", "goniosim", "run", sc, "--linger", "60"], cwd=os.path.join(REPO, "sim"),
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    while not os.path.exists(f"{d}/port"):
-        if sim.poll() is not None:
-            sys.exit(f"the simulator exited ({sim.returncode}) before opening its port: is `pip install -r sim/requirements.txt` done?")
-        time.sleep(0.05)
-    _, daemon_cpu = timed([BIN, "run", "--config", cfg, "--session", f"{d}/s", "--port", f"{d}/port",
-                           "--capture-root", f"{d}/cap", "--quiet"])
-    sim.terminate()
-    sim.wait()
+    try:
+        while not os.path.exists(f"{d}/port"):
+            if sim.poll() is not None:
+                raise RuntimeError(f"the simulator exited ({sim.returncode}) before opening its port: is `pip install -r sim/requirements.txt` done?")
+            time.sleep(0.05)
+        _, daemon_cpu = timed([BIN, "run", "--config", cfg, "--session", f"{d}/s", "--port", f"{d}/port",
+                               "--capture-root", f"{d}/cap", "--quiet"])
+    finally:
+        sim.terminate()
+        sim.wait()
     alarms = [json.loads(l) for l in open(f"{d}/s/alarms.jsonl") if l.strip()]
     summary = json.load(open(f"{d}/s/summary.json"))
     pts = curve(f"{d}/s/captures.jsonl")
@@ -168,12 +169,17 @@ def timed(cmd, timeout=900):
     """Runs `cmd` (its output discarded) and returns its exit code and the CPU seconds it and its
     own children used (from wait4 on it alone, so that runs in parallel keep their own times)."""
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    killer = threading.Timer(timeout, p.kill)
-    killer.start()
-    try:
-        _, status, ru = os.wait4(p.pid, 0)
-    finally:
-        killer.cancel()
+    deadline = time.monotonic() + timeout
+    while True:
+        pid, status, ru = os.wait4(p.pid, os.WNOHANG)
+        if pid == p.pid:
+            break
+        if time.monotonic() > deadline:
+            p.kill()
+            os.wait4(p.pid, 0)
+            p.returncode = -9
+            raise TimeoutError(f"{' '.join(cmd[:3])} … took more than {timeout} s")
+        time.sleep(0.1)
     p.returncode = os.waitstatus_to_exitcode(status)
     return p.returncode, ru.ru_utime + ru.ru_stime
 
@@ -241,9 +247,45 @@ def main():
             return replay(a.replay, name, material, preset, seed)
         return run(tmp, name, material, preset, faults, seed, a.every, a.keep)
 
-    # every run of a row is done before its line is printed; rows keep their order
+    if not os.access(BIN, os.X_OK):
+        sys.exit(f"no goniowatch binary at {BIN}: run `cargo build --release` or set GONIOWATCH_BIN")
+    # every run of a row is done before its line is printed; rows keep their order; the first
+    # failure (or Ctrl-C) cancels the runs not yet started
     pool = ThreadPoolExecutor(max_workers=max(1, a.jobs))
     pending = [[pool.submit(one, (*row, seed)) for seed in seeds] for row in rows]
+    try:
+        report(a, rows, seeds, pending, key, curves, joint_runs, records)
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
+    if joint_runs:
+        joint_summary(joint_runs)
+    if curves:
+        # the estimate's error against hours into the run; truth up to t: the mean ln-gain slope
+        # of the linear decay 1 − a·t over [0, t]
+        print("\nDrift-rate estimate against hours into the run (isotropy classes): error in %/h "
+              "(estimate − truth), ± its standard error; – where no estimate existed yet.\n")
+        print("| preset | scenario | seed | " + " | ".join(f"{h} h" for h in CURVE_H) + " |")
+        print("|---|---|---|" + "---|" * len(CURVE_H))
+        for preset, name, seed, (form, _, rate), pts in curves:
+            cells = []
+            for h in CURVE_H:
+                if h in pts:
+                    truth_h = -rate if form == "rate-exp" else 100 * math.log(1 - rate / 100 * h) / h
+                    cells.append(f"{pts[h][0] - truth_h:+.3f} ± {pts[h][1]:.3f}")
+                else:
+                    cells.append("–")
+            print(f"| {preset} | {name} | {seed} | " + " | ".join(cells) + " |", flush=True)
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(records, f, indent=1)
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+def report(a, rows, seeds, pending, key, curves, joint_runs, records):
+    """Prints the table's rows as their runs finish, and collects the curves, joint runs and
+    records for the summaries."""
     for (material, preset, name, faults, truth), futures in zip(rows, pending):
         label = preset if material == "walkway" else f"{preset}, {material}"
         hits, delays, rates, cpu, geo, kinds = 0, [], [], [], [], []
@@ -272,12 +314,11 @@ def main():
             if truth and truth[0] == "joint":
                 offset = fault_size(faults)
                 joint_runs.append((label, truth[2], offset, name, js[0] if js else None, onset))
-            records.append(run_record(material, preset, name, faults, truth, seed, alarms, summary, key))
+            records.append(run_record(material, preset, name, faults, truth, seed, alarms, summary, key, a.every))
             hits += bool(drift)
-            if drift and truth:
-                onset = truth[1]
-                first = min(x["idx"] for x in drift if x["idx"] is not None)
-                delays.append(first - onset)
+            after = [x["idx"] for x in drift if x["idx"] is not None and x["idx"] >= (truth[1] if truth else 0)]
+            if after and truth:
+                delays.append(min(after) - truth[1])
             pd = summary.get(key) or {}
             if "rate_pct_per_h" in pd:
                 steps = "".join(f" (step {100 * math.expm1(st['ln_size']):+.2f} % at {st['t_h']:.2f} h)"
@@ -295,31 +336,9 @@ def main():
         if runs == 0:
             continue
         print(f"| {label} | {name} | {hits} of {runs} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
-    if joint_runs:
-        joint_summary(joint_runs)
-    if curves:
-        # the estimate's error against hours into the run; truth up to t: the mean ln-gain slope
-        # of the linear decay 1 − a·t over [0, t]
-        print("\nDrift-rate estimate against hours into the run (isotropy classes): error in %/h "
-              "(estimate − truth), ± its standard error; – where no estimate existed yet.\n")
-        print("| preset | scenario | seed | " + " | ".join(f"{h} h" for h in CURVE_H) + " |")
-        print("|---|---|---|" + "---|" * len(CURVE_H))
-        for preset, name, seed, (form, _, rate), pts in curves:
-            cells = []
-            for h in CURVE_H:
-                if h in pts:
-                    truth_h = -rate if form == "rate-exp" else 100 * math.log(1 - rate / 100 * h) / h
-                    cells.append(f"{pts[h][0] - truth_h:+.3f} ± {pts[h][1]:.3f}")
-                else:
-                    cells.append("–")
-            print(f"| {preset} | {name} | {seed} | " + " | ".join(cells) + " |", flush=True)
-    if a.json:
-        with open(a.json, "w") as f:
-            json.dump(records, f, indent=1)
-    shutil.rmtree(tmp, ignore_errors=True)
 
 
-def run_record(material, preset, name, faults, truth, seed, alarms, summary, key):
+def run_record(material, preset, name, faults, truth, seed, alarms, summary, key, every):
     """One run for `--json`: the fault, and the first drift and positioning alarms before and
     after its onset (a fault-free run's onset is 0: every alarm is a false one)."""
     onset = truth[1] if truth else 0
@@ -344,7 +363,9 @@ def run_record(material, preset, name, faults, truth, seed, alarms, summary, key
         fault = {"kind": truth[0], "onset": onset, "size": next((f[k] for k in ("step_pct", "rate_pct_per_h", "offset_deg", "backlash_deg") if k in f), None),
                  "axis": truth[2] if truth[0] in ("joint", "encoder") else None}
     pd = summary.get(key) or {}
-    return {"material": material, "preset": preset, "scenario": name, "seed": seed, "fault": fault,
+    joint = next((x for x in geo if x["idx"] >= onset and x["code"] == "joint-offset-suspected"), None)
+    return {"material": material, "preset": preset, "scenario": name, "seed": seed, "every": every, "fault": fault,
+            "joint_after": brief(joint),
             "captures": summary["checked"]["captures"],
             "drift_before": brief(first(drift, False)) if truth else None,
             "positioning_before": brief(first(geo, False)) if truth else None,
