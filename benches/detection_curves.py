@@ -9,8 +9,8 @@ Prints Markdown tables, per material and nuisance preset:
 - false alarms: fault-free runs with any drift or positioning alarm (info alarms aside), and
   alarms raised before the onset of a fault;
 - lamp decays: runs flagged, when (in % of the run), and the final rate against the truth;
-- lamp steps: per size, runs caught within 300 captures of the onset, the median delay, the
-  fitted step;
+- lamp steps: per size, runs caught within 300 captures of the onset (by any drift alarm; how
+  many of them as a rate is said apart), the median delay, the fitted step;
 - positioning: per axis, runs whose first `joint-offset-suspected` after the onset names the
   right axis and sign within 600 captures ("not named": no positioning alarm at all after the
   onset), and its estimate against the truth.
@@ -86,7 +86,7 @@ def decays(runs):
 
 
 def steps(runs):
-    print("\n| material | preset | step | runs | caught within 300 | caught at all | delay: median (max) | fitted step: range |")
+    print("\n| material | preset | step | runs | caught within 300 | caught at all (of them as a rate, `gain-drift`) | delay: median (max) | fitted step: range |")
     print("|---|---|---|---|---|---|---|---|")
     for m, p in groups(runs):
         for size in sorted({r["fault"]["size"] for r in runs if r["fault"] and r["fault"]["kind"] == "step"}):
@@ -98,7 +98,8 @@ def steps(runs):
             fitted = [s for r in g for s in r["steps"][:1]]
             when = f"{statistics.median(d):.0f} ({max(d)})" if d else "–"
             span = f"{min(fitted):+.2f} … {max(fitted):+.2f} %" if fitted else "–"
-            print(f"| {m} | {p} | {size:+g} % | {len(g)} | {sum(1 for x in d if x <= 300)} | {len(d)} | {when} | {span} |")
+            as_rate = sum(1 for r in g if r["drift_after"] and r["drift_after"]["code"] == "gain-drift")
+            print(f"| {m} | {p} | {size:+g} % | {len(g)} | {sum(1 for x in d if x <= 300)} | {len(d)} ({as_rate}) | {when} | {span} |")
 
 
 def positioning(runs):
