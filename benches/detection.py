@@ -14,9 +14,9 @@ session (DIR/<scenario>[-<material>]-<preset>-<seed>/s, with its captures); `--r
 sessions with the current binary through `goniowatch replay` (byte-identical to a live run of
 that binary on the same rig data), in seconds per session instead of a minute: the way to
 re-measure detection after a change to the checks. With `--replay` the CPU column is the
-replay's (decoding included) per capture. `--jobs N` runs or replays N sessions at once (each
-run's CPU is its own; keep N at or below the cores: a live run's link has wall-clock timeouts); `--json FILE`
-writes one record per run for `benches/detection_curves.py`."""
+replay's (decoding included) per capture. `--jobs N` runs or replays N sessions at once (each run's CPU is its own; keep N at or
+below the cores: a live run's link has wall-clock timeouts); `--json FILE` writes one record per
+run for `benches/detection_curves.py`."""
 
 import argparse
 import json
@@ -27,8 +27,8 @@ import shutil
 import subprocess
 import sys
 import tempfile
-from concurrent.futures import ThreadPoolExecutor
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.environ.get("GONIOWATCH_BIN") or os.path.join(REPO, "target", "release", "goniowatch")
@@ -86,6 +86,15 @@ def fault_size(faults):
 
 
 CURVE_H = [1, 2, 3, 4, 6, 8, 10, 12]
+RUN_H = 12.76
+
+
+def truth_rate(form, rate_pct_per_h, hours=RUN_H):
+    """The ln-gain slope (%/h) a decay of `rate_pct_per_h` has over [0, hours]: −r for an
+    exponential decay (`rate-exp`), the mean slope of ln(1 − r·t) for a linear one."""
+    if form == "rate-exp":
+        return -rate_pct_per_h
+    return 100 * math.log(1 - rate_pct_per_h / 100 * hours) / hours
 
 
 def curve(captures_path):
@@ -272,7 +281,7 @@ def main():
             cells = []
             for h in CURVE_H:
                 if h in pts:
-                    truth_h = -rate if form == "rate-exp" else 100 * math.log(1 - rate / 100 * h) / h
+                    truth_h = truth_rate(form, rate, h)
                     cells.append(f"{pts[h][0] - truth_h:+.3f} ± {pts[h][1]:.3f}")
                 else:
                     cells.append("–")
@@ -326,13 +335,8 @@ def report(a, rows, seeds, pending, key, curves, joint_runs, records):
                 rates.append(f"{pd['rate_pct_per_h']:+.3f}{steps}")
         delay = (f"{sorted(delays)[len(delays) // 2]} ({sorted(delays)[len(delays) // 2] * T_CAPTURE_H:.2f} h), "
                  f"max {max(delays)}") if delays else "–"
-        truth_rate = ""
-        if truth and truth[0] == "rate":
-            # ln of a linear gain decay averaged over the run (13 h)
-            truth_rate = f" ({100 * math.log(1 - truth[2] / 100 * 12.76) / 12.76:+.3f})"
-        elif truth and truth[0] == "rate-exp":
-            truth_rate = f" ({-truth[2]:+.3f})"
-        rate = ", ".join(rates) + truth_rate
+        truth_text = f" ({truth_rate(truth[0], truth[2]):+.3f})" if truth and truth[0] in ("rate", "rate-exp") else ""
+        rate = ", ".join(rates) + truth_text
         if runs == 0:
             continue
         print(f"| {label} | {name} | {hits} of {runs} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)

@@ -20,8 +20,9 @@ A run is one simulated 6,561-capture acquisition; nothing here is timed."""
 
 import argparse
 import json
-import math
 import statistics
+
+from detection import truth_rate
 
 RUN = 6561
 AXIS = {1: "joint 1", 2: "joint 2", 3: "joint 3", 4: "wagon"}
@@ -76,7 +77,7 @@ def decays(runs):
                      and r["fault"]["size"] == size and "joint" not in r["scenario"]]
                 if not g:
                     continue
-                truth = -size if form == "rate-exp" else 100 * math.log(1 - size / 100 * 12.76) / 12.76
+                truth = truth_rate(form, size)
                 at = sorted(100 * r["drift_after"]["idx"] / RUN for r in g if r["drift_after"])
                 err = [r["final_rate_pct_per_h"] - truth for r in g if r["final_rate_pct_per_h"] is not None]
                 when = f"{statistics.median(at):.0f} ({max(at):.0f})" if at else "–"
