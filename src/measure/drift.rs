@@ -121,10 +121,10 @@ const MIN_BUCKET_PAIRS: usize = 8;
 /// smallest rate worth an alarm. This fit rests on hundreds to thousands of comparisons, so its
 /// standard error is itself well determined and a z test on it keeps its false-alarm rate;
 /// asking the lower confidence bound to clear the tolerance as well would ask twice for the same
-/// certainty (a rate of twice the tolerance would be held back until its standard error is an eighth of
-/// the rate, where the z test alone needs a quarter). The probes' rate keeps that stricter rule
-/// (`probes::ProbeDrift`): a segment's fit rests on a few probes, whose standard error is
-/// uncertain in its turn. So does the colour alarm (`lamp::CctRate::exceeds`), one rule for
+/// certainty (a rate of twice the tolerance would be held back until its standard error is an
+/// eighth of the rate, where the z test alone needs a quarter). The probes' rate keeps that
+/// stricter rule (`probes::ProbeDrift`): a segment's fit rests on a few probes, whose standard
+/// error is uncertain in its turn. So does the colour alarm (`lamp::CctRate::exceeds`), one rule for
 /// both its sources, which `plan` simulates on the probes.
 fn rate_alarm_raised(rate: f64, se: f64, tolerance: f64, z: f64) -> bool {
     rate.abs() > z * se && rate.abs() > tolerance
