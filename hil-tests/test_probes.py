@@ -66,10 +66,13 @@ def test_on_an_anisotropic_sample_the_sentinel_names_a_turn_of_joint_3(hil, tmp_
     assert len(named) == 1, named
     a = named[0]
     assert a["evidence"]["joint"] == 3 and 0.5 < a["evidence"]["offset_deg"] < 1.5, a
-    # judged in sentinel probes (the daemon's own quantity): the first or second after the turn
-    # (the turn is at 300 × 7 s of controller time)
+    # judged in sentinel probes (the daemon's own quantity), the turn being at 300 × 7 s of
+    # controller time: naming takes two departing readings, and the first after a 1° turn
+    # departs by about 7 standard deviations against a threshold of 5, so it is the second or,
+    # when the noise of the probes (which captures they land on moves with machine load)
+    # hides the first, the third
     after = [p for p in probes if p["entry"] == sentinel["entry"] and p["t"] >= 300 * 7.0 and p["idx"] <= a["idx"]]
-    assert 1 <= len(after) <= 2, (a["idx"], [p["idx"] for p in probes])
+    assert 2 <= len(after) <= 3, (a["idx"], [p["idx"] for p in probes])
     assert a["affects"]["handling"] == "retake" and "joint 3" in a["action"]
     assert not [x for x in alarms if x["kind"] == "drift"], alarms
     assert "joint-3 sentinel" in out

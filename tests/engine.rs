@@ -1071,8 +1071,15 @@ fn a_daemon_behind_a_finished_controller_finishes_on_late_answers_or_without_the
 
 /// An anisotropic sample on the UBO plan with probes every 100 captures, arm joint 3 turned by
 /// `turn` from regular capture `onset` on: the engine and a controller that takes every PROBE
-/// it is asked for right after the capture that asked. All outputs, in order.
-fn anisotropic_run(captures: usize, onset: usize, turn: f64) -> (Engine, Vec<Output>) {
+/// it is asked for right after the capture that asked, or (`late_sentinel`) takes a round's
+/// lamp probe then, and its sentinel only after the next regular capture, as a controller does
+/// that reads the round's second command late. All outputs, in order.
+fn anisotropic_run(
+    captures: usize,
+    onset: usize,
+    turn: f64,
+    late_sentinel: bool,
+) -> (Engine, Vec<Output>) {
     let text = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/config/sim-anisotropic.toml"
@@ -1084,16 +1091,25 @@ fn anisotropic_run(captures: usize, onset: usize, turn: f64) -> (Engine, Vec<Out
     let mut c = connected_and_running(&mut e);
     let mut out = Vec::new();
     let mut idx = 0u64;
+    let mut held: Vec<usize> = Vec::new();
     for entry in 0..captures {
         let t = idx as f64 * 7.0;
         let deg = if entry >= onset { turn } else { 0.0 };
         let ci = fixtures::anisotropic_capture(idx, entry, t, deg, false).unwrap();
         idx += 1;
         let got = feed_capture(&mut e, &mut c, ci);
-        let asked: Vec<usize> = probes_sent(&got)
+        let mut asked: Vec<usize> = std::mem::take(&mut held);
+        for (k, p) in probes_sent(&got)
             .iter()
             .map(|l| l.trim_start_matches("PROBE entry=").parse().unwrap())
-            .collect();
+            .enumerate()
+        {
+            if late_sentinel && k > 0 {
+                held.push(p);
+            } else {
+                asked.push(p);
+            }
+        }
         out.extend(got);
         for p in asked {
             let t = idx as f64 * 7.0;
@@ -1109,7 +1125,7 @@ fn anisotropic_run(captures: usize, onset: usize, turn: f64) -> (Engine, Vec<Out
 fn on_an_anisotropic_sample_a_sentinel_probe_follows_each_probe_and_names_a_turn_of_joint_3() {
     // (named at the second round after the turn: one departing reading is not enough)
     // joint 3 turns by +1° at regular capture 1,500; probes every 100
-    let (e, out) = anisotropic_run(2300, 1500, 1.0);
+    let (e, out) = anisotropic_run(2300, 1500, 1.0, false);
     let sentinels: Vec<_> = out
         .iter()
         .filter_map(|o| match o {
@@ -1175,8 +1191,34 @@ fn on_an_anisotropic_sample_a_sentinel_probe_follows_each_probe_and_names_a_turn
 }
 
 #[test]
+fn a_sentinel_taken_a_capture_after_its_lamp_probe_still_names_the_turn_at_the_same_round() {
+    // the controller reads each round's second PROBE late: one regular capture falls between
+    // the lamp probe and the sentinel, and every reading still counts
+    let (e, out) = anisotropic_run(2300, 1500, 1.0, true);
+    let named: Vec<_> = out
+        .iter()
+        .filter_map(|o| match o {
+            Output::Alarm(a) if a.code == "joint-offset-suspected" => Some(a.clone()),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(named.len(), 1, "{named:?}");
+    let est = named[0].evidence["offset_deg"].as_f64().unwrap();
+    assert!((0.7..1.3).contains(&est), "{est}");
+    // the round asked after regular capture 1,499 takes its sentinel after 1,500, the first
+    // turned one: that reading departs, and the next round's (after regular capture 1,600,
+    // which is capture 1,600 + 2 × 16 probes in) confirms it
+    let at = named[0].idx.unwrap();
+    assert!((1630..=1640).contains(&at), "{at}");
+    let s = e.summary().joint3_sentinel.unwrap();
+    // every sentinel taken is read (the last round's is still held when the run ends)
+    let rounds = probes_sent(&out).len() / 2;
+    assert_eq!(s.readings, rounds - 1, "{s:?}");
+}
+
+#[test]
 fn a_steady_anisotropic_sample_keeps_its_sentinel_quiet_and_an_isotropic_one_has_none() {
-    let (e, out) = anisotropic_run(2300, usize::MAX, 0.0);
+    let (e, out) = anisotropic_run(2300, usize::MAX, 0.0, false);
     assert!(
         !alarms(&out).iter().any(|c| c == "joint-offset-suspected"),
         "{:?}",

@@ -49,6 +49,10 @@ use pairs::PairStage;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
+/// The most captures a sentinel probe may follow its round's lamp probe by (see
+/// `Checker::sentinel_probe`).
+const SENTINEL_ROUND_CAPTURES: u64 = 3;
+
 /// Thresholds of the checks (`[checks]` in the config).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -364,7 +368,7 @@ impl Checker {
             spec: &self.spec,
         };
         // a probe of the sentinel's pose is the sentinel's; any other probe is the lamp's, and
-        // the sentinel compares only with the lamp probe checked right before it
+        // the sentinel compares only with the lamp probe of its round (the last probe before it)
         let sentinel =
             input.probe && self.sentinel.as_ref().map(|s| s.pose().entry) == Some(input.entry);
         if input.probe && !sentinel {
@@ -461,10 +465,12 @@ impl Checker {
         }
     }
 
-    /// A sentinel probe: its luminance ratio against the lamp probe's just before it is joint
-    /// 3's turn (`measure::sentinel`). Left out unless the capture right before it was a usable
-    /// lamp probe (the two captures of one probe round: otherwise the lamp cannot be divided
-    /// out), and when it is dark.
+    /// A sentinel probe: its luminance ratio against the lamp probe of its round is joint 3's
+    /// turn (`measure::sentinel`). The round's lamp probe is the last probe before it, at most
+    /// `SENTINEL_ROUND_CAPTURES` captures earlier: the round is two PROBE commands, and a
+    /// controller may read the second one a capture or two after taking the first, while the
+    /// lamp's gain does not move measurably in those seconds. Left out without such a lamp
+    /// probe (the lamp could not be divided out), and when it is dark.
     fn sentinel_probe(&mut self, input: &CaptureInput, m: &Measured, out: &mut CheckOutput) {
         let lamp = self.last_lamp_probe.take();
         let (Some(orig), Some(sentinel)) = (self.ledger.get(input.entry), self.sentinel.as_mut())
@@ -474,7 +480,8 @@ impl Checker {
         let Some((lamp_idx, lamp_ln)) = lamp else {
             return;
         };
-        if lamp_idx + 1 != input.idx
+        if input.idx <= lamp_idx
+            || input.idx - lamp_idx > SENTINEL_ROUND_CAPTURES
             || m.checked.dark
             || !(orig.xyz[1] > 0.0 && m.checked.xyz[1] > 0.0)
         {
