@@ -1266,8 +1266,12 @@ impl SweepMonitor {
                         break;
                     }
                     // a tilt changes cos θi and the footprint as a lamp step would: the level is
-                    // the lamp's only when no joint's pattern explains it
-                    if let Some(x) = self.attribute_level(layer, mean, run.start) {
+                    // the lamp's only when no joint's pattern explains it (a layer that has named
+                    // its slip keeps to one positioning alarm)
+                    if let Some(x) = self
+                        .attribute_level(layer, mean, run.start)
+                        .filter(|_| !self.latched.contains(&Latch::Joint { layer }))
+                    {
                         let x = self.slip_estimate(x, known);
                         step.slip = Some(self.name_slip(sweep, &x, rec, alarms));
                         self.level_cusum.reset();
@@ -1529,11 +1533,10 @@ impl SweepMonitor {
             let nuisance = MAD_TO_SIGMA * median_sorted(&dev);
             // the decision rests on every sweep of the crossing, as the level's did: judged from
             // a change point picked for its departure, a lone nuisance sweep would pass
-            let now = &run;
-            let n = now.len() as f64;
-            let offset = now.iter().map(|v| v.0).sum::<f64>() / n - centre;
-            let se = now.iter().map(|v| v.1 * v.1).sum::<f64>().sqrt() / n;
-            let sensitivity = now.iter().map(|v| v.2).sum::<f64>() / n;
+            let n = run.len() as f64;
+            let offset = run.iter().map(|v| v.0).sum::<f64>() / n - centre;
+            let se = run.iter().map(|v| v.1 * v.1).sum::<f64>().sqrt() / n;
+            let sensitivity = run.iter().map(|v| v.2).sum::<f64>() / n;
             let implied = level / sensitivity;
             let z = offset.abs() / (se * se + nuisance * nuisance).sqrt();
             if implied.is_finite()
@@ -1547,9 +1550,9 @@ impl SweepMonitor {
                     statistic: z,
                     mean: offset,
                     mean_se: se,
-                    sweeps: now.len(),
-                    since: slip_start(now, centre, offset),
-                    estimate_sweeps: now.len(),
+                    sweeps: run.len(),
+                    since: slip_start(&run, centre, offset),
+                    estimate_sweeps: run.len(),
                     run_mean: offset,
                     attributed_level: Some(level),
                 });
