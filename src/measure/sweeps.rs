@@ -1666,17 +1666,20 @@ impl SweepMonitor {
         if let Some(level) = x.attributed_level {
             evidence["attributed_level_pct"] = json!(100.0 * level);
         }
+        let size = format!(
+            "joint {} looks offset by about {:+.2}° (± {:.2}°, from {} light sweep(s) against the captures before the slip)",
+            x.joint + 1,
+            x.mean,
+            x.mean_se,
+            x.estimate_sweeps
+        );
         Alarm::new(
             AlarmKind::Positioning,
             Severity::Warning,
             "joint-offset-suspected",
             match x.attributed_level {
                 Some(level) => format!(
-                    "joint {} looks offset by about {:+.2}° (± {:.2}°, from {} light sweep(s) against the captures before the slip): light sweep {} and the {} before it sit {:+.2} % off the earlier sweeps of θi = {}°, and that joint's pattern across their cameras departs from the earlier sweeps' by {:.1} standard deviations (threshold {ATTRIBUTION_Z}) in the direction that explains the level, while the encoders agree with the commands: read as the tilt's, not as a lamp step, and not taken into the drift model; a slipped joint or a moved sample is likely",
-                    x.joint + 1,
-                    x.mean,
-                    x.mean_se,
-                    x.estimate_sweeps,
+                    "{size}: light sweep {} and the {} before it sit {:+.2} % off the earlier sweeps of θi = {}°, and that joint's pattern across their cameras departs from the earlier sweeps' by {:.1} standard deviations (threshold {ATTRIBUTION_Z}) in the direction that explains the level, while the encoders agree with the commands: read as the tilt's, not as a lamp step, and not taken into the drift model; a slipped joint or a moved sample is likely",
                     sweep.light,
                     x.sweeps.saturating_sub(1),
                     100.0 * level,
@@ -1684,11 +1687,7 @@ impl SweepMonitor {
                     x.statistic,
                 ),
                 None => format!(
-                    "joint {} looks offset by about {:+.2}° (± {:.2}°, from {} light sweep(s) against the captures before the slip): the pattern across the cameras of light sweep {} and the {} before it follows that joint's sensitivity while the encoders agree with the commands; a slipped joint or a moved sample is likely (CUSUM {:.1} > {:.1})",
-                    x.joint + 1,
-                    x.mean,
-                    x.mean_se,
-                    x.estimate_sweeps,
+                    "{size}: the pattern across the cameras of light sweep {} and the {} before it follows that joint's sensitivity while the encoders agree with the commands; a slipped joint or a moved sample is likely (CUSUM {:.1} > {:.1})",
                     sweep.light,
                     x.sweeps.saturating_sub(1),
                     x.statistic,
