@@ -1489,7 +1489,7 @@ impl SweepMonitor {
 
     /// Whether the level change of mean `level` (ln units) in θi layer `layer`, over the sweeps
     /// from capture `since` on, is a joint's tilt. Each joint's smooth-model offset over those
-    /// sweeps is compared with the layer's earlier sweeps (or every earlier sweep while the
+    /// sweeps but the first is compared with the layer's earlier sweeps (or every earlier sweep while the
     /// layer has fewer than `min_sweeps`): its median is the in-control offset and its robust
     /// scale the nuisance. The tilt that would make the level is the level over the sweeps'
     /// mean sensitivity. A joint whose departure points the same way, by `ATTRIBUTION_Z` and
@@ -1500,11 +1500,15 @@ impl SweepMonitor {
         let usable = |v: (f64, f64)| v.0.is_finite() && v.1 > 0.0 && v.1 <= SMOOTH_SE_MAX_DEG;
         let mut best: Option<JointCrossing> = None;
         for j in 0..2 {
+            // the crossing's first sweep is left out: a lamp step part-way through a sweep
+            // splits its cameras into two levels, a pattern across them that a joint's
+            // sensitivity can follow (so a crossing of a single sweep stays the lamp's)
             let run: Vec<(f64, f64, f64, u64)> = self
                 .sweep_starts
                 .iter()
                 .filter(|s| s.last_idx >= since && usable(s.smooth[j]))
                 .map(|s| (s.smooth[j].0, s.smooth[j].1, s.smooth_s[j], s.last_idx))
+                .skip(1)
                 .collect();
             if run.is_empty() {
                 continue;
@@ -1791,12 +1795,21 @@ mod tests {
         assert_eq!(x.joint, 0);
         assert!((x.mean - 0.8).abs() < 0.05, "{x:?}");
         assert!(x.statistic >= ATTRIBUTION_Z && x.attributed_level == Some(-0.008));
-        assert_eq!(x.since, since + 80, "from the first tilted sweep");
+        // judged without the crossing's first sweep (it may hold a lamp step part-way), and
+        // placed at the first sweep judged: the retake list starts a sweep before it
+        assert_eq!(x.since, since + 81 + 80);
         // the same sweeps with a rising level: the tilt would lower it, so it is the lamp's
         assert!(m.attribute_level(60_000, 0.008, since).is_none());
         // a lamp step leaves the pattern where it was
         assert!(tilted(0.02)
             .attribute_level(60_000, -0.015, since)
+            .is_none());
+        // a lamp step part-way through the crossing's first sweep puts a pattern into that
+        // sweep alone: the lamp's
+        let mut v = earlier.clone();
+        v.extend([(60_000, 0.8, 0.07, -0.01), (60_000, 0.01, 0.07, -0.01)]);
+        assert!(with_smooth_fits(&v)
+            .attribute_level(60_000, -0.008, since)
             .is_none());
         // a departure below the joint tolerance is not a slip however significant
         assert!(tilted(0.2).attribute_level(60_000, -0.002, since).is_none());
