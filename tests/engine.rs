@@ -5,7 +5,7 @@ use goniowatch::checks::Outcome;
 use goniowatch::config::Config;
 use goniowatch::engine::{Engine, Input, Output};
 use goniowatch::fixtures::{self, Controller};
-use goniowatch::measure::alarm::{Affects, Handling};
+use goniowatch::measure::alarm::{Affects, Alarm, Handling};
 use goniowatch::protocol::parse;
 
 fn engine() -> Engine {
@@ -35,6 +35,16 @@ fn alarms(out: &[Output]) -> Vec<String> {
     out.iter()
         .filter_map(|o| match o {
             Output::Alarm(a) => Some(a.code.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The alarms with code `code`, in order.
+fn alarms_with_code(out: &[Output], code: &str) -> Vec<Alarm> {
+    out.iter()
+        .filter_map(|o| match o {
+            Output::Alarm(a) if a.code == code => Some(a.clone()),
             _ => None,
         })
         .collect()
@@ -1155,13 +1165,7 @@ fn on_an_anisotropic_sample_a_sentinel_probe_follows_each_probe_and_names_a_turn
         );
     }
     // named as joint 3 with the right sign
-    let named: Vec<_> = out
-        .iter()
-        .filter_map(|o| match o {
-            Output::Alarm(a) if a.code == "joint-offset-suspected" => Some(a.clone()),
-            _ => None,
-        })
-        .collect();
+    let named = alarms_with_code(&out, "joint-offset-suspected");
     assert_eq!(named.len(), 1, "{named:?}");
     let a = &named[0];
     assert_eq!(a.evidence["joint"], 3);
@@ -1195,13 +1199,7 @@ fn a_sentinel_taken_a_capture_after_its_lamp_probe_still_names_the_turn_at_the_s
     // the controller reads each round's second PROBE late: one regular capture falls between
     // the lamp probe and the sentinel, and every reading still counts
     let (e, out) = anisotropic_run(2300, 1500, 1.0, true);
-    let named: Vec<_> = out
-        .iter()
-        .filter_map(|o| match o {
-            Output::Alarm(a) if a.code == "joint-offset-suspected" => Some(a.clone()),
-            _ => None,
-        })
-        .collect();
+    let named = alarms_with_code(&out, "joint-offset-suspected");
     assert_eq!(named.len(), 1, "{named:?}");
     let est = named[0].evidence["offset_deg"].as_f64().unwrap();
     assert!((0.7..1.3).contains(&est), "{est}");
