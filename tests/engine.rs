@@ -549,6 +549,18 @@ fn feed_capture(
     c: &mut Controller,
     ci: goniowatch::checks::CaptureInput,
 ) -> Vec<Output> {
+    let (idx, outcome) = (ci.idx, ci.outcome.clone());
+    let mut got = announce_capture(e, c, &ci);
+    got.extend(e.handle(&Input::Outcome { idx, outcome }));
+    got
+}
+
+/// The controller's line announcing a capture, without its outcome (the file not yet decoded).
+fn announce_capture(
+    e: &mut Engine,
+    c: &mut Controller,
+    ci: &goniowatch::checks::CaptureInput,
+) -> Vec<Output> {
     let pose = |p: [f64; 4]| p.map(|v| v.to_string()).join(",");
     let mut f = vec![
         ("idx", ci.idx.to_string()),
@@ -565,12 +577,7 @@ fn feed_capture(
     if ci.probe {
         f.push(("probe", "1".into()));
     }
-    let mut got = e.handle(&c.line("CAPTURE", &f));
-    got.extend(e.handle(&Input::Outcome {
-        idx: ci.idx,
-        outcome: ci.outcome,
-    }));
-    got
+    e.handle(&c.line("CAPTURE", &f))
 }
 
 /// The PROBE lines an engine sent.
@@ -653,12 +660,58 @@ fn without_a_configured_entry_the_probe_pose_is_chosen_after_a_sweep_and_then_pr
         p.theta_o_deg <= 45.0 + 1e-9 && p.specular_distance_deg >= 25.0,
         "{p:?}"
     );
-    // no probe before a sweep's worth was checked: the first at 90 captures, then at 100
+    // no probe before a sweep's worth was checked: the round due since 10 captures as soon as
+    // the pose is chosen (at 81), then at 90 and 100
     assert_eq!(
         probes_sent(&out),
-        vec![format!("PROBE entry={}", p.entry); 2]
+        vec![format!("PROBE entry={}", p.entry); 3]
     );
     assert_eq!(e.summary().probe_pose, Some(p));
+}
+
+#[test]
+fn probes_keep_the_rigs_cadence_when_checking_lags_behind_the_announcements() {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
+    let cfg = Config::from_toml_str(&text.replace("every = 0", "every = 10")).unwrap();
+    let mut e = Engine::from_config(&cfg).unwrap();
+    let mut c = connected_and_running(&mut e);
+    let session = fixtures::ubo_session(140, |_| 1.0);
+    // the controller announces 120 captures before any of their files is decoded: the pose is
+    // not known yet, so no round can be asked for
+    let mut out = Vec::new();
+    for ci in &session[..120] {
+        out.extend(announce_capture(&mut e, &mut c, ci));
+    }
+    assert!(probes_sent(&out).is_empty());
+    // checking catches up: the pose is chosen at 81 checked, and the round that is overdue is
+    // asked for at once, and only once (the next is due at 130 announced)
+    let mut out = Vec::new();
+    let mut asked_at = Vec::new();
+    for ci in &session[..120] {
+        let got = e.handle(&Input::Outcome {
+            idx: ci.idx,
+            outcome: ci.outcome.clone(),
+        });
+        if !probes_sent(&got).is_empty() {
+            asked_at.push(ci.idx);
+        }
+        out.extend(got);
+    }
+    assert_eq!(asked_at, vec![80], "{:?}", probes_sent(&out));
+    // from then on each round is asked for when the controller announces the 130th and 140th
+    // regular capture, before their files are decoded
+    let mut asked_on_announcement = Vec::new();
+    for ci in &session[120..] {
+        if !probes_sent(&announce_capture(&mut e, &mut c, ci)).is_empty() {
+            asked_on_announcement.push(ci.idx);
+        }
+        e.handle(&Input::Outcome {
+            idx: ci.idx,
+            outcome: ci.outcome.clone(),
+        });
+    }
+    assert_eq!(asked_on_announcement, vec![129, 139]);
 }
 
 #[test]

@@ -144,8 +144,11 @@ pub struct Engine {
     alarm_book: alarms::AlarmBook,
     paused_for: BTreeSet<String>,
     captures_planned: u64,
-    /// Ask for a probe of `probe_entry` every this many regular captures checked (0: never).
+    /// Ask for a probe of `probe_entry` every this many regular captures announced (0: never).
     probe_every: u64,
+    /// Regular captures announced at which the next probe round is due. A round that falls due
+    /// before the pose is known (or while the link is down) is asked for as soon as it can be.
+    probe_due_at: u64,
     /// The configured probe entry, or the chosen one; None until it is chosen.
     probe_entry: Option<usize>,
     /// The pose chosen for the probes (no entry configured).
@@ -154,6 +157,9 @@ pub struct Engine {
     /// is the checker's.
     sentinel_tried: bool,
     regular_checked: u64,
+    /// Distinct regular captures the controller announced: the probe cadence counts these, so
+    /// probes stay evenly spaced in the rig's time however far checking lags behind.
+    regular_announced: u64,
     /// Inputs handled so far (the alarm aggregation's clock).
     inputs: u64,
 }
@@ -212,15 +218,44 @@ impl Engine {
             probe_pose: None,
             sentinel_tried: false,
             regular_checked: 0,
+            regular_announced: 0,
+            probe_due_at: 0,
             inputs: 0,
         }
     }
 
-    /// Enable drift probes (operator action): a `PROBE entry=…` every `every` regular captures,
-    /// of `entry`, or (None) of a pose chosen once a light sweep's worth of captures is checked.
+    /// Enable drift probes (operator action): a `PROBE entry=…` every `every` regular captures
+    /// announced, of `entry`, or (None) of a pose chosen once a light sweep's worth of captures
+    /// is checked.
     pub(crate) fn set_probes(&mut self, every: u64, entry: Option<usize>) {
         self.probe_every = every;
         self.probe_entry = entry;
+        self.probe_due_at = every;
+    }
+
+    /// Ask for the probe round that is due, if it can be asked for now: the lamp probe, then
+    /// the joint-3 sentinel right after it (the lamp's gain cancels between the two). The next
+    /// round is due at the next multiple of the cadence, so a late round does not shift the
+    /// ones after it.
+    fn ask_probes_if_due(&mut self, out: &mut Vec<Output>) {
+        if self.probe_every == 0 || self.regular_announced < self.probe_due_at {
+            return;
+        }
+        let Some(entry) = self.probe_entry else {
+            return;
+        };
+        // after the run's last regular capture the controller takes no more captures
+        if !(self.link.is_connected() && self.link.is_subscribed())
+            || self.done
+            || self.regular_announced >= self.captures_planned
+        {
+            return;
+        }
+        self.send(out, "PROBE", &[("entry", entry.to_string())]);
+        if let Some(s) = self.checker.sentinel() {
+            self.send(out, "PROBE", &[("entry", s.pose.entry.to_string())]);
+        }
+        self.probe_due_at = (self.regular_announced / self.probe_every + 1) * self.probe_every;
     }
 
     /// Captures checked so far (the next index to check).
@@ -924,7 +959,12 @@ impl Engine {
             file: a.file.clone(),
         });
         self.ledger.missing.remove(&idx);
+        let regular = !a.probe;
         self.ledger.announced.insert(idx, a);
+        if regular {
+            self.regular_announced += 1;
+            self.ask_probes_if_due(out);
+        }
         self.ledger.controller_next = self.ledger.controller_next.max(idx.saturating_add(1));
         if idx > expected && self.lowest_unseen() < idx {
             self.request_resync(out);
@@ -1047,19 +1087,8 @@ impl Engine {
                             }
                         }
                     }
-                    if self.probe_every > 0 && self.regular_checked.is_multiple_of(self.probe_every)
-                    {
-                        if let Some(entry) = self.probe_entry {
-                            if self.link.is_connected() && self.link.is_subscribed() && !self.done {
-                                self.send(out, "PROBE", &[("entry", entry.to_string())]);
-                                // the sentinel right after the lamp probe: the lamp's gain
-                                // cancels between the two
-                                if let Some(s) = self.checker.sentinel() {
-                                    self.send(out, "PROBE", &[("entry", s.pose.entry.to_string())]);
-                                }
-                            }
-                        }
-                    }
+                    // a round that fell due before the pose was chosen
+                    self.ask_probes_if_due(out);
                 }
             } else if self.ledger.missing.contains(&i) {
                 self.ledger.next_check += 1;
