@@ -256,12 +256,6 @@ struct NamedSlip {
     withdrawn_steps_s: Vec<f64>,
 }
 
-/// A joint crossing whose CUSUM run mean is below the tolerance is named only when its size,
-/// estimated against the captures before its change point, rests on at least this many sweeps:
-/// in a layer's first sweeps a lamp step, or the layer's pattern not yet learnt, reads as an
-/// offset of a few tenths of a degree for one or two sweeps, where a slip stays.
-const WEAK_CROSSING_MIN_SWEEPS: usize = 3;
-
 /// A joint CUSUM that crossed its threshold.
 #[derive(Debug, Clone, Copy)]
 struct JointCrossing {
@@ -1340,11 +1334,6 @@ impl SweepMonitor {
     ) -> Option<NamedSlip> {
         let (k, clip) = (self.spec.cusum_k, self.spec.clip);
         let mut crossing: Option<JointCrossing> = None;
-        // a crossing whose run mean is below the tolerance: the run may have begun before the
-        // slip, or the pattern the offsets are measured against may have taken up part of it
-        // (the layer's later sweeps rebuild it), so it is judged by the slip's size against
-        // the captures before its change point instead
-        let mut weak: Option<JointCrossing> = None;
         for j in 0..2 {
             let b = pattern.beta[j + 1];
             let Some(bse) = pattern.se(j + 1).filter(|v| v.is_finite() && *v > 0.0) else {
@@ -1375,27 +1364,21 @@ impl SweepMonitor {
                             continue;
                         }
                         let (mean, mean_se) = run.mean_and_se();
-                        if stat <= self.h_joint || sign * mean <= 0.0 {
-                            continue;
-                        }
-                        let x = JointCrossing {
-                            joint: j,
-                            statistic: stat,
-                            mean,
-                            mean_se,
-                            sweeps: run.n,
-                            since: run.start,
-                            estimate_sweeps: run.n,
-                            run_mean: mean,
-                            attributed_level: None,
-                        };
-                        let slot = if sign * mean >= self.spec.joint_tolerance_deg {
-                            &mut crossing
-                        } else {
-                            &mut weak
-                        };
-                        if slot.is_none_or(|c| stat > c.statistic) {
-                            *slot = Some(x);
+                        if stat > self.h_joint
+                            && sign * mean >= self.spec.joint_tolerance_deg
+                            && crossing.is_none_or(|c| stat > c.statistic)
+                        {
+                            crossing = Some(JointCrossing {
+                                joint: j,
+                                statistic: stat,
+                                mean,
+                                mean_se,
+                                sweeps: run.n,
+                                since: run.start,
+                                estimate_sweeps: run.n,
+                                run_mean: mean,
+                                attributed_level: None,
+                            });
                         }
                     }
                     fit.cusum = cs.max();
@@ -1405,13 +1388,8 @@ impl SweepMonitor {
         }
         let crossing = if level_alarmed {
             None
-        } else if let Some(x) = crossing {
-            Some(self.slip_estimate(x, known))
         } else {
-            weak.map(|x| self.slip_estimate(x, known)).filter(|x| {
-                x.estimate_sweeps >= WEAK_CROSSING_MIN_SWEEPS
-                    && x.mean.abs() >= self.spec.joint_tolerance_deg
-            })
+            crossing.map(|x| self.slip_estimate(x, known))
         };
         // a crossing in a layer that already has its positioning alarm restarts the CUSUMs
         // without a second alarm (the operator has it; the next layer may raise one again)
