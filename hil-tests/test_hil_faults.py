@@ -33,7 +33,11 @@ def test_capture_faults(hil, tmp_path):
     os.makedirs(os.path.join(rig.capture_root, "capf"), exist_ok=True)
     open(os.path.join(rig.capture_root, "capf", "stray.hdr"), "wb").write(b"#?RADIANCE\n")
     hooked = tmp_path / "hook.jsonl"
-    cfg = daemon_config(tmp_path, "capf", give_up_s=3.0, hook=["sh", "-c", f'x=$(cat); printf "%s\\n" "$x" >> {hooked}'])
+    # a decode failure repeated at one size fails a file at once; 6 such (over about 1.5 s of
+    # retries) rather than the default 3 (150 ms): the slowly written file grows every 125 ms,
+    # and a stall of the simulator's writer thread under machine load must not read as a file
+    # that stopped growing
+    cfg = daemon_config(tmp_path, "capf", give_up_s=5.0, stable_failures=6, hook=["sh", "-c", f'x=$(cat); printf "%s\\n" "$x" >> {hooked}'])
     code, out, err = run_daemon(rig, session, cfg, timeout=180)
     assert code == 0, out + err[-3000:]
     caps = {c["idx"]: c for c in read_jsonl(session / "captures.jsonl")}

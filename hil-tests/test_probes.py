@@ -7,10 +7,35 @@ import json
 from hil import assert_replay_identical, daemon_config, needs_simulator, read_jsonl, run_daemon
 
 
+def probe_rounds(session):
+    """From the journal: the PROBE lines the daemon sent, the announced regular captures it had
+    counted when it sent the first, and how many of them the rig acknowledged before its last
+    regular capture. The rig takes every probe it acknowledged before its next regular capture,
+    so those are the probes a correct rig takes; one acknowledged later (the daemon's input
+    queue lagging behind the rig at the end of a short, fast run) is never taken."""
+    sent, announced, first_round_at = {}, set(), None
+    rx = []
+    for j in read_jsonl(session / "journal.jsonl"):
+        line = j["in"].get("line", "") if isinstance(j.get("in"), dict) else ""
+        if line:
+            rx.append(line.split("*")[0].split())
+        if " CAPTURE " in line and " probe=1" not in line:
+            announced.add(line.split(" idx=")[1].split()[0])
+        if " PROBE " in j.get("out", ""):
+            sent[j["out"].split()[0]] = j["out"]
+            first_round_at = len(announced) if first_round_at is None else first_round_at
+    last_regular = max(
+        (n for n, f in enumerate(rx) if len(f) > 1 and f[1] == "CAPTURE" and "probe=1" not in f and "replay=1" not in f),
+        default=-1,
+    )
+    acked = {f[2][4:] for f in rx[:last_regular] if len(f) > 2 and f[1] == "ACK" and f[2].startswith("ref=")}
+    return list(sent.values()), first_round_at, len(acked & set(sent))
+
+
 def test_probes_catch_a_lamp_step_and_stay_quiet_without_one(hil, tmp_path):
     needs_simulator()
     cfg = daemon_config(tmp_path, "probes", every=25)
-    step = hil("pstep", [{"kind": "lamp-step", "at_capture": 200, "step_pct": -3.0}], captures=400, speed=7.0 / 0.01)
+    step = hil("pstep", [{"kind": "lamp-step", "at_capture": 200, "step_pct": -3.0}], captures=400, speed=7.0 / 0.025)
     session = tmp_path / "pstep-session"
     code, out, err = run_daemon(step, session, cfg, timeout=180)
     assert code == 0, err[-2000:]
@@ -20,20 +45,12 @@ def test_probes_catch_a_lamp_step_and_stay_quiet_without_one(hil, tmp_path):
     # how far checking lags (machine load) does not thin the rounds out: one round as soon as
     # the pose is chosen (after 81 checked; the round due since 25 announced), then one at each
     # further multiple of 25 announced, the last at 375 (400 is the run's end).
-    journal = read_jsonl(session / "journal.jsonl")
-    sent, announced, first_round_at = [], set(), None
-    for j in journal:
-        line = j.get("in", {}).get("line", "") if isinstance(j.get("in"), dict) else ""
-        if " CAPTURE " in line and " probe=1" not in line:
-            announced.add(line.split(" idx=")[1].split()[0])
-        if " PROBE " in j.get("out", ""):
-            sent.append(j["out"])
-            first_round_at = len(announced) if first_round_at is None else first_round_at
+    sent, first_round_at, taken = probe_rounds(session)
     assert first_round_at is not None and 81 <= first_round_at < 375, first_round_at
     due = 1 + len([m for m in range(25, 400, 25) if m > first_round_at])
     assert len(sent) == due, (first_round_at, sent)
-    # every round asked for was taken (the last is asked for 25 captures before the end)
-    assert len(probes) == len(sent), ([p["idx"] for p in probes], sent)
+    # every round the rig acknowledged in time was taken
+    assert len(probes) == taken, ([p["idx"] for p in probes], sent)
     steps = [a for a in read_jsonl(session / "alarms.jsonl") if a["code"] == "gain-step"]
     assert len(steps) == 1 and steps[0]["evidence"]["direction"] == -1
     # judged in probes, which the daemon controls, not in capture indices: how many captures
@@ -56,18 +73,22 @@ def test_probes_catch_a_lamp_step_and_stay_quiet_without_one(hil, tmp_path):
     assert code == 0, err[-2000:]
     assert not [a for a in read_jsonl(session / "alarms.jsonl") if a["kind"] == "drift"]
     s = json.load(open(session / "summary.json"))
+    clean_probes = [c for c in read_jsonl(session / "captures.jsonl") if c["probe"]]
+    assert len(clean_probes) == probe_rounds(session)[2]
     # 400 captures are 0.78 h of controller time, paced by the wall clock (so the probe times
-    # vary with machine load): the rate is only known to its standard error (about 0.15 %/h here;
-    # one CI run measured +0.50 ± 0.15). No alarm (above) is the real criterion.
-    d = s["probe_drift"]
-    assert abs(d["rate_pct_per_h"]) <= 5 * d["se_pct_per_h"] and d["se_pct_per_h"] < 0.5, d
+    # and how many rounds the rig takes before its end vary with machine load): the rate is only
+    # known to its standard error (about 0.15 %/h with a dozen probes; one CI run measured
+    # +0.50 ± 0.15). No alarm (above) is the real criterion.
+    if len(clean_probes) >= 3:
+        d = s["probe_drift"]
+        assert abs(d["rate_pct_per_h"]) <= 5 * d["se_pct_per_h"] and d["se_pct_per_h"] < 0.5, d
 
 
 def test_on_an_anisotropic_sample_the_sentinel_names_a_turn_of_joint_3(hil, tmp_path):
     needs_simulator()
     cfg = daemon_config(tmp_path, "sentinel", every=25, isotropic=False)
     rig = hil("sent", [{"kind": "joint-offset", "at_capture": 300, "joint": 3, "offset_deg": 1.0}],
-              captures=500, speed=7.0 / 0.004, preset="brushed")
+              captures=500, speed=7.0 / 0.02, preset="brushed")
     session = tmp_path / "sent-session"
     code, out, err = run_daemon(rig, session, cfg, timeout=180)
     assert code == 0, err[-2000:]
@@ -87,7 +108,13 @@ def test_on_an_anisotropic_sample_the_sentinel_names_a_turn_of_joint_3(hil, tmp_
     # departs by about 7 standard deviations against a threshold of 5, so it is the second or,
     # when the noise of the probes (which captures they land on moves with machine load)
     # hides the first, the third
-    after = [p for p in probes if p["entry"] == sentinel["entry"] and p["t"] >= 300 * 7.0 and p["idx"] <= a["idx"]]
+    # (a reading is a sentinel probe within 3 captures of the lamp probe before it: the pair)
+    lamp_idx = [p["idx"] for p in probes if p["entry"] == lamp]
+    readings = [
+        p for p in probes
+        if p["entry"] == sentinel["entry"] and any(0 < p["idx"] - i <= 3 for i in lamp_idx)
+    ]
+    after = [p for p in readings if p["t"] >= 300 * 7.0 and p["idx"] <= a["idx"]]
     assert 2 <= len(after) <= 3, (a["idx"], [p["idx"] for p in probes])
     assert a["affects"]["handling"] == "retake" and "joint 3" in a["action"]
     assert not [x for x in alarms if x["kind"] == "drift"], alarms
