@@ -7,6 +7,7 @@ $GONIOWATCH_SCREENSHOT_DIR)."""
 import json
 import os
 import re
+import signal
 import subprocess
 import threading
 import time
@@ -79,7 +80,9 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
     rig = hil("page", faults, captures=1500, speed=7.0 / 0.012)
     session = tmp_path / "page-session"
     # drift probes on, so that the drift chart has an estimate to draw
-    daemon = start_daemon(rig, session, daemon_config(tmp_path, "page", every=25), "--http", "127.0.0.1:0")
+    # --keep-running: the page, the event streams and /metrics are read after the run may have
+    # ended (how long the browser takes moves with machine load); the daemon is stopped at the end
+    daemon = start_daemon(rig, session, daemon_config(tmp_path, "page", every=25), "--http", "127.0.0.1:0", "--keep-running")
     try:
         url, _ = status_url(daemon)
         with sync_playwright() as p:
@@ -89,7 +92,7 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
             page.wait_for_function("document.getElementById('conn').textContent === 'live'", timeout=20000)
             page.wait_for_function("Number(document.getElementById('done').textContent) > 0", timeout=20000)
             first = int(page.text_content("#done"))
-            page.wait_for_function(f"Number(document.getElementById('done').textContent) > {first + 50}", timeout=30000)
+            page.wait_for_function(f"Number(document.getElementById('done').textContent) >= {min(first + 50, 1500)}", timeout=30000)
             # the coverage map and the residual plot are drawn
             assert page.locator("#coverage circle").count() >= 81
             page.wait_for_function("document.querySelectorAll('#resid circle').length > 0", timeout=30000)
@@ -119,7 +122,7 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
             browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
             page = browser.new_page()
             page.goto(url)
-            page.wait_for_function(f"Number(document.getElementById('done').textContent) > {first + 50}", timeout=20000)
+            page.wait_for_function(f"Number(document.getElementById('done').textContent) >= {min(first + 50, 1500)}", timeout=20000)
             page.wait_for_selector('#alarms li[data-code="dark-capture"]', timeout=20000)
             browser.close()
         # clients that open the event stream and never read it must not hold the run up
@@ -147,8 +150,15 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
         assert re.search(r"^goniowatch_captures_checked \d+", metrics, re.M), metrics[:500]
         assert "# TYPE goniowatch_alarms_total gauge" in metrics
         assert re.search(r"^goniowatch_colour_drift_k_per_h ", metrics, re.M), metrics[:2000]
-        daemon.wait(timeout=120)
-        assert daemon.returncode == 0
+        # the stuck clients did not hold the run up: it is checked to the end
+        deadline = time.monotonic() + 120
+        while not json.load(urllib.request.urlopen(url + "status.json", timeout=10))["summary"]["finished"]:
+            assert time.monotonic() < deadline, "the run did not finish"
+            time.sleep(0.2)
+        daemon.send_signal(signal.SIGTERM)
+        daemon.wait(timeout=60)
+        assert daemon.returncode == 128 + signal.SIGTERM
+        assert json.load(open(session / "summary.json"))["finished"]
         for s in stuck:
             s.close()
     finally:
