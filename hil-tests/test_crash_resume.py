@@ -19,6 +19,17 @@ def results(session):
     return out
 
 
+def wait_for_checked(p, session, at_least, timeout=60):
+    """Until the daemon `p` has written at least `at_least` capture results (or exited): the
+    kill points are chosen in captures checked, which the daemon controls, not in wall time."""
+    path = session / "captures.jsonl"
+    deadline = time.monotonic() + timeout
+    while p.poll() is None and time.monotonic() < deadline:
+        if path.exists() and sum(1 for _ in open(path, "rb")) >= at_least:
+            return
+        time.sleep(0.01)
+
+
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
     """The same scenario (same seed, same files), uninterrupted."""
@@ -42,10 +53,11 @@ def test_kill_9_and_resume(hil, tmp_path, reference, seed):
     rig = hil("crash", (), captures=N, speed=SPEED, realism="realistic", preset="ceiling")
     session = tmp_path / "crash-session"
     cfg = daemon_config(tmp_path, "crash")
-    kills = 0
+    kills, at = 0, 0
     for _ in range(rng.randint(1, 3)):
         p = start_daemon(rig, session, cfg)
-        time.sleep(rng.uniform(0.3, 2.0))
+        at += rng.randint(20, 200)
+        wait_for_checked(p, session, at)
         if p.poll() is None:
             p.send_signal(signal.SIGKILL)
             p.wait()
@@ -66,7 +78,7 @@ def test_sigterm_stops_cleanly_and_resumes(hil, tmp_path, reference):
     session = tmp_path / "term-session"
     cfg = daemon_config(tmp_path, "term")
     p = start_daemon(rig, session, cfg)
-    time.sleep(1.5)
+    wait_for_checked(p, session, 150)
     p.send_signal(signal.SIGTERM)
     out, err = p.communicate(timeout=30)
     assert p.returncode == 128 + 15, (p.returncode, err[-2000:])
