@@ -43,21 +43,27 @@ def test_clean_full_session(hil, tmp_path):
 
 
 def test_a_second_daemon_on_the_same_session_is_refused(hil, tmp_path):
+    import signal
+    import time
+
     from hil import needs_simulator, start_daemon
 
     needs_simulator()
     rig = hil("busy", captures=400, speed=7.0 / 0.01)
     session = tmp_path / "busy-session"
     cfg = daemon_config(tmp_path, "busy")
-    first = start_daemon(rig, session, cfg)
+    # --keep-running: the first daemon holds the session however long the second takes to start
+    first = start_daemon(rig, session, cfg, "--keep-running")
     try:
-        import time
-
-        deadline = time.monotonic() + 10
-        while not os.path.exists(session / "journal.jsonl") and time.monotonic() < deadline:
+        deadline = time.monotonic() + 60
+        while not os.path.exists(session / "journal.jsonl"):
+            assert first.poll() is None and time.monotonic() < deadline, "the first daemon did not start"
             time.sleep(0.05)
         code, out, err = run_daemon(rig, session, cfg, timeout=30)
         assert code == 3 and "in use" in err, (code, err)
+        assert first.poll() is None
     finally:
+        if first.poll() is None:
+            first.send_signal(signal.SIGTERM)
         first.wait(timeout=120)
-    assert first.returncode == 0
+    assert first.returncode == 128 + 15
