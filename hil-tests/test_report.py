@@ -22,7 +22,9 @@ def test_report_of_a_session_and_of_its_replay_are_identical(hil, tmp_path):
         {"kind": "lamp-step", "at_capture": 700, "step_pct": -3.0},
         {"kind": "dark-frame", "at_capture": 300},
     ]
-    rig = hil("rep", faults, captures=1400, speed=0)
+    # paced (10 ms per capture): with probes on, the step is seen only at a probe after it, and
+    # a rig running flat out could end before a lagging daemon's rounds are taken
+    rig = hil("rep", faults, captures=1400, speed=7.0 / 0.01)
     session = tmp_path / "rep-session"
     code, out, err = run_daemon(rig, session, daemon_config(tmp_path, "rep", every=50), timeout=300)
     assert code == 0, err[-2000:]
