@@ -8,9 +8,19 @@ use goniowatch::fixtures::{self, Controller};
 use goniowatch::measure::alarm::{Affects, Alarm, Handling};
 use goniowatch::protocol::parse;
 
+/// config/sim.toml, the simulated rig's configuration, as text.
+fn sim_toml() -> String {
+    std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap()
+}
+
 fn engine() -> Engine {
-    let text =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
+    Engine::from_config(&Config::from_toml_str(&sim_toml()).unwrap()).unwrap()
+}
+
+/// An engine on config/sim.toml with a probe round every `every` regular captures and no probe
+/// entry configured (the pose is chosen).
+fn probing_engine(every: u64) -> Engine {
+    let text = sim_toml().replace("every = 0", &format!("every = {every}"));
     Engine::from_config(&Config::from_toml_str(&text).unwrap()).unwrap()
 }
 
@@ -306,8 +316,7 @@ fn disconnect_and_restart_are_link_events() {
 
 #[test]
 fn pause_on_critical_only_when_enabled() {
-    let text =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
+    let text = sim_toml();
     let text = text.replace("pause_on_critical = false", "pause_on_critical = true");
     let mut e = Engine::from_config(&Config::from_toml_str(&text).unwrap()).unwrap();
     let mut c = Controller::default();
@@ -484,8 +493,7 @@ fn a_long_resync_reply_is_not_asked_again_midway() {
 
 #[test]
 fn a_retaken_entry_is_not_paired_twice() {
-    let text =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
+    let text = sim_toml();
     let cfg = Config::from_toml_str(&text).unwrap();
     let (plan, rig) = (cfg.plan().unwrap(), cfg.rig().unwrap());
     let a = 1usize;
@@ -590,8 +598,7 @@ fn probes_sent(out: &[Output]) -> Vec<String> {
 
 #[test]
 fn probes_are_requested_only_when_enabled() {
-    let text =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
+    let text = sim_toml();
     let cfg = Config::from_toml_str(
         &text
             .replace("every = 0", "every = 2")
@@ -634,9 +641,7 @@ fn probes_are_requested_only_when_enabled() {
 
 #[test]
 fn without_a_configured_entry_the_probe_pose_is_chosen_after_a_sweep_and_then_probed() {
-    let text =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
-    let cfg = Config::from_toml_str(&text.replace("every = 0", "every = 10")).unwrap();
+    let cfg = Config::from_toml_str(&sim_toml().replace("every = 0", "every = 10")).unwrap();
     assert_eq!(cfg.probes.entry, None);
     let mut e = Engine::from_config(&cfg).unwrap();
     let mut c = connected_and_running(&mut e);
@@ -671,10 +676,7 @@ fn without_a_configured_entry_the_probe_pose_is_chosen_after_a_sweep_and_then_pr
 
 #[test]
 fn probes_keep_the_rigs_cadence_when_checking_lags_behind_the_announcements() {
-    let text =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
-    let cfg = Config::from_toml_str(&text.replace("every = 0", "every = 10")).unwrap();
-    let mut e = Engine::from_config(&cfg).unwrap();
+    let mut e = probing_engine(10);
     let mut c = connected_and_running(&mut e);
     let session = fixtures::ubo_session(140, |_| 1.0);
     // the controller announces 120 captures before any of their files is decoded: the pose is
@@ -716,10 +718,7 @@ fn probes_keep_the_rigs_cadence_when_checking_lags_behind_the_announcements() {
 
 #[test]
 fn a_probe_pose_that_cannot_be_chosen_is_said_once_and_no_probe_is_asked_for() {
-    let text =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.toml")).unwrap();
-    let cfg = Config::from_toml_str(&text.replace("every = 0", "every = 10")).unwrap();
-    let mut e = Engine::from_config(&cfg).unwrap();
+    let mut e = probing_engine(10);
     let mut c = connected_and_running(&mut e);
     let mut out = Vec::new();
     // every capture at the same pose, off its plan entry's: none can be a probe pose
