@@ -35,7 +35,7 @@ use super::geometry::Vec3;
 use super::kinematics::{Pose, Rig};
 use super::resample::{LayeredResampler, ResampleSpec, Sample};
 use super::smooth_brdf::{Node, SmoothBrdf};
-use super::stats::{cusum_threshold, median_sorted, robust_scale_about_zero, Cusum, MAD_TO_SIGMA};
+use super::stats::{cusum_threshold, median_sorted, robust_scale_about_zero, Cusum};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -1532,9 +1532,8 @@ impl SweepMonitor {
                 continue;
             }
             let centre = median_sorted(&before);
-            let mut dev: Vec<f64> = before.iter().map(|v| (v - centre).abs()).collect();
-            dev.sort_by(f64::total_cmp);
-            let nuisance = MAD_TO_SIGMA * median_sorted(&dev);
+            let centred: Vec<f64> = before.iter().map(|v| v - centre).collect();
+            let nuisance = robust_scale_about_zero(&centred);
             // the decision rests on every sweep of the crossing, as the level's did: judged from
             // a change point picked for its departure, a lone nuisance sweep would pass
             let n = run.len() as f64;
