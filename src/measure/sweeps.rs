@@ -347,9 +347,6 @@ pub(crate) struct SweepMonitor {
     /// The gain steps raised so far: θi layer, the capture the alarm came at, where the drift
     /// model's step term was placed (seconds) and the level (%).
     level_steps: Vec<(i64, u64, Option<f64>, f64)>,
-    /// Lights whose sweeps completed while a joint CUSUM had a run under way, held out of
-    /// the reference (`SweepMonitor::hold_out`).
-    held_lights: Vec<usize>,
 }
 
 /// Where a completed sweep lies in the session, and the joint offsets its pattern fit gave
@@ -604,7 +601,6 @@ impl SweepMonitor {
             level_model: HashMap::new(),
             slip: None,
             level_steps: Vec::new(),
-            held_lights: Vec::new(),
         }
     }
 
@@ -839,20 +835,7 @@ impl SweepMonitor {
         let level_se =
             (all.iter().map(|e| (e - level).powi(2)).sum::<f64>() / (na - 1.0).max(1.0) / na)
                 .sqrt();
-        let pattern = if self.held_lights.is_empty() {
-            self.pattern_fit(rows.iter().map(Row::joints).collect())
-        } else {
-            let past: Vec<usize> = sweep
-                .past
-                .iter()
-                .copied()
-                .filter(|&k| !self.held_lights.contains(&self.captures[k].light))
-                .collect();
-            let held_reference = self.backfit(&past, &known);
-            let (_, rows) =
-                self.residuals(&sweep.current, &held_reference, &known, Model::Interpolant);
-            self.pattern_fit(rows.iter().map(Row::joints).collect())
-        };
+        let pattern = self.pattern_fit(rows.iter().map(Row::joints).collect());
         self.smooth_offsets(&sweep, &reference, &known);
         let mut rec = SweepRecord {
             light,
@@ -923,7 +906,6 @@ impl SweepMonitor {
             at_s: slip_at_s,
             withdrawn_steps_s,
         } = level_step.slip.clone().or(named).unwrap_or_default();
-        self.hold_out(light);
         rec.model_layers = self
             .model
             .as_ref()
@@ -938,20 +920,6 @@ impl SweepMonitor {
             step_at_s: level_step.at_s,
             slip_at_s,
             withdrawn_steps_s,
-        }
-    }
-
-    /// Holds the sweep of `light` out of the reference the later sweeps are judged against
-    /// while a joint CUSUM has a run under way: the captures of a developing slip would
-    /// otherwise enter the class effects and take up the offset the later sweeps should show.
-    /// The held sweeps join the reference when the runs die out or end in an alarm (the
-    /// CUSUMs restart against the new normal), and once `HELD_MAX` are held.
-    fn hold_out(&mut self, light: usize) {
-        let active = self.joint_cusum.iter().any(|c| c.max() > 0.0);
-        if active && self.held_lights.len() < HELD_MAX {
-            self.held_lights.push(light);
-        } else {
-            self.held_lights.clear();
         }
     }
 
