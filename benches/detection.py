@@ -8,7 +8,7 @@ of it: link, decoding, checks).
 Run (after `cargo build --release`):
   python3 benches/detection.py [--seeds 3] [--first-seed 1] [--every 100] [--presets realistic,clean]
                                [--materials walkway,ceiling] [--only "no fault"] [--keep DIR]
-  python3 benches/detection.py --replay DIR [--seeds ...] [--presets ...] [--materials ...] [--only ...]
+  python3 benches/detection.py --replay DIR[,DIR...] [--replay-out OUT] [--seeds ...] [--presets ...] [--materials ...] [--only ...]
 Prints a Markdown table. GONIOWATCH_BIN overrides the binary. `--keep DIR` keeps every recorded
 session (DIR/<scenario>[-<material>]-<preset>-<seed>/s, with its captures); `--replay DIR` re-evaluates kept
 sessions with the current binary through `goniowatch replay` (byte-identical to a live run of
@@ -125,16 +125,25 @@ def run_name(name, material, preset, seed):
     return f"{slug(name)}-{m}{preset}-{seed}"
 
 
-def replay(keep, name, material, preset, seed):
-    d = os.path.join(keep, run_name(name, material, preset, seed))
-    if not os.path.isdir(os.path.join(d, "s")):
+def replay(keeps, name, material, preset, seed, replay_out=None):
+    """Replays the kept session of this run (the first of the folders `keeps` that has it) and
+    scores it. With `replay_out` the replay's output is kept in replay_out/<run>, and a run
+    whose output is already there is scored from it without replaying (its CPU is then
+    unknown: None)."""
+    run = run_name(name, material, preset, seed)
+    d = next((os.path.join(k, run) for k in keeps if os.path.isdir(os.path.join(k, run, "s"))), None)
+    if d is None:
         return None
-    out = tempfile.mkdtemp(prefix="gw-replay-")
-    _, cpu = timed([BIN, "replay", f"{d}/s", "--out", f"{out}/r", "--quiet"])
-    alarms = [json.loads(l) for l in open(f"{out}/r/alarms.jsonl") if l.strip()]
-    summary = json.load(open(f"{out}/r/summary.json"))
-    pts = curve(f"{out}/r/captures.jsonl")
-    shutil.rmtree(out, ignore_errors=True)
+    out = os.path.join(replay_out, run) if replay_out else os.path.join(tempfile.mkdtemp(prefix="gw-replay-"), "r")
+    cpu = None
+    if not (replay_out and os.path.exists(f"{out}/summary.json")):
+        shutil.rmtree(out, ignore_errors=True)
+        _, cpu = timed([BIN, "replay", f"{d}/s", "--out", out, "--quiet"])
+    alarms = [json.loads(l) for l in open(f"{out}/alarms.jsonl") if l.strip()]
+    summary = json.load(open(f"{out}/summary.json"))
+    pts = curve(f"{out}/captures.jsonl")
+    if not replay_out:
+        shutil.rmtree(os.path.dirname(out), ignore_errors=True)
     return alarms, summary, cpu, pts
 
 
@@ -230,7 +239,9 @@ def main():
     ap.add_argument("--only", help="run only the scenarios whose name contains this text")
     ap.add_argument("--match", help="run only the scenarios whose name matches this regular expression")
     ap.add_argument("--keep", help="keep the recorded sessions in this folder")
-    ap.add_argument("--replay", help="re-evaluate the sessions kept in this folder instead of running the rig")
+    ap.add_argument("--replay", help="re-evaluate the sessions kept in this folder (or these, comma-separated) instead of running the rig")
+    ap.add_argument("--replay-out", help="with --replay: keep each replay's output in this folder, and score a run "
+                                         "whose output is already there from it instead of replaying it (one folder per binary)")
     ap.add_argument("--json", help="also write one record per run to this file (for benches/detection_curves.py)")
     ap.add_argument("--jobs", type=int, default=1, help="runs (or replays) at once; the CPU column stays per run")
     a = ap.parse_args()
@@ -253,7 +264,7 @@ def main():
     def one(task):
         material, preset, name, faults, truth, seed = task
         if a.replay:
-            return replay(a.replay, name, material, preset, seed)
+            return replay(a.replay.split(","), name, material, preset, seed, a.replay_out)
         return run(tmp, name, material, preset, faults, seed, a.every, a.keep)
 
     if not os.access(BIN, os.X_OK):
@@ -307,7 +318,8 @@ def report(a, rows, seeds, pending, key, curves, joint_runs, records):
             if truth and truth[0] in ("rate", "rate-exp") and not a.every:
                 curves.append((label, name, seed, truth, pts))
             runs += 1
-            cpu.append(1000 * daemon_cpu / max(1, summary["checked"]["captures"]))
+            if daemon_cpu is not None:
+                cpu.append(1000 * daemon_cpu / max(1, summary["checked"]["captures"]))
             drift = [x for x in alarms if x["kind"] == "drift" and x["code"] != "gain-drift-cleared"]
             kinds.append(min(drift, key=lambda x: x["idx"] or 0)["code"] if drift else "–")
             onset = truth[1] if truth else 0
@@ -339,7 +351,7 @@ def report(a, rows, seeds, pending, key, curves, joint_runs, records):
         rate = ", ".join(rates) + truth_text
         if runs == 0:
             continue
-        print(f"| {label} | {name} | {hits} of {runs} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {min(cpu):.2f}–{max(cpu):.2f} ms |", flush=True)
+        print(f"| {label} | {name} | {hits} of {runs} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {f'{min(cpu):.2f}–{max(cpu):.2f} ms' if cpu else '–'} |", flush=True)
 
 
 def run_record(material, preset, name, faults, truth, seed, alarms, summary, key, every):
