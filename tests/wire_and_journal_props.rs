@@ -12,10 +12,14 @@ use goniowatch::session::journal::{
 use proptest::prelude::*;
 use std::path::PathBuf;
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("gw-props-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join("journal.jsonl")
+/// A journal path in a fresh directory, removed with the guard (also when a case fails).
+fn scratch(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let d = tempfile::Builder::new()
+        .prefix(&format!("gw-props-{name}-"))
+        .tempdir()
+        .unwrap();
+    let p = d.path().join("journal.jsonl");
+    (d, p)
 }
 
 /// Field keys as the protocol has them: printable, no space, `=`, `*` or `%`.
@@ -127,7 +131,7 @@ proptest! {
 
     #[test]
     fn the_journal_reader_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..2000)) {
-        let p = scratch("any");
+        let (_dir, p) = scratch("any");
         std::fs::write(&p, &bytes).unwrap();
         let _ = read_journal(&p, true);
         let _ = read_journal(&p, false);
@@ -139,7 +143,7 @@ proptest! {
         pos in any::<prop::sample::Index>(),
         flip in 1u8..=255,
     ) {
-        let p = scratch("rt");
+        let (_dir, p) = scratch("rt");
         let mut f = JsonlFile::create(&p).unwrap();
         for e in &entries {
             f.write_entry(e).unwrap();

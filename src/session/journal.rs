@@ -270,10 +270,14 @@ mod tests {
     use super::*;
     use crate::engine::Input;
 
-    fn temp(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("gw-journal-{}-{name}", std::process::id()));
-        std::fs::create_dir_all(&dir).ok();
-        dir.join("journal.jsonl")
+    /// A journal path in a fresh directory, removed with the guard (also when a test fails).
+    fn temp(name: &str) -> (tempfile::TempDir, PathBuf) {
+        let dir = tempfile::Builder::new()
+            .prefix(&format!("gw-journal-{name}-"))
+            .tempdir()
+            .unwrap();
+        let p = dir.path().join("journal.jsonl");
+        (dir, p)
     }
 
     fn entries() -> Vec<JournalEntry> {
@@ -321,7 +325,7 @@ mod tests {
 
     #[test]
     fn entries_round_trip_with_their_checksums() {
-        let p = temp("rt");
+        let (_dir, p) = temp("rt");
         let bytes = write(&p, &entries());
         for line in bytes.split(|b| *b == b'\n').filter(|l| !l.is_empty()) {
             // every line stays one JSON object
@@ -335,7 +339,7 @@ mod tests {
 
     #[test]
     fn every_changed_byte_is_found_and_named_by_line() {
-        let p = temp("flip");
+        let (_dir, p) = temp("flip");
         let good = write(&p, &entries());
         let line_of = |pos: usize| good[..pos].iter().filter(|b| **b == b'\n').count() + 1;
         for pos in 0..good.len() {
@@ -361,7 +365,7 @@ mod tests {
 
     #[test]
     fn a_torn_tail_is_left_out_and_cut_only_by_repair() {
-        let p = temp("torn");
+        let (_dir, p) = temp("torn");
         let mut bytes = write(&p, &entries());
         bytes.extend_from_slice(b"{\"wall_ms\":4,\"in\":{\"ty");
         std::fs::write(&p, &bytes).unwrap();
@@ -375,7 +379,7 @@ mod tests {
 
     #[test]
     fn a_legacy_journal_is_read_unverified_and_then_checksummed_lines_verify() {
-        let p = temp("legacy");
+        let (_dir, p) = temp("legacy");
         let legacy: Vec<u8> = entries()
             .iter()
             .flat_map(|e| {
