@@ -347,9 +347,6 @@ pub(crate) struct SweepMonitor {
     /// The gain steps raised so far: θi layer, the capture the alarm came at, where the drift
     /// model's step term was placed (seconds) and the level (%).
     level_steps: Vec<(i64, u64, Option<f64>, f64)>,
-    /// The lights of the level CUSUM's run under way (`SweepMonitor::expected_level` leaves
-    /// them out of what a sweep's level is compared with).
-    level_run_lights: Vec<usize>,
 }
 
 /// Where a completed sweep lies in the session, and the joint offsets its pattern fit gave
@@ -519,11 +516,9 @@ fn pattern_fit(
     values: &[f64],
     harmonics: &[f64],
     borrowed: Option<[f64; 2]>,
-    run: &[bool],
     here: f64,
 ) -> Option<LevelPatternFit> {
-    let with_run = run.iter().any(|&b| b);
-    let row = |p: f64, in_run: bool| -> Vec<f64> {
+    let row = |p: f64| -> Vec<f64> {
         let mut v = vec![1.0];
         for h in harmonics {
             v.push((h * p).cos());
@@ -532,27 +527,20 @@ fn pattern_fit(
         if let Some(u) = borrowed {
             v.push(u[0] * (2.0 * p).cos() + u[1] * (2.0 * p).sin());
         }
-        if with_run {
-            v.push(if in_run { 1.0 } else { 0.0 });
-        }
         v
     };
     let (n, cols) = (
         azimuths.len(),
-        1 + 2 * harmonics.len() + borrowed.is_some() as usize + with_run as usize,
+        1 + 2 * harmonics.len() + borrowed.is_some() as usize,
     );
     if n <= cols || values.len() != n {
         return None;
     }
-    let rows: Vec<Vec<f64>> = azimuths
-        .iter()
-        .enumerate()
-        .map(|(i, &p)| row(p, run.get(i).copied().unwrap_or(false)))
-        .collect();
+    let rows: Vec<Vec<f64>> = azimuths.iter().map(|&p| row(p)).collect();
     let x = DMatrix::from_fn(n, cols, |i, j| rows[i][j]);
     let y = DVector::from_column_slice(values);
     let b = x.clone().svd(true, true).solve(&y, 1e-9).ok()?;
-    let x0 = DVector::from_vec(row(here, false));
+    let x0 = DVector::from_vec(row(here));
     let level = x0.dot(&b);
     // the prediction's standard deviation: σ²·(1 + x₀ᵀ(XᵀX)⁻¹x₀)
     let resid = &y - &x * &b;
@@ -613,7 +601,6 @@ impl SweepMonitor {
             level_model: HashMap::new(),
             slip: None,
             level_steps: Vec::new(),
-            level_run_lights: Vec::new(),
         }
     }
 
@@ -953,40 +940,13 @@ impl SweepMonitor {
             return None;
         }
         let (lights, step) = self.layer_lights(sweep, sweep.layer, r);
-        let run: Vec<bool> = lights
-            .iter()
-            .map(|l| self.level_run_lights.contains(l))
-            .collect();
-        let before: Vec<usize> = lights
-            .iter()
-            .zip(&run)
-            .filter(|(_, &in_run)| !in_run)
-            .map(|(&l, _)| l)
-            .collect();
         let harmonics: Vec<f64> = [(4.0, PATTERN_MIN_LIGHTS[0]), (2.0, PATTERN_MIN_LIGHTS[1])]
             .into_iter()
             .filter(|&(h, min)| lights.len() >= min && TAU / h >= PATTERN_SAMPLES_PER_PERIOD * step)
             .map(|(h, _)| h)
             .collect();
-        // the run's lights get their own level only where the lights before the run could
-        // fit the same harmonics on their own
-        let need = PATTERN_MIN_LIGHTS[harmonics.len().saturating_sub(1).min(1)];
-        let run: Vec<bool> = if !harmonics.is_empty() && before.len() < need {
-            vec![false; lights.len()]
-        } else {
-            run
-        };
         if harmonics.is_empty() {
-            if before.is_empty() {
-                return None;
-            }
-            let level = before.iter().map(|&l| r.light[l]).sum::<f64>() / before.len() as f64;
-            return Some(LayerPattern {
-                level,
-                sd: 0.0,
-                harmonics: 0,
-                residuals: Vec::new(),
-            });
+            return None;
         }
         let values: Vec<f64> = lights.iter().map(|&l| r.light[l]).collect();
         let azimuths: Vec<f64> = lights.iter().map(|&l| phi(l)).collect();
@@ -997,14 +957,14 @@ impl SweepMonitor {
         // outline pattern, takes up a step instead.)
         if harmonics == [4.0] {
             if let Some(u) = self.second_harmonic_below(sweep, r) {
-                if let Some(f) = pattern_fit(&azimuths, &values, &harmonics, Some(u), &run, here) {
+                if let Some(f) = pattern_fit(&azimuths, &values, &harmonics, Some(u), here) {
                     if amplitude_t(&f.coef, &f.cov, 1) >= BORROW_SIGMAS {
                         return Some(f.pattern);
                     }
                 }
             }
         }
-        pattern_fit(&azimuths, &values, &harmonics, None, &run, here).map(|f| f.pattern)
+        pattern_fit(&azimuths, &values, &harmonics, None, here).map(|f| f.pattern)
     }
 
     /// The phase of the 2nd harmonic of the θi layer right below the sweep's, as the unit
@@ -1037,7 +997,7 @@ impl SweepMonitor {
         let phi = |l: usize| self.light_phi.get(l).copied().unwrap_or(f64::NAN);
         let azimuths: Vec<f64> = lights.iter().map(|&l| phi(l)).collect();
         let values: Vec<f64> = lights.iter().map(|&l| r.light[l]).collect();
-        let f = pattern_fit(&azimuths, &values, harmonics, None, &[], 0.0)?;
+        let f = pattern_fit(&azimuths, &values, harmonics, None, 0.0)?;
         let amplitude = f.coef[1].hypot(f.coef[2]);
         (amplitude_t(&f.coef, &f.cov, 1) >= BORROW_SIGMAS)
             .then(|| [f.coef[1] / amplitude, f.coef[2] / amplitude])
@@ -1350,11 +1310,6 @@ impl SweepMonitor {
             rec.level_cusum = self.level_cusum.max();
         }
         let active = tested && self.level_cusum.max() > 0.0;
-        if active && self.level_run_lights.len() < HELD_MAX {
-            self.level_run_lights.push(sweep.light);
-        } else {
-            self.level_run_lights.clear();
-        }
         if let Some(hist) = self.level_history.get_mut(&layer) {
             hist.record(level, active, step.alarmed);
         }
@@ -1926,7 +1881,7 @@ mod tests {
         let nan = DMatrix::from_element(3, 3, f64::NAN);
         assert_eq!(amplitude_t(&b, &nan, 1), 0.0);
         // too few lights for the model: no pattern
-        assert!(pattern_fit(&[0.0, 1.0, 2.0], &[0.0; 3], &[4.0], None, &[], 0.5).is_none());
+        assert!(pattern_fit(&[0.0, 1.0, 2.0], &[0.0; 3], &[4.0], None, 0.5).is_none());
     }
 
     #[test]
