@@ -50,6 +50,12 @@ SCENARIOS = [
     ("step −3 % early in the 75° layer", [{"kind": "lamp-step", "at_capture": 5200, "step_pct": -3.0}], ("step", 5200, None)),
     ("step −1.5 % late in the 75° layer", [{"kind": "lamp-step", "at_capture": 5900, "step_pct": -1.5}], ("step", 5900, None)),
 ] + [
+    # the other sign (a lamp that brightens: a supply or a warm-up), and an early onset
+    # (light sweep 20, θi = 45°)
+    (f"step {'+' if size > 0 else '−'}{abs(size):g} % {where}", [{"kind": "lamp-step", "at_capture": at, "step_pct": size}], ("step", at, None))
+    for size, where, at in ((1.5, "at mid-run", 3280), (3.0, "at mid-run", 3280), (-1.5, "early", 1700), (1.5, "early", 1700),
+                            (-3.0, "early", 1700), (1.5, "early in the 75° layer", 5200))
+] + [
     # a lamp decay with a joint slip part-way: the rate must survive the slip
     (f"decay 0.5 %/h with joint {j} +1° at mid-run",
      [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 0.5}, {"kind": "joint-offset", "at_capture": 3280, "joint": j, "offset_deg": 1.0}],

@@ -20,6 +20,7 @@ A run is one simulated 6,561-capture acquisition; nothing here is timed."""
 
 import argparse
 import json
+import math
 import statistics
 
 from detection import truth_rate
@@ -87,8 +88,8 @@ def decays(runs):
 
 
 def steps(runs):
-    print("\n| material | preset | step | runs | caught within 300 | caught at all (of them as a rate, `gain-drift`) | delay: median (max) | fitted step: range |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("\n| material | preset | step | runs | caught within 300 | caught at all (of them as a rate, `gain-drift`) | first alarm of the wrong sign | delay: median (max) | fitted step: range |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for m, p in groups(runs):
         for size in sorted({r["fault"]["size"] for r in runs if r["fault"] and r["fault"]["kind"] == "step"}):
             g = [r for r in runs if (r["material"], r["preset"]) == (m, p) and r["fault"] and r["fault"]["kind"] == "step"
@@ -100,7 +101,16 @@ def steps(runs):
             when = f"{statistics.median(d):.0f} ({max(d)})" if d else "–"
             span = f"{min(fitted):+.2f} … {max(fitted):+.2f} %" if fitted else "–"
             as_rate = sum(1 for r in g if r["drift_after"] and r["drift_after"]["code"] == "gain-drift")
-            print(f"| {m} | {p} | {size:+g} % | {len(g)} | {sum(1 for x in d if x <= 300)} | {len(d)} ({as_rate}) | {when} | {span} |")
+            wrong = sum(1 for r in g if r["drift_after"] and alarm_sign(r["drift_after"]) == -math.copysign(1, size))
+            print(f"| {m} | {p} | {size:+g} % | {len(g)} | {sum(1 for x in d if x <= 300)} | {len(d)} ({as_rate}) | {wrong} | {when} | {span} |")
+
+
+def alarm_sign(x):
+    """The sign of a drift alarm's change: a step's level, a rate's slope (0 when it has neither)."""
+    v = x.get("level_pct")
+    if v is None:
+        v = x.get("rate_pct_per_h")
+    return math.copysign(1, v) if v else 0
 
 
 def positioning(runs):
