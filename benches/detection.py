@@ -122,6 +122,8 @@ def curve(captures_path):
 def slug(name):
     # a negative angle is spelt out so that both signs of a joint offset keep their own folder
     name = re.sub(r"−(?=[0-9.]+°)", "minus ", name)
+    # and a lamp that brightens keeps its own from one that dims
+    name = re.sub(r"\+(?=[0-9.]+ %)", "plus ", name)
     return re.sub(r"[^a-z0-9.]+", "-", name.lower()).strip("-")
 
 
