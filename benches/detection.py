@@ -1,101 +1,63 @@
-"""Detection benchmark: full 6,561-capture simulated runs, several seeds per scenario.
-With `--every N` the daemon asks for a drift probe every N captures (the probe path); with
-`--every 0` there are no probes and the drift comes from isotropy classes only. Reports the alarm
-rate on fault-free runs, the detection delay after onset (captures and hours), the final
-drift-rate estimate of that path against the truth, and the daemon's CPU time per capture (all
-of it: link, decoding, checks).
+"""The detection lab: record the whole detection matrix (benches/matrix.py), score it with any
+goniowatch binary, and compare the fast path with live runs.
 
-Run (after `cargo build --release`):
-  python3 benches/detection.py [--seeds 3] [--first-seed 1] [--every 100] [--presets realistic,clean]
-                               [--materials walkway,ceiling] [--only "no fault"] [--keep DIR]
-  python3 benches/detection.py --replay DIR[,DIR...] [--replay-out OUT] [--seeds ...] [--presets ...] [--materials ...] [--only ...]
-Prints a Markdown table. GONIOWATCH_BIN overrides the binary. `--keep DIR` keeps every recorded
-session (DIR/<scenario>[-<material>]-<preset>-<seed>/s, with its captures); `--replay DIR` re-evaluates kept
-sessions with the current binary through `goniowatch replay` (byte-identical to a live run of
-that binary on the same rig data), in seconds per session instead of a minute: the way to
-re-measure detection after a change to the checks. With `--replay` the CPU column is the
-replay's (decoding included) per capture. `--jobs N` runs or replays N sessions at once (each run's CPU is its own; keep N at or
-below the cores: a live run's link has wall-clock timeouts); `--json FILE` writes one record per
-run for `benches/detection_curves.py`."""
+  python3 benches/detection.py record   [--jobs 2] [--match REGEX] [--lab target/lab]
+  python3 benches/detection.py score    [--jobs 2] [--match REGEX] [--lab target/lab] [--bin BIN]
+                                        [--out benches/detection-records.json]
+  python3 benches/detection.py equivalence [--match REGEX] [--limit N] [--lab target/lab]
+
+- `record` runs every run of the matrix that has no recording yet through the fast path: the
+  simulator in lockstep with `goniowatch lockstep` (no pty, no wall-clock waits), the session
+  folder a live run writes. A recording keeps the session's journal, config and results
+  (LAB/runs/<id>/s) and its score (LAB/runs/<id>/record.json), written last: an interrupted
+  recording is redone, a finished one kept. Captures are written to a scratch folder in
+  /dev/shm (or the temp folder) and removed when the run is recorded.
+- `score` replays every recording with the binary (`goniowatch replay --recorded-outcomes`:
+  the engine and the checks on the journal, without decoding), scores it, and writes all
+  records, in matrix order, to --out. Scores are kept per binary (LAB/scores/<sha256 of the
+  binary>/<id>.json) so an interrupted scoring resumes. A run not recorded yet is left out and
+  counted.
+- `equivalence` runs rows live over the pty (the simulator at full speed, `goniowatch run`) and
+  through the fast path with the same scenario and seed, and prints what differs: alarms,
+  capture records, sweeps and pairs byte for byte, and the summary less the link counters.
+  Rows with probes are run with the rig paced (25 ms a capture) so that the live daemon keeps
+  up, as it does beside a real rig at 7 s a capture.
+
+Each prints its progress (runs done, left, the rate and the time left) and can be interrupted
+and resumed. GONIOWATCH_BIN overrides the binary (default target/release/goniowatch)."""
+
+from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import os
-import re
 import shutil
 import subprocess
 import sys
 import tempfile
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, as_completed
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.environ.get("GONIOWATCH_BIN") or os.path.join(REPO, "target", "release", "goniowatch")
-T_CAPTURE_H = 7.0 / 3600.0
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import matrix as M  # noqa: E402
 
-SCENARIOS = [
-    ("no fault", [], None),
-    ("decay 0.5 %/h", [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 0.5}], ("rate", 0, 0.5)),
-    ("decay 1 %/h", [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 1.0}], ("rate", 0, 1.0)),
-    # an exponential decay g = exp(−r·t): its ln-gain slope is −r at every time
-    ("exponential decay 0.5 %/h", [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 0.5, "model": "exponential"}], ("rate-exp", 0, 0.5)),
-    ("exponential decay 1 %/h", [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 1.0, "model": "exponential"}], ("rate-exp", 0, 1.0)),
-    ("step −2 % at mid-run", [{"kind": "lamp-step", "at_capture": 3280, "step_pct": -2.0}], ("step", 3280, None)),
-    ("step −3 % at mid-run", [{"kind": "lamp-step", "at_capture": 3280, "step_pct": -3.0}], ("step", 3280, None)),
-    ("step −1.5 % at mid-run", [{"kind": "lamp-step", "at_capture": 3280, "step_pct": -1.5}], ("step", 3280, None)),
-    # light sweep 40 starts at capture 3,240; the θi = 75° layer holds lights 57–80 (captures 4,617 on)
-    ("step −1.5 % at a sweep boundary", [{"kind": "lamp-step", "at_capture": 3240, "step_pct": -1.5}], ("step", 3240, None)),
-    ("step −1.5 % early in the 75° layer", [{"kind": "lamp-step", "at_capture": 5200, "step_pct": -1.5}], ("step", 5200, None)),
-    ("step −3 % early in the 75° layer", [{"kind": "lamp-step", "at_capture": 5200, "step_pct": -3.0}], ("step", 5200, None)),
-    ("step −1.5 % late in the 75° layer", [{"kind": "lamp-step", "at_capture": 5900, "step_pct": -1.5}], ("step", 5900, None)),
-] + [
-    # the other sign (a lamp that brightens: a supply or a warm-up), and an early onset
-    # (light sweep 20, θi = 45°)
-    (f"step {'+' if size > 0 else '−'}{abs(size):g} % {where}", [{"kind": "lamp-step", "at_capture": at, "step_pct": size}], ("step", at, None))
-    for size, where, at in ((1.5, "at mid-run", 3280), (3.0, "at mid-run", 3280), (-1.5, "early", 1700), (1.5, "early", 1700),
-                            (-3.0, "early", 1700), (1.5, "early in the 75° layer", 5200))
-] + [
-    # a lamp decay with a joint slip part-way: the rate must survive the slip
-    (f"decay 0.5 %/h with joint {j} +1° at mid-run",
-     [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 0.5}, {"kind": "joint-offset", "at_capture": 3280, "joint": j, "offset_deg": 1.0}],
-     ("rate", 0, 0.5))
-    for j in (1, 2)
-] + [
-    # an encoder reading off while the arm goes where it is told: one episode, no drift or
-    # joint alarm, and the pairs kept exact by the commanded pose (joint 4 is the wagon)
-    (f"encoder {n} +{o}° at mid-run", [{"kind": "encoder-mismatch", "at_capture": 3280, "joint": j, "offset_deg": o}], ("encoder", 3280, j))
-    for n, j, o in (("joint 1", 1, 0.3), ("joint 2", 2, 0.3), ("wagon", 4, 0.5))
-] + [
-    (f"joint {j} +{o}° at mid-run", [{"kind": "joint-offset", "at_capture": 3280, "joint": j, "offset_deg": float(o)}], ("joint", 3280, j))
-    for j in (1, 2, 3) for o in (1, 2)
-] + [
-    # both signs at three onsets: early (light sweep 20, θi = 45°), mid-run, and in the θi = 75° layer
-    (f"joint {j} {'+' if o > 0 else '−'}1° {where}", [{"kind": "joint-offset", "at_capture": at, "joint": j, "offset_deg": float(o)}], ("joint", at, j))
-    for j in (1, 2) for o in (1, -1) for where, at in (("early", 1700), ("at mid-run", 3280), ("late in the 75° layer", 5200))
-    if (o, at) != (1, 3280)
-] + [
-    # the wagon (axis 4): an offset of either sign, and backlash, at the same three onsets
-    (f"wagon {name} {where}", [dict(fault, at_capture=at)], ("joint", at, 4))
-    for name, fault in (("+1°", {"kind": "wagon-offset", "offset_deg": 1.0}),
-                        ("−1°", {"kind": "wagon-offset", "offset_deg": -1.0}),
-                        ("backlash 1°", {"kind": "wagon-backlash", "backlash_deg": 1.0}))
-    for where, at in (("early", 1700), ("at mid-run", 3280), ("late in the 75° layer", 5200))
-]
-
-
-def fault_size(faults):
-    """The positioning fault's size in degrees: a joint's or the wagon's offset, or the wagon's
-    backlash (its lag against the direction of motion)."""
-    f = next(f for f in faults if f["kind"] in ("joint-offset", "wagon-offset", "wagon-backlash"))
-    return f.get("offset_deg", f.get("backlash_deg"))
-
-
+REPO = M.REPO
+SIM = os.path.join(REPO, "sim")
+DEFAULT_BIN = os.environ.get("GONIOWATCH_BIN") or os.path.join(REPO, "target", "release", "goniowatch")
+RUN_H = M.CAPTURES * M.T_CAPTURE_S / 3600.0
 CURVE_H = [1, 2, 3, 4, 6, 8, 10, 12]
-RUN_H = 12.76
+# the result files a recording keeps beside its journal (the rest is remade by a replay)
+KEEP = ("config.toml", "session.json", "journal.jsonl", "summary.json", "alarms.jsonl")
 
 
-def truth_rate(form, rate_pct_per_h, hours=RUN_H):
+def scratch_root() -> str:
+    shm = "/dev/shm"
+    return shm if os.path.isdir(shm) and os.access(shm, os.W_OK) else tempfile.gettempdir()
+
+
+def truth_rate(form: str, rate_pct_per_h: float, hours: float = RUN_H) -> float:
     """The ln-gain slope (%/h) a decay of `rate_pct_per_h` has over [0, hours]: −r for an
     exponential decay (`rate-exp`), the mean slope of ln(1 − r·t) for a linear one."""
     if form == "rate-exp":
@@ -103,300 +65,325 @@ def truth_rate(form, rate_pct_per_h, hours=RUN_H):
     return 100 * math.log(1 - rate_pct_per_h / 100 * hours) / hours
 
 
-def curve(captures_path):
-    """The isotropy drift estimate at hours into the run: each capture's gain correction
-    (g = exp(r·t) from the rate known at its time) gives r = ln g / t and its SE = σ_rel / t."""
+def curve(captures_path: str) -> dict:
+    """The isotropy drift estimate at hours into the run: each capture's gain correction (g =
+    exp(r·t) from the rate known at its time) gives r = ln g / t and its SE = σ_rel / t."""
     pts = {}
-    for line in open(captures_path):
-        c = json.loads(line)
-        g = c.get("gain_corrected")
-        t_h = c["t"] / 3600.0
-        if not g or g.get("source") != "isotropy classes" or t_h <= 0 or c.get("probe"):
-            continue
-        for h in CURVE_H:
-            if t_h <= h:
-                pts[h] = (100 * math.log(g["gain"]) / t_h, 100 * g["sigma_rel"] / t_h)
+    with open(captures_path, encoding="utf-8") as f:
+        for line in f:
+            c = json.loads(line)
+            g = c.get("gain_corrected")
+            t_h = c["t"] / 3600.0
+            if not g or g.get("source") != "isotropy classes" or t_h <= 0 or c.get("probe"):
+                continue
+            for h in CURVE_H:
+                if t_h <= h:
+                    pts[str(h)] = [round(100 * math.log(g["gain"]) / t_h, 6), round(100 * g["sigma_rel"] / t_h, 6)]
     return pts
 
 
-def slug(name):
-    # a negative angle is spelt out so that both signs of a joint offset keep their own folder
-    name = re.sub(r"−(?=[0-9.]+°)", "minus ", name)
-    # and a lamp that brightens keeps its own from one that dims
-    name = re.sub(r"\+(?=[0-9.]+ %)", "plus ", name)
-    return re.sub(r"[^a-z0-9.]+", "-", name.lower()).strip("-")
-
-
-def run_name(name, material, preset, seed):
-    """The kept session's folder name (walkway runs keep the name they had before materials)."""
-    m = "" if material == "walkway" else f"{material}-"
-    return f"{slug(name)}-{m}{preset}-{seed}"
-
-
-def replay(keeps, name, material, preset, seed, replay_out=None):
-    """Replays the kept session of this run (the first of the folders `keeps` that has it) and
-    scores it. With `replay_out` the replay's output is kept in replay_out/<run>, and a run
-    whose output is already there is scored from it without replaying (its CPU is then
-    unknown: None)."""
-    run = run_name(name, material, preset, seed)
-    d = next((os.path.join(k, run) for k in keeps if os.path.isdir(os.path.join(k, run, "s"))), None)
-    if d is None:
+def brief(x):
+    if x is None:
         return None
-    out = os.path.join(replay_out, run) if replay_out else os.path.join(tempfile.mkdtemp(prefix="gw-replay-"), "r")
-    cpu = None
-    if not (replay_out and os.path.exists(f"{out}/summary.json")):
-        shutil.rmtree(out, ignore_errors=True)
-        _, cpu = timed([BIN, "replay", f"{d}/s", "--out", out, "--quiet"])
-    alarms = [json.loads(l) for l in open(f"{out}/alarms.jsonl") if l.strip()]
-    summary = json.load(open(f"{out}/summary.json"))
-    pts = curve(f"{out}/captures.jsonl")
-    if not replay_out:
-        shutil.rmtree(os.path.dirname(out), ignore_errors=True)
-    return alarms, summary, cpu, pts
+    e = x.get("evidence") or {}
+    return {"idx": x["idx"], "code": x["code"], "joint": e.get("joint"), "offset_deg": e.get("offset_deg"),
+            "rate_pct_per_h": e.get("rate_pct_per_h"), "level_pct": e.get("level_pct")}
 
 
-def run(tmp, name, material, preset, faults, seed, every, keep=None, config="sim.toml"):
-    d = os.path.join(keep or tmp, run_name(name, material, preset, seed))
-    if keep:
-        shutil.rmtree(d, ignore_errors=True)
-    os.makedirs(d)
-    sc = os.path.join(d, "sc.toml")
-    lines = [f'rig_config = "{REPO}/config/sim.toml"', "[session]", f'id = "r"', f'capture_root = "{d}/cap"',
-             f'port = "{d}/port"', "image_size = [16, 16]", "speed = 0", f"seed = {seed}",
-             "[material]", f'preset = "{material}"', f'realism = "{preset}"']
-    for f in faults:
-        lines.append("[[faults]]")
-        lines += [f"{k} = {json.dumps(v)}" for k, v in f.items()]
-    open(sc, "w").write("\n".join(lines) + "\n")
-    cfg = os.path.join(d, "cfg.toml")
-    text = open(os.path.join(REPO, "config", config)).read()
-    open(cfg, "w").write(re.sub(r"(?m)^every = 0$", f"every = {every}", text))
-    sim = subprocess.Popen([sys.executable, "-m", "goniosim", "run", sc, "--linger", "60"], cwd=os.path.join(REPO, "sim"),
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        while not os.path.exists(f"{d}/port"):
-            if sim.poll() is not None:
-                raise RuntimeError(f"the simulator exited ({sim.returncode}) before opening its port: is `pip install -r sim/requirements.txt` done?")
+def score(run: M.Run, session: str) -> dict:
+    """One run's record from its session folder (live, lockstep or replayed): the fault, the
+    first drift and positioning alarms before and after its onset (a fault-free run's onset is
+    0: every alarm is a false one), the final rate, the fitted steps and, for a decay, the rate
+    estimate against hours into the run."""
+    with open(os.path.join(session, "alarms.jsonl"), encoding="utf-8") as f:
+        alarms = [json.loads(line) for line in f if line.strip()]
+    with open(os.path.join(session, "summary.json"), encoding="utf-8") as f:
+        summary = json.load(f)
+    t = run.row.truth
+    onset = t.onset if t else 0
+    drift = sorted((x for x in alarms if x["kind"] == "drift" and x["code"] not in ("gain-drift-cleared", "lamp-unstable")
+                    and x["idx"] is not None), key=lambda x: x["idx"])
+    geo = sorted((x for x in alarms if x["kind"] == "positioning" and x["severity"] != "info" and x["idx"] is not None),
+                 key=lambda x: x["idx"])
+    unstable = sorted((x for x in alarms if x["code"] == "lamp-unstable" and x["idx"] is not None), key=lambda x: x["idx"])
+
+    def first(xs, after):
+        return next((x for x in xs if (x["idx"] >= onset) == after), None)
+
+    key = "probe_drift" if run.every else "isotropy_drift"
+    pd = summary.get(key) or {}
+    joint = next((x for x in geo if x["idx"] >= onset and x["code"] == "joint-offset-suspected"), None)
+    ch = summary.get("checked") or {}
+    rec = {"id": run.id, "row": run.row.name, "material": run.material, "model": run.model, "seed": run.seed,
+           "every": run.every,
+           "fault": None if t is None else {"kind": t.kind, "onset": t.onset, "size": t.size, "axis": t.axis},
+           "captures": ch.get("captures"), "probes": ch.get("probes"),
+           "drift_before": brief(first(drift, False)) if t else None,
+           "positioning_before": brief(first(geo, False)) if t else None,
+           "drift_after": brief(first(drift, True)), "positioning_after": brief(first(geo, True)),
+           "joint_after": brief(joint), "unstable_after": brief(first(unstable, True)),
+           "final_rate_pct_per_h": pd.get("rate_pct_per_h"),
+           "steps": [100 * math.expm1(st["ln_size"]) for st in summary.get("isotropy_steps") or []]}
+    if t and t.kind in ("rate", "rate-exp") and not run.every and os.path.exists(os.path.join(session, "captures.jsonl")):
+        rec["curve"] = curve(os.path.join(session, "captures.jsonl"))
+    return rec
+
+
+def write_json_atomic(path: str, value) -> None:
+    tmp = path + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as f:
+        json.dump(value, f, indent=None, sort_keys=True)
+        f.write("\n")
+    os.replace(tmp, path)
+
+
+def cpu_of(cmd: list[str], cwd: str | None = None, timeout: float = 1800) -> tuple[int, float, str]:
+    """Runs `cmd` and returns its exit code, the CPU seconds it and its children used (wait4 on
+    it alone, so parallel runs keep their own) and the tail of its stderr."""
+    with tempfile.TemporaryFile() as err:
+        p = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=err)
+        deadline = time.monotonic() + timeout
+        while True:
+            pid, status, ru = os.wait4(p.pid, os.WNOHANG)
+            if pid == p.pid:
+                break
+            if time.monotonic() > deadline:
+                p.kill()
+                os.wait4(p.pid, 0)
+                raise TimeoutError(f"{' '.join(cmd[:3])} … took more than {timeout} s")
             time.sleep(0.05)
-        _, daemon_cpu = timed([BIN, "run", "--config", cfg, "--session", f"{d}/s", "--port", f"{d}/port",
-                               "--capture-root", f"{d}/cap", "--quiet"])
-    finally:
-        sim.terminate()
-        sim.wait()
-    alarms = [json.loads(l) for l in open(f"{d}/s/alarms.jsonl") if l.strip()]
-    summary = json.load(open(f"{d}/s/summary.json"))
-    pts = curve(f"{d}/s/captures.jsonl")
-    if not keep:
-        shutil.rmtree(d, ignore_errors=True)
-    return alarms, summary, daemon_cpu, pts
+        err.seek(0)
+        tail = err.read()[-2000:].decode("utf-8", "replace")
+    return os.waitstatus_to_exitcode(status), ru.ru_utime + ru.ru_stime, tail
 
 
-def timed(cmd, timeout=900):
-    """Runs `cmd` (its output discarded) and returns its exit code and the CPU seconds it and its
-    own children used (from wait4 on it alone, so that runs in parallel keep their own times)."""
-    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.monotonic() + timeout
-    while True:
-        pid, status, ru = os.wait4(p.pid, os.WNOHANG)
-        if pid == p.pid:
-            break
-        if time.monotonic() > deadline:
-            p.kill()
-            os.wait4(p.pid, 0)
-            p.returncode = -9
-            raise TimeoutError(f"{' '.join(cmd[:3])} … took more than {timeout} s")
-        time.sleep(0.1)
-    p.returncode = os.waitstatus_to_exitcode(status)
-    return p.returncode, ru.ru_utime + ru.ru_stime
-
-
-def joint_summary(runs):
-    """Per sample and joint: named with the right joint and sign within 600 captures of the
-    onset (the first `joint-offset-suspected` after it), and the estimate against the truth."""
-    print("\nJoint offsets: the first `joint-offset-suspected` after the onset, per sample and joint "
-          "(both signs, every onset of the rows above).\n")
-    print("| sample | joint | runs | named right within 600 | named wrong (joint or sign) | not named | estimate / truth: median (range) | estimate within ±30 % |")
-    print("|---|---|---|---|---|---|---|---|")
-    for key in dict.fromkeys((r[0], r[1]) for r in runs):
-        rows = [r for r in runs if (r[0], r[1]) == key]
-        right, wrong, missed, ratios = 0, 0, 0, []
-        for _, joint, offset, _, a, onset in rows:
-            if a is None:
-                missed += 1
-                continue
-            e = a["evidence"]
-            if e["joint"] == joint and e["offset_deg"] * offset > 0:
-                if a["idx"] - onset <= 600:
-                    right += 1
-                ratios.append(e["offset_deg"] / offset)
-            else:
-                wrong += 1
-        ratios.sort()
-        within = sum(1 for q in ratios if abs(q - 1) <= 0.3)
-        med = (f"{ratios[len(ratios) // 2]:.2f} ({ratios[0]:.2f}–{ratios[-1]:.2f})" if ratios else "–")
-        print(f"| {key[0]} | {key[1]} | {len(rows)} | {right} | {wrong} | {missed} | {med} | {within} of {len(ratios)} named right |", flush=True)
-
-
-def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--seeds", type=int, default=3)
-    ap.add_argument("--first-seed", type=int, default=1)
-    ap.add_argument("--materials", default="walkway", help="comma-separated simulator material presets")
-    ap.add_argument("--every", type=int, default=100)
-    ap.add_argument("--presets", default="realistic,clean")
-    ap.add_argument("--only", help="run only the scenarios whose name contains this text")
-    ap.add_argument("--match", help="run only the scenarios whose name matches this regular expression")
-    ap.add_argument("--keep", help="keep the recorded sessions in this folder")
-    ap.add_argument("--replay", help="re-evaluate the sessions kept in this folder (or these, comma-separated) instead of running the rig")
-    ap.add_argument("--replay-out", help="with --replay: keep each replay's output in this folder, and score a run "
-                                         "whose output is already there from it instead of replaying it (one folder per binary)")
-    ap.add_argument("--json", help="also write one record per run to this file (for benches/detection_curves.py)")
-    ap.add_argument("--jobs", type=int, default=1, help="runs (or replays) at once; the CPU column stays per run")
-    a = ap.parse_args()
-    tmp = tempfile.mkdtemp(prefix="gw-detect-")
-    path = f"probes every {a.every} captures" if a.every else "no probes: isotropy classes"
-    key = "probe_drift" if a.every else "isotropy_drift"
-    how = f"replayed from {a.replay} with the current binary" if a.replay else "live"
-    print(f"{path}, {a.seeds} seeds per row, full 6,561-capture runs, {how}.\n")
-    print("| preset | scenario | runs with a drift alarm (first code) | first alarm: captures after onset (hours) | final rate %/h (truth) | positioning / outlier alarms after onset (first: joint, estimate, captures after onset) | daemon CPU per capture |")
-    print("|---|---|---|---|---|---|---|")
-    curves = []
-    joint_runs = []
-    records = []
-    rows = [(material, preset, name, faults, truth)
-            for material, preset in [(m, p) for m in a.materials.split(",") for p in a.presets.split(",")]
-            for name, faults, truth in SCENARIOS
-            if not (a.only and a.only not in name) and not (a.match and not re.search(a.match, name))]
-    seeds = range(a.first_seed, a.first_seed + a.seeds)
-
-    def one(task):
-        material, preset, name, faults, truth, seed = task
-        if a.replay:
-            return replay(a.replay.split(","), name, material, preset, seed, a.replay_out)
-        return run(tmp, name, material, preset, faults, seed, a.every, a.keep)
-
-    if not os.access(BIN, os.X_OK):
-        sys.exit(f"no goniowatch binary at {BIN}: run `cargo build --release` or set GONIOWATCH_BIN")
-    # every run of a row is done before its line is printed; rows keep their order; the first
-    # failure (or Ctrl-C) cancels the runs not yet started
-    pool = ThreadPoolExecutor(max_workers=max(1, a.jobs))
-    pending = [[pool.submit(one, (*row, seed)) for seed in seeds] for row in rows]
+def record_one(run: M.Run, lab: str, binary: str) -> float:
+    """Records one run through the fast path; returns its CPU seconds (simulator and daemon)."""
+    d = os.path.join(lab, "runs", run.id)
+    shutil.rmtree(d, ignore_errors=True)
+    os.makedirs(d)
+    cap = tempfile.mkdtemp(prefix="gw-lab-", dir=scratch_root())
     try:
-        report(a, rows, seeds, pending, key, curves, joint_runs, records)
+        with open(os.path.join(d, "scenario.toml"), "w", encoding="utf-8") as f:
+            f.write(run.scenario_toml(cap))
+        with open(os.path.join(d, "config.toml"), "w", encoding="utf-8") as f:
+            f.write(run.config_toml())
+        rc, cpu, err = cpu_of([sys.executable, "-m", "goniosim", "lockstep", os.path.join(d, "scenario.toml"),
+                               "--session", os.path.join(d, "s"), "--config", os.path.join(d, "config.toml"),
+                               "--goniowatch", binary, "--truth", os.path.join(cap, "truth.jsonl")], cwd=SIM)
+        if rc not in (0, 4):
+            raise RuntimeError(f"{run.id}: the lockstep run failed (exit {rc}): {err.strip()}")
+        s = os.path.join(d, "s")
+        for name in os.listdir(s):
+            if name not in KEEP:
+                os.unlink(os.path.join(s, name))
+        rec = score(run, s)
+        rec["record_cpu_s"] = round(cpu, 2)
+        write_json_atomic(os.path.join(d, "record.json"), rec)
+        return cpu
+    finally:
+        shutil.rmtree(cap, ignore_errors=True)
+
+
+def binary_id(binary: str) -> str:
+    h = hashlib.sha256()
+    with open(binary, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()[:16]
+
+
+def score_one(run: M.Run, lab: str, binary: str, scores: str) -> float:
+    """Replays one recording with `binary` and scores it; returns the replay's CPU seconds."""
+    s = os.path.join(lab, "runs", run.id, "s")
+    out = tempfile.mkdtemp(prefix="gw-score-", dir=scratch_root())
+    try:
+        shutil.rmtree(out)
+        rc, cpu, err = cpu_of([binary, "replay", s, "--out", out, "--recorded-outcomes", "--quiet"])
+        if rc not in (0, 4):
+            raise RuntimeError(f"{run.id}: the replay failed (exit {rc}): {err.strip()}")
+        rec = score(run, out)
+        rec["replay_cpu_s"] = round(cpu, 2)
+        write_json_atomic(os.path.join(scores, f"{run.id}.json"), rec)
+        return cpu
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
+
+
+class Progress:
+    def __init__(self, verb: str, total: int, jobs: int) -> None:
+        self.verb, self.total, self.jobs = verb, total, jobs
+        self.done, self.cpu, self.started = 0, 0.0, time.monotonic()
+
+    def step(self, run_id: str, cpu: float) -> None:
+        self.done += 1
+        self.cpu += cpu
+        wall = time.monotonic() - self.started
+        left = (self.total - self.done) * wall / self.done
+        print(f"{self.verb} {self.done}/{self.total}  {run_id}  {cpu:.1f} s CPU  "
+              f"[{wall / 60:.1f} min, about {left / 60:.1f} min left]", flush=True)
+
+    def end(self) -> None:
+        wall = time.monotonic() - self.started
+        per = self.cpu / self.done if self.done else 0.0
+        print(f"{self.verb}: {self.done} runs in {wall / 60:.1f} min wall, {per:.2f} s CPU a run, {self.jobs} at once", flush=True)
+
+
+def pool_map(fn, runs, jobs, progress):
+    pool = ThreadPoolExecutor(max_workers=max(1, jobs))
+    futures = {pool.submit(fn, r): r for r in runs}
+    try:
+        for fut in as_completed(futures):
+            progress.step(futures[fut].id, fut.result())
     except BaseException:
         pool.shutdown(wait=False, cancel_futures=True)
         raise
     pool.shutdown()
-    if joint_runs:
-        joint_summary(joint_runs)
-    if curves:
-        # the estimate's error against hours into the run; truth up to t: the mean ln-gain slope
-        # of the linear decay 1 − a·t over [0, t]
-        print("\nDrift-rate estimate against hours into the run (isotropy classes): error in %/h "
-              "(estimate − truth), ± its standard error; – where no estimate existed yet.\n")
-        print("| preset | scenario | seed | " + " | ".join(f"{h} h" for h in CURVE_H) + " |")
-        print("|---|---|---|" + "---|" * len(CURVE_H))
-        for preset, name, seed, (form, _, rate), pts in curves:
-            cells = []
-            for h in CURVE_H:
-                if h in pts:
-                    truth_h = truth_rate(form, rate, h)
-                    cells.append(f"{pts[h][0] - truth_h:+.3f} ± {pts[h][1]:.3f}")
-                else:
-                    cells.append("–")
-            print(f"| {preset} | {name} | {seed} | " + " | ".join(cells) + " |", flush=True)
-    if a.json:
-        with open(a.json, "w") as f:
-            json.dump(records, f, indent=1)
-    shutil.rmtree(tmp, ignore_errors=True)
+    progress.end()
 
 
-def report(a, rows, seeds, pending, key, curves, joint_runs, records):
-    """Prints the table's rows as their runs finish, and collects the curves, joint runs and
-    records for the summaries."""
-    for (material, preset, name, faults, truth), futures in zip(rows, pending):
-        label = preset if material == "walkway" else f"{preset}, {material}"
-        hits, delays, rates, cpu, geo, kinds = 0, [], [], [], [], []
-        runs = 0
-        for seed, fut in zip(seeds, futures):
-            got = fut.result()
-            if got is None:
-                continue
-            alarms, summary, daemon_cpu, pts = got
-            if truth and truth[0] in ("rate", "rate-exp") and not a.every:
-                curves.append((label, name, seed, truth, pts))
-            runs += 1
-            if daemon_cpu is not None:
-                cpu.append(1000 * daemon_cpu / max(1, summary["checked"]["captures"]))
-            drift = [x for x in alarms if x["kind"] == "drift" and x["code"] != "gain-drift-cleared"]
-            kinds.append(min(drift, key=lambda x: x["idx"] or 0)["code"] if drift else "–")
-            onset = truth[1] if truth else 0
-            g = [x for x in alarms if x["kind"] in ("positioning", "reciprocity-outlier") and (x["idx"] or 0) >= onset]
-            js = [x for x in g if x["code"] == "joint-offset-suspected"]
-            first = (f"joint {js[0]['evidence']['joint']} {js[0]['evidence']['offset_deg']:+.2f}° +{js[0]['idx'] - onset}" if js
-                     else f"{g[0]['code']} +{g[0]['idx'] - onset}" if g else "")
-            if truth and truth[0] == "encoder":
-                ch = summary["checked"]
-                first += (f", {ch['pairs_needs_resampling']} of {ch['pairs_exact'] + ch['pairs_needs_resampling']} pairs"
-                          f" to resample, {ch.get('placed_by_command', 0)} placed by command")
-            geo.append(f"{len(g)}" + (f" ({first})" if first else ""))
-            if truth and truth[0] == "joint":
-                offset = fault_size(faults)
-                joint_runs.append((label, truth[2], offset, name, js[0] if js else None, onset))
-            records.append(run_record(material, preset, name, faults, truth, seed, alarms, summary, key, a.every))
-            hits += bool(drift)
-            after = [x["idx"] for x in drift if x["idx"] is not None and x["idx"] >= (truth[1] if truth else 0)]
-            if after and truth:
-                delays.append(min(after) - truth[1])
-            pd = summary.get(key) or {}
-            if "rate_pct_per_h" in pd:
-                steps = "".join(f" (step {100 * math.expm1(st['ln_size']):+.2f} % at {st['t_h']:.2f} h)"
-                                for st in summary.get("isotropy_steps") or [])
-                rates.append(f"{pd['rate_pct_per_h']:+.3f}{steps}")
-        delay = (f"{sorted(delays)[len(delays) // 2]} ({sorted(delays)[len(delays) // 2] * T_CAPTURE_H:.2f} h), "
-                 f"max {max(delays)}") if delays else "–"
-        truth_text = f" ({truth_rate(truth[0], truth[2]):+.3f})" if truth and truth[0] in ("rate", "rate-exp") else ""
-        rate = ", ".join(rates) + truth_text
-        if runs == 0:
+def cmd_record(a) -> int:
+    runs = [r for r in M.select(a.match) if not os.path.exists(os.path.join(a.lab, "runs", r.id, "record.json"))]
+    have = len(M.select(a.match)) - len(runs)
+    print(f"record: {len(runs)} runs to record, {have} already recorded, {a.jobs} at once, into {a.lab}/runs", flush=True)
+    if runs:
+        pool_map(lambda r: record_one(r, a.lab, a.bin), runs, a.jobs, Progress("recorded", len(runs), a.jobs))
+    return 0
+
+
+def cmd_score(a) -> int:
+    bid = binary_id(a.bin)
+    scores = os.path.join(a.lab, "scores", bid)
+    os.makedirs(scores, exist_ok=True)
+    wanted = M.select(a.match)
+    recorded = [r for r in wanted if os.path.exists(os.path.join(a.lab, "runs", r.id, "record.json"))]
+    todo = [r for r in recorded if not os.path.exists(os.path.join(scores, f"{r.id}.json"))]
+    print(f"score: binary {a.bin} ({bid}); {len(recorded)} of {len(wanted)} runs recorded, "
+          f"{len(todo)} to replay, {a.jobs} at once", flush=True)
+    if todo:
+        pool_map(lambda r: score_one(r, a.lab, a.bin, scores), todo, a.jobs, Progress("scored", len(todo), a.jobs))
+    records = []
+    for r in recorded:
+        with open(os.path.join(scores, f"{r.id}.json"), encoding="utf-8") as f:
+            rec = json.load(f)
+        rec.pop("replay_cpu_s", None)
+        records.append(rec)
+    if a.out:
+        with open(a.out, "w", encoding="utf-8") as f:
+            json.dump({"binary": bid, "runs_in_matrix": len(M.RUNS), "records": records}, f, indent=0, sort_keys=True)
+            f.write("\n")
+        print(f"score: {len(records)} records to {a.out}" + (f"; {len(wanted) - len(recorded)} runs not recorded yet" if len(recorded) < len(wanted) else ""))
+    return 0 if len(recorded) == len(wanted) else 1
+
+
+# --- fast path against live ---------------------------------------------------------------------
+
+COMPARED = ("alarms.jsonl", "captures.jsonl", "sweeps.jsonl", "pairs.jsonl", "isotropy.jsonl", "manifest.jsonl")
+# what only a live link has
+LIVE_ONLY = ("link",)
+
+
+def live_session(run: M.Run, d: str, binary: str, pace_s: float = 0.0) -> str:
+    """Records `run` live: the simulator on a pty, `goniowatch run` beside it."""
+    os.makedirs(d, exist_ok=True)
+    sc = os.path.join(d, "scenario.toml")
+    text = run.scenario_toml(os.path.join(d, "cap"))
+    text = text.replace("speed = 0\n", f'port = "{d}/port"\nspeed = {M.T_CAPTURE_S / pace_s if pace_s else 0}\n')
+    with open(sc, "w", encoding="utf-8") as f:
+        f.write(text)
+    cfg = os.path.join(d, "config.toml")
+    with open(cfg, "w", encoding="utf-8") as f:
+        f.write(run.config_toml())
+    sim = subprocess.Popen([sys.executable, "-m", "goniosim", "run", sc, "--linger", "60"], cwd=SIM,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        while not os.path.exists(f"{d}/port"):
+            if sim.poll() is not None:
+                raise RuntimeError(f"the simulator exited ({sim.returncode}) before opening its port")
+            time.sleep(0.05)
+        rc, _, err = cpu_of([binary, "run", "--config", cfg, "--session", f"{d}/live", "--port", f"{d}/port",
+                             "--capture-root", f"{d}/cap", "--quiet"])
+        if rc not in (0, 4):
+            raise RuntimeError(f"{run.id}: the live run failed (exit {rc}): {err.strip()}")
+    finally:
+        sim.terminate()
+        sim.wait()
+    return f"{d}/live"
+
+
+def differences(live: str, fast: str) -> list[str]:
+    """What differs between two session folders' results: the result files byte for byte, and
+    the summary less what only a live link has."""
+    out = []
+    for name in COMPARED:
+        a, b = (open(os.path.join(x, name), "rb").read() for x in (live, fast))
+        if a != b:
+            la, lb = a.splitlines(), b.splitlines()
+            n = next((i for i, (x, y) in enumerate(zip(la, lb)) if x != y), min(len(la), len(lb)))
+            out.append(f"{name}: {len(la)} lines live, {len(lb)} fast; first difference at line {n + 1}")
+    sa, sb = (json.load(open(os.path.join(x, "summary.json"))) for x in (live, fast))
+    for k in sorted(set(sa) | set(sb)):
+        if k in LIVE_ONLY:
             continue
-        print(f"| {label} | {name} | {hits} of {runs} ({', '.join(kinds)}) | {delay} | {rate} | {'; '.join(geo)} | {f'{min(cpu):.2f}–{max(cpu):.2f} ms' if cpu else '–'} |", flush=True)
+        if sa.get(k) != sb.get(k):
+            out.append(f"summary.{k}: live {json.dumps(sa.get(k))[:200]}, fast {json.dumps(sb.get(k))[:200]}")
+    return out
 
 
-def run_record(material, preset, name, faults, truth, seed, alarms, summary, key, every):
-    """One run for `--json`: the fault, and the first drift and positioning alarms before and
-    after its onset (a fault-free run's onset is 0: every alarm is a false one)."""
-    onset = truth[1] if truth else 0
-    drift = sorted((x for x in alarms if x["kind"] == "drift" and x["code"] != "gain-drift-cleared" and x["idx"] is not None),
-                   key=lambda x: x["idx"])
-    geo = sorted((x for x in alarms if x["kind"] == "positioning" and x["severity"] != "info" and x["idx"] is not None),
-                 key=lambda x: x["idx"])
-    first = lambda xs, after: next((x for x in xs if (x["idx"] >= onset) == after), None)
+def cmd_equivalence(a) -> int:
+    runs = M.select(a.match)[: a.limit]
+    bad = 0
+    root = tempfile.mkdtemp(prefix="gw-equiv-", dir=a.lab)
+    try:
+        for run in runs:
+            d = os.path.join(root, run.id)
+            started = time.monotonic()
+            live = live_session(run, d, a.bin, pace_s=0.025 if run.every else 0.0)
+            t_live = time.monotonic() - started
+            started = time.monotonic()
+            cap = os.path.join(d, "fast-cap")
+            with open(os.path.join(d, "fast.toml"), "w", encoding="utf-8") as f:
+                f.write(run.scenario_toml(cap))
+            rc, _, err = cpu_of([sys.executable, "-m", "goniosim", "lockstep", os.path.join(d, "fast.toml"), "--session",
+                                 os.path.join(d, "fast"), "--config", os.path.join(d, "config.toml"), "--goniowatch", a.bin], cwd=SIM)
+            if rc not in (0, 4):
+                raise RuntimeError(f"{run.id}: the lockstep run failed (exit {rc}): {err.strip()}")
+            t_fast = time.monotonic() - started
+            diff = differences(live, os.path.join(d, "fast"))
+            bad += bool(diff)
+            print(f"{run.id}: {'same' if not diff else 'DIFFERS'} (live {t_live:.1f} s, fast {t_fast:.1f} s wall)", flush=True)
+            for line in diff:
+                print(f"  {line}", flush=True)
+            shutil.rmtree(d, ignore_errors=True)
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+    print(f"equivalence: {len(runs) - bad} of {len(runs)} runs give the same results live and through the fast path")
+    return 1 if bad else 0
 
-    def brief(x):
-        if x is None:
-            return None
-        e = x.get("evidence") or {}
-        return {"idx": x["idx"], "code": x["code"], "joint": e.get("joint"), "offset_deg": e.get("offset_deg"),
-                "rate_pct_per_h": e.get("rate_pct_per_h"), "level_pct": e.get("level_pct")}
 
-    fault = None
-    if faults:
-        kinds = {"rate": ("lamp-decay",), "rate-exp": ("lamp-decay",), "step": ("lamp-step",), "encoder": ("encoder-mismatch",),
-                 "joint": ("joint-offset", "wagon-offset", "wagon-backlash")}[truth[0]]
-        f = next(f for f in faults if f["kind"] in kinds)
-        fault = {"kind": truth[0], "onset": onset, "size": next((f[k] for k in ("step_pct", "rate_pct_per_h", "offset_deg", "backlash_deg") if k in f), None),
-                 "axis": truth[2] if truth[0] in ("joint", "encoder") else None}
-    pd = summary.get(key) or {}
-    joint = next((x for x in geo if x["idx"] >= onset and x["code"] == "joint-offset-suspected"), None)
-    return {"material": material, "preset": preset, "scenario": name, "seed": seed, "every": every, "fault": fault,
-            "joint_after": brief(joint),
-            "captures": summary["checked"]["captures"],
-            "drift_before": brief(first(drift, False)) if truth else None,
-            "positioning_before": brief(first(geo, False)) if truth else None,
-            "drift_after": brief(first(drift, True)), "positioning_after": brief(first(geo, True)),
-            "final_rate_pct_per_h": pd.get("rate_pct_per_h"),
-            "steps": [100 * math.expm1(st["ln_size"]) for st in summary.get("isotropy_steps") or []]}
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    for name in ("record", "score", "equivalence"):
+        p = sub.add_parser(name)
+        p.add_argument("--lab", default=os.path.join(REPO, "target", "lab"), help="where recordings and scores are kept")
+        p.add_argument("--match", help="only the runs whose id matches this regular expression")
+        p.add_argument("--bin", default=DEFAULT_BIN, help="the goniowatch binary")
+        if name != "equivalence":
+            p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="runs at once (default: one per core)")
+        if name == "score":
+            p.add_argument("--out", default=os.path.join(REPO, "benches", "detection-records.json"),
+                           help="the records of every scored run (benches/detection_tables.py reads it)")
+        if name == "equivalence":
+            p.add_argument("--limit", type=int, default=4, help="at most this many runs")
+    a = ap.parse_args()
+    if not os.access(a.bin, os.X_OK):
+        sys.exit(f"no goniowatch binary at {a.bin}: run `cargo build --release` or set GONIOWATCH_BIN")
+    a.bin = os.path.abspath(a.bin)
+    a.lab = os.path.abspath(a.lab)
+    os.makedirs(a.lab, exist_ok=True)
+    return {"record": cmd_record, "score": cmd_score, "equivalence": cmd_equivalence}[a.cmd](a)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

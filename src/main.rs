@@ -45,6 +45,24 @@ enum Command {
     /// angles) with the same checks as a live run, on every core, into a session folder that
     /// `report`, `compare` and `replay` read like any other. The folder is only read.
     Check(CheckArgs),
+    /// Run a session in lockstep with a simulated rig on standard input and output (the
+    /// detection lab's fast path; `python -m goniosim lockstep` drives it): stdin carries the
+    /// rig's lines, stdout the daemon's, each turn ended by an empty line.
+    #[command(hide = true)]
+    Lockstep(LockstepArgs),
+}
+
+#[derive(Args)]
+struct LockstepArgs {
+    /// Config file (its [source] must be the protocol).
+    #[arg(long)]
+    config: PathBuf,
+    /// A new session folder.
+    #[arg(long)]
+    session: PathBuf,
+    /// Where the rig writes its captures.
+    #[arg(long)]
+    capture_root: PathBuf,
 }
 
 #[derive(Args)]
@@ -280,6 +298,22 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Report(a) => report_command(a, &mut out),
         Command::Plan(a) => plan_command(a, &mut out),
         Command::Check(a) => check_command(a, &mut out),
+        Command::Lockstep(a) => {
+            let (_, critical) = goniowatch::daemon::lockstep::lockstep(
+                &goniowatch::daemon::lockstep::LockstepOptions {
+                    session_dir: a.session,
+                    config: a.config,
+                    capture_root: a.capture_root,
+                },
+                std::io::stdin().lock(),
+                &mut out,
+            )?;
+            Ok(if critical {
+                ExitCode::from(EXIT_CRITICAL)
+            } else {
+                ExitCode::SUCCESS
+            })
+        }
     }
 }
 

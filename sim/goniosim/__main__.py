@@ -6,6 +6,10 @@
   Bonn-style names (`tl015_pl060_tv030_pv000.hdr`, optionally after the capture index) or with a
   captures.csv sidecar (file, angles, time) beside `cap_…` names: what `goniowatch check` and the
   watch mode read;
+- `python -m goniosim lockstep SCENARIO --session DIR [--config FILE] [--goniowatch BIN] ...`: run
+  the scenario with `goniowatch lockstep` as the daemon, in lockstep over its standard input and
+  output instead of a pty (goniosim/lockstep.py): the session folder a live run would write, in
+  the CPU time of the checks. Exits with the daemon's exit code;
 - `python -m goniosim stats TRUTH`: the paper's Table 2 from a truth file;
 - `python -m goniosim reference SCENARIO --out FILE [--seed N] [--no-calibration] [--noise-pct X]`:
   write an independent reference BRDF measurement of the scenario's material (spectral, 30 bands,
@@ -45,6 +49,15 @@ def main(argv=None) -> int:
     ar.add_argument("--captures", type=int, help="stop after this many captures")
     ar.add_argument("--speed", type=float, default=0.0, help="0 = as fast as possible (default), k = k times real time")
     ar.add_argument("--seed", type=int)
+    ls = sub.add_parser("lockstep", help="run a session in lockstep with `goniowatch lockstep` (no pty, no wall-clock waits)")
+    ls.add_argument("scenario")
+    ls.add_argument("--session", required=True, help="a new goniowatch session folder")
+    ls.add_argument("--config", help="the daemon's config (default: the scenario's rig_config)")
+    ls.add_argument("--goniowatch", default=os.environ.get("GONIOWATCH_BIN", "goniowatch"), help="the goniowatch binary (default: $GONIOWATCH_BIN, else goniowatch on PATH)")
+    ls.add_argument("--capture-root", help="directory the captures are written under")
+    ls.add_argument("--truth", help="ground-truth JSON lines file")
+    ls.add_argument("--captures", type=int, help="stop after this many captures")
+    ls.add_argument("--seed", type=int)
     st = sub.add_parser("stats", help="the paper's Table 2 from a truth file's noiseless means")
     st.add_argument("truth")
     st.add_argument("--rgb-scale", type=float, default=100.0)
@@ -74,6 +87,9 @@ def main(argv=None) -> int:
 
     if a.cmd == "archive":
         return _archive(a)
+
+    if a.cmd == "lockstep":
+        return _lockstep(a)
 
     overrides = {}
     for key, val in (
@@ -130,6 +146,47 @@ def _archive(a) -> int:
     finally:
         ctl.close()
     return 0
+
+
+def _lockstep(a) -> int:
+    overrides = {"speed": 0.0}
+    for key, val in (("capture_root", a.capture_root and os.path.abspath(a.capture_root)), ("truth", a.truth), ("captures", a.captures), ("seed", a.seed)):
+        if val is not None:
+            overrides[key] = val
+    try:
+        sc = S.load(a.scenario, overrides)
+    except (S.ScenarioError, OSError, ValueError) as e:
+        print(f"goniosim: {e}", file=sys.stderr)
+        return 2
+    config = a.config or sc.rig_config
+    if not config:
+        print("goniosim: lockstep needs the daemon's config: give --config or set rig_config in the scenario", file=sys.stderr)
+        return 2
+    link_faults = sorted({f.kind for f in sc.faults} & LINK_FAULTS - {"duplicate-index", "malformed-announcement", "encoder-mismatch"})
+    if link_faults:
+        print(f"goniosim: {', '.join(link_faults)}: a serial-link fault has no effect in lockstep (use `goniosim run`)", file=sys.stderr)
+    from .controller import Controller
+    from .lockstep import DaemonLink, LockstepError
+
+    argv = [a.goniowatch, "lockstep", "--config", os.path.abspath(config), "--session", os.path.abspath(a.session),
+            "--capture-root", os.path.abspath(sc.capture_root)]
+    try:
+        link = DaemonLink(argv)
+    except OSError as e:
+        print(f"goniosim: cannot start {a.goniowatch}: {e}", file=sys.stderr)
+        return 2
+    ctl = None
+    try:
+        ctl = Controller(sc, link=link, log=None)
+        ctl.run()
+    except LockstepError as e:
+        print(f"goniosim: {e}", file=sys.stderr)
+        return 1
+    finally:
+        if ctl is not None:
+            ctl.close()
+        rc = link.close()
+    return rc
 
 
 # Faults of the serial link (and of the announcement on it), which a set without a link cannot show.

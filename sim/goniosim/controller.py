@@ -64,21 +64,28 @@ class Controller:
         linger_s: float = 5.0,
         naming: str | None = None,
         ldr: str | None = None,
+        link=None,
     ) -> None:
         """`naming` set: no serial link; the captures are named by `naming` (NAMINGS), and with
-        "sidecar" a captures.csv beside them maps each file to its angles and time."""
+        "sidecar" a captures.csv beside them maps each file to its angles and time. `link` set
+        (a `lockstep.DaemonLink`): the controller talks to the daemon in lockstep instead of
+        over a serial port, and writes its captures without fsync."""
         self.sc = sc
         self.naming = naming
         # archive only: captures as sRGB PNG ("png8", "png16"), auto-exposed per capture when a
         # sidecar records the exposure, else at the fixed LDR_EXPOSURE
         self.ldr = ldr
-        if naming is not None:
+        self.lockstep = link is not None
+        if naming is not None or link is not None:
             cable = NoCable()
         self.cable = cable if cable is not None else Cable(sc.port, sc.baud, sc.seed)
         self.own_cable = cable is None
         self.log = log
         self.linger_s = linger_s
-        self.ser = serial.Serial(self.cable.rig_path, baudrate=115200, timeout=0) if naming is None else None
+        if link is not None:
+            self.ser = link
+        else:
+            self.ser = serial.Serial(self.cable.rig_path, baudrate=115200, timeout=0) if naming is None else None
         self.sidecar = None
         if naming == "sidecar":
             os.makedirs(os.path.join(sc.capture_root, sc.session_id), exist_ok=True)
@@ -94,6 +101,7 @@ class Controller:
         self.captures: list[CaptureRecord] = []
         self.probes: list[int] = []
         self.prev_cmd: list[float] | None = None
+        self.poses: dict[int, tuple] = {}
         # the wagon's last direction of motion (+1, -1; 0 before it first moved): the backlash
         # lag persists while the wagon stands still
         self.wagon_move = 0.0
@@ -123,6 +131,14 @@ class Controller:
     def poll(self) -> None:
         if self.ser is None:
             return
+        if self.lockstep:
+            # everything the daemon answered, and what it answers to the replies
+            while self.ser.pending:
+                self._poll_once()
+            return
+        self._poll_once()
+
+    def _poll_once(self) -> None:
         data = self.ser.read(65536)
         if not data:
             return
@@ -274,7 +290,10 @@ class Controller:
 
         light, camera = sc.plan.entry(entry)
         ld, cd = sc.plan.directions[light], sc.plan.directions[camera]
-        cmd, _, _, sub = sc.rig.plan_pose(ld, cd)
+        if entry not in self.poses:
+            # the commanded pose of a plan entry is a function of the rig and the plan alone
+            self.poses[entry] = sc.rig.plan_pose(ld, cd)
+        cmd, _, _, sub = self.poses[entry]
         true_pose = list(cmd)
         enc = list(cmd)
         if self.prev_cmd is not None and cmd[3] != self.prev_cmd[3]:
@@ -426,7 +445,7 @@ class Controller:
             th.start()
             self._writers.append(th)
             return True
-        write_atomic(path, data)
+        write_atomic(path, data, durable=not self.lockstep)
         return True
 
     # -- the session -----------------------------------------------------------------------------
@@ -442,13 +461,19 @@ class Controller:
     def run(self) -> None:
         sc = self.sc
         self.reboot()  # first boot: IDENT, boot = 1
-        if self.ser is not None:
+        if self.lockstep:
+            self.poll()
+        elif self.ser is not None:
             self.sleep(0.05)
         period = sc.time_per_capture_s / sc.speed if sc.speed > 0 else 0.0
         count = sc.capture_count
         started = time.monotonic()
         for k in range(count):
             self.poll()
+            if self.lockstep and self.state == "paused":
+                # nothing is left to resume it: the run ends here, as an operator would end it
+                print(f"goniosim: paused by the daemon at capture {self.next_idx}; the lockstep run ends", file=self.log, flush=True)
+                break
             while self.state == "paused":
                 self.sleep(0.01)
             while self.probes:
@@ -463,6 +488,9 @@ class Controller:
         for th in self._writers:
             th.join()
         if self.ser is None:
+            return
+        if self.lockstep:
+            self.poll()
             return
         end = time.monotonic() + self.linger_s
         while time.monotonic() < end and not self.stop.is_set():

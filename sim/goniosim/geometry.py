@@ -83,8 +83,14 @@ def vec_to_sph(v: np.ndarray) -> tuple[float, float]:
     return theta, phi
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b of two 3-vectors: numpy's own formula, without its axis handling (which costs more
+    than the product on one pair)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 def angle_between(a: np.ndarray, b: np.ndarray) -> float:
-    return math.degrees(math.atan2(float(np.linalg.norm(np.cross(a, b))), float(np.dot(a, b))))
+    return math.degrees(math.atan2(float(np.linalg.norm(cross(a, b))), float(np.dot(a, b))))
 
 
 def rz(a: float) -> np.ndarray:
@@ -162,13 +168,13 @@ class Rig:
             raise OcclusionError(sep)
         wo_perp = wo - wi * np.dot(wi, wo)
         wo_perp /= np.linalg.norm(wo_perp)
-        s = np.column_stack([wi, wo_perp, np.cross(wi, wo_perp)])
+        s = np.column_stack([wi, wo_perp, cross(wi, wo_perp)])
         lamp = np.array([1.0, 0.0, 0.0])
         sr = math.radians(sep)
         cam = np.array([math.cos(sr), math.sin(sr), 0.0])
         c_perp = cam - lamp * np.dot(lamp, cam)
         c_perp /= np.linalg.norm(c_perp)
-        w = np.column_stack([lamp, c_perp, np.cross(lamp, c_perp)])
+        w = np.column_stack([lamp, c_perp, cross(lamp, c_perp)])
         a, b, c = zyz(w @ s.T)
         ideal = [math.degrees(a), math.degrees(b), math.degrees(c)]
         joints = [wrap_pm180(ideal[k] * self.joints[k].sign + self.joints[k].offset_deg) for k in range(3)]

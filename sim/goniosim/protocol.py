@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import binascii
+
 from dataclasses import dataclass, field
 
 MAX_LINE = 512  # bytes, LF included
@@ -9,13 +11,9 @@ SEQ_MOD = 1_000_000
 
 
 def crc16_ccitt_false(data: bytes) -> int:
-    """CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, no final xor."""
-    crc = 0xFFFF
-    for b in data:
-        crc ^= b << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
-    return crc
+    """CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, no final xor (binascii's
+    CRC-CCITT started from 0xFFFF; check value 0x29B1 for b"123456789")."""
+    return binascii.crc_hqx(data, 0xFFFF)
 
 
 _SAFE = set(range(0x21, 0x7F)) - {ord("%"), ord("*"), ord("=")}

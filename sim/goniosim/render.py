@@ -154,12 +154,14 @@ def png_bytes(img: np.ndarray, exposure: float, bits: int) -> bytes:
     return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(rows, 6)) + chunk(b"IEND", b"")
 
 
-def write_atomic(path: str, data: bytes) -> None:
-    """Write to a temporary name in the same directory, then rename into place."""
+def write_atomic(path: str, data: bytes, durable: bool = True) -> None:
+    """Write to a temporary name in the same directory (fsynced when `durable`), then rename
+    into place."""
     d, name = os.path.split(path)
     tmp = os.path.join(d, f".{name}.tmp")
     with open(tmp, "wb") as f:
         f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
+        if durable:
+            f.flush()
+            os.fsync(f.fileno())
     os.replace(tmp, path)

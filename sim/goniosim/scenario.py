@@ -86,6 +86,8 @@ class Fault:
 
 @dataclass
 class Scenario:
+    # the goniowatch config the rig and plan came from (`rig_config`), absolute; None without
+    rig_config: str | None = None
     session_id: str = "demo"
     capture_root: str = "captures"
     port: str = "/tmp/goniowatch-rig"
@@ -171,6 +173,7 @@ def from_dict(data: dict, base_dir: str = ".", overrides: dict | None = None) ->
             cfg_path = os.path.join(base_dir, cfg_path)
         with open(cfg_path, "rb") as f:
             cfg = tomllib.load(f)
+        sc.rig_config = os.path.abspath(cfg_path)
         rig_section = dict(cfg.get("rig", {}))
         plan_section = dict(cfg.get("plan", {}))
     rig_section.update(data.get("rig", {}))

@@ -5,6 +5,7 @@ pub mod archive;
 pub mod http;
 pub mod ingest;
 pub mod link;
+pub mod lockstep;
 pub mod replay;
 pub mod run;
 pub(crate) mod sinks;

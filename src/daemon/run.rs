@@ -207,45 +207,55 @@ impl Live {
         }
     }
 
-    /// Files in the capture folders of announced captures that no CAPTURE line named, at most
-    /// `MAX_UNANNOUNCED` of them (the list is one journal line).
+    /// Files in the capture folders of announced captures that no CAPTURE line named.
     fn unannounced(&self) -> Vec<String> {
-        let announced: BTreeSet<&str> = self.engine.announced_files().collect();
-        let mut dirs = BTreeSet::new();
-        // only names the ingestion accepts: an absolute or climbing name must not steer the scan
-        for f in announced
-            .iter()
-            .filter(|f| super::ingest::resolve(&self.capture_root, f).is_ok())
-        {
-            if let Some(parent) = Path::new(f).parent() {
-                dirs.insert(parent.to_path_buf());
-            }
-        }
-        let mut out = Vec::new();
-        for d in dirs {
-            let Ok(rd) = std::fs::read_dir(self.capture_root.join(&d)) else {
-                continue;
-            };
-            let mut names: Vec<String> = rd
-                .filter_map(|e| e.ok())
-                .filter(|e| e.file_type().map(|t| t.is_file()).unwrap_or(false))
-                .filter_map(|e| e.file_name().to_str().map(str::to_string))
-                .filter(|n| !n.starts_with('.'))
-                .map(|n| d.join(n).to_string_lossy().into_owned())
-                .filter(|n| !announced.contains(n.as_str()) && !self.not_captures.contains(n))
-                .collect();
-            names.sort();
-            out.extend(names);
-        }
-        if out.len() > MAX_UNANNOUNCED {
-            tracing::warn!(
-                "{} unannounced files in the capture folder; the first {MAX_UNANNOUNCED} are recorded",
-                out.len()
-            );
-            out.truncate(MAX_UNANNOUNCED);
-        }
-        out
+        unannounced(&self.engine, &self.capture_root, &self.not_captures)
     }
+}
+
+/// Files in the capture folders of announced captures that no CAPTURE line named, at most
+/// `MAX_UNANNOUNCED` of them (the list is one journal line). `not_captures`: files that are not
+/// captures by definition (a files source's sidecar).
+pub(crate) fn unannounced(
+    engine: &Engine,
+    capture_root: &Path,
+    not_captures: &BTreeSet<String>,
+) -> Vec<String> {
+    let announced: BTreeSet<&str> = engine.announced_files().collect();
+    let mut dirs = BTreeSet::new();
+    // only names the ingestion accepts: an absolute or climbing name must not steer the scan
+    for f in announced
+        .iter()
+        .filter(|f| super::ingest::resolve(capture_root, f).is_ok())
+    {
+        if let Some(parent) = Path::new(f).parent() {
+            dirs.insert(parent.to_path_buf());
+        }
+    }
+    let mut out = Vec::new();
+    for d in dirs {
+        let Ok(rd) = std::fs::read_dir(capture_root.join(&d)) else {
+            continue;
+        };
+        let mut names: Vec<String> = rd
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_type().map(|t| t.is_file()).unwrap_or(false))
+            .filter_map(|e| e.file_name().to_str().map(str::to_string))
+            .filter(|n| !n.starts_with('.'))
+            .map(|n| d.join(n).to_string_lossy().into_owned())
+            .filter(|n| !announced.contains(n.as_str()) && !not_captures.contains(n))
+            .collect();
+        names.sort();
+        out.extend(names);
+    }
+    if out.len() > MAX_UNANNOUNCED {
+        tracing::warn!(
+            "{} unannounced files in the capture folder; the first {MAX_UNANNOUNCED} are recorded",
+            out.len()
+        );
+        out.truncate(MAX_UNANNOUNCED);
+    }
+    out
 }
 
 /// Run beside the rig until the run is done (or a signal): start, then step on every input and

@@ -289,14 +289,51 @@ fn huber_reweight(res: &[f64], obs: &[PairObservation], w: &mut [f64]) -> f64 {
 }
 
 /// The robust scale (MAD) of the final residuals per geometry bucket.
-fn bucket_scales(obs: &[PairObservation], res: &[f64]) -> BTreeMap<(i64, i64), f64> {
-    let mut per: BTreeMap<(i64, i64), Vec<f64>> = BTreeMap::new();
-    for (o, e) in obs.iter().zip(res) {
-        per.entry(o.bucket).or_default().push(e.abs());
+fn bucket_scales(buckets: &Buckets, res: &[f64]) -> BTreeMap<(i64, i64), f64> {
+    let mut per: Vec<Vec<f64>> = vec![Vec::new(); buckets.keys.len()];
+    for (&b, e) in buckets.of.iter().zip(res) {
+        per[b].push(e.abs());
     }
-    per.into_iter()
-        .map(|(k, v)| (k, robust_scale_upper(&v)))
+    buckets
+        .keys
+        .iter()
+        .zip(per)
+        .map(|(k, v)| (*k, robust_scale_upper(&v)))
         .collect()
+}
+
+/// The observations' geometry buckets as dense indices, numbered in key order: a fit's
+/// per-bucket sums are then vectors, visited in the order a map keyed by bucket would visit
+/// them, and every sum is taken in the same order as before (the fits replay to the bit).
+struct Buckets {
+    /// The buckets, in key order.
+    keys: Vec<(i64, i64)>,
+    /// Each observation's bucket: an index into `keys`.
+    of: Vec<usize>,
+}
+
+impl Buckets {
+    fn of(obs: &[PairObservation]) -> Buckets {
+        let keys: Vec<(i64, i64)> = obs
+            .iter()
+            .map(|o| o.bucket)
+            .collect::<std::collections::BTreeSet<_>>()
+            .into_iter()
+            .collect();
+        let index: BTreeMap<(i64, i64), usize> =
+            keys.iter().enumerate().map(|(i, k)| (*k, i)).collect();
+        let of = obs.iter().map(|o| index[&o.bucket]).collect();
+        Buckets { keys, of }
+    }
+
+    /// The bucket effects as the map the detector keeps.
+    fn map<T: Copy>(&self, values: &[T]) -> BTreeMap<(i64, i64), T> {
+        self.keys
+            .iter()
+            .copied()
+            .zip(values.iter().copied())
+            .collect()
+    }
 }
 
 /// Per bucket: the sum of weights, the weighted sums of each column and of d, the count.
@@ -642,24 +679,25 @@ impl DriftDetector {
         let n = self.obs.len();
         // precision weights from each observation's own uncertainty (equal in the first pass)
         let mut w: Vec<f64> = self.obs.iter().map(|o| prior_weight(0.0, o)).collect();
+        let buckets = Buckets::of(&self.obs);
         let mut r = 0.0;
-        let mut beta: BTreeMap<(i64, i64), (f64, usize)> = BTreeMap::new();
+        let mut beta: Vec<(f64, usize)> = Vec::new();
         let mut scale = 0.0;
         let mut res: Vec<f64> = Vec::new();
         let mut se = f64::INFINITY;
         for _ in 0..5 {
             // weighted bucket means of Δt and d
-            let mut acc: BTreeMap<(i64, i64), (f64, f64, f64, usize)> = BTreeMap::new();
-            for (o, wi) in self.obs.iter().zip(&w) {
-                let e = acc.entry(o.bucket).or_default();
+            let mut acc = vec![(0.0, 0.0, 0.0, 0usize); buckets.keys.len()];
+            for ((o, wi), &b) in self.obs.iter().zip(&w).zip(&buckets.of) {
+                let e = &mut acc[b];
                 e.0 += wi;
                 e.1 += wi * (o.t_b_h - o.t_a_h);
                 e.2 += wi * o.d;
                 e.3 += 1;
             }
             let (mut sxx, mut sxy) = (0.0, 0.0);
-            for (o, wi) in self.obs.iter().zip(&w) {
-                let (sw, sx, sy, _) = acc[&o.bucket];
+            for ((o, wi), &b) in self.obs.iter().zip(&w).zip(&buckets.of) {
+                let (sw, sx, sy, _) = acc[b];
                 // a bucket whose every observation has zero weight adds nothing
                 if !(sw > 0.0) {
                     continue;
@@ -675,12 +713,13 @@ impl DriftDetector {
             r = sxy / sxx;
             beta = acc
                 .iter()
-                .map(|(k, (sw, sx, sy, nb))| (*k, ((sy - r * sx) / sw, *nb)))
+                .map(|(sw, sx, sy, nb)| ((sy - r * sx) / sw, *nb))
                 .collect();
             res = self
                 .obs
                 .iter()
-                .map(|o| o.d - r * (o.t_b_h - o.t_a_h) - beta[&o.bucket].0)
+                .zip(&buckets.of)
+                .map(|(o, &b)| o.d - r * (o.t_b_h - o.t_a_h) - beta[b].0)
                 .collect();
             scale = huber_reweight(&res, &self.obs, &mut w);
             // variance of r: σ² / Sxx with the weighted residual variance
@@ -688,8 +727,8 @@ impl DriftDetector {
             let sse: f64 = res.iter().zip(&w).map(|(e, wi)| wi * e * e).sum();
             se = ((sse / dof).max(self.spec.scale_floor.powi(2)) / sxx).sqrt();
         }
-        self.bucket_scale = bucket_scales(&self.obs, &res);
-        self.beta = beta;
+        self.bucket_scale = bucket_scales(&buckets, &res);
+        self.beta = buckets.map(&beta);
         Some(DriftEstimate {
             pairs: n,
             rate_pct_per_h: 100.0 * r,
@@ -723,19 +762,18 @@ impl DriftDetector {
         };
         let rows: Vec<Vec<f64>> = self.obs.iter().map(row).collect();
         let mut w: Vec<f64> = self.obs.iter().map(|o| prior_weight(0.0, o)).collect();
+        let buckets = Buckets::of(&self.obs);
         let mut coef = DVector::<f64>::zeros(p);
         let mut cov = DMatrix::<f64>::zeros(p, p);
-        let mut beta: BTreeMap<(i64, i64), (f64, usize)> = BTreeMap::new();
+        let mut beta: Vec<(f64, usize)> = Vec::new();
         let mut scale = 0.0;
         let mut res: Vec<f64> = Vec::new();
         let mut inflation = 1.0;
         for _ in 0..5 {
             // weighted bucket means of every column and of d
-            let mut acc: BTreeMap<(i64, i64), BucketSums> = BTreeMap::new();
-            for ((o, x), wi) in self.obs.iter().zip(&rows).zip(&w) {
-                let e = acc
-                    .entry(o.bucket)
-                    .or_insert_with(|| (0.0, vec![0.0; p], 0.0, 0));
+            let mut acc: Vec<BucketSums> = vec![(0.0, vec![0.0; p], 0.0, 0); buckets.keys.len()];
+            for (((o, x), wi), &b) in self.obs.iter().zip(&rows).zip(&w).zip(&buckets.of) {
+                let e = &mut acc[b];
                 e.0 += wi;
                 for j in 0..p {
                     e.1[j] += wi * x[j];
@@ -748,8 +786,8 @@ impl DriftDetector {
             let mut ata = DMatrix::<f64>::zeros(p, p);
             let mut atb = DVector::<f64>::zeros(p);
             let mut xc = vec![0.0; p];
-            for ((o, x), wi) in self.obs.iter().zip(&rows).zip(&w) {
-                let (sw, sx, sy, _) = &acc[&o.bucket];
+            for (((o, x), wi), &b) in self.obs.iter().zip(&rows).zip(&w).zip(&buckets.of) {
+                let (sw, sx, sy, _) = &acc[b];
                 if !(*sw > 0.0) {
                     continue;
                 }
@@ -778,16 +816,17 @@ impl DriftDetector {
             }
             beta = acc
                 .iter()
-                .map(|(key, (sw, sx, sy, nb))| {
+                .map(|(sw, sx, sy, nb)| {
                     let fx: f64 = (0..p).map(|j| coef[j] * sx[j]).sum();
-                    (*key, ((sy - fx) / sw, *nb))
+                    ((sy - fx) / sw, *nb)
                 })
                 .collect();
             res = self
                 .obs
                 .iter()
                 .zip(&rows)
-                .map(|(o, x)| o.d - (0..p).map(|j| coef[j] * x[j]).sum::<f64>() - beta[&o.bucket].0)
+                .zip(&buckets.of)
+                .map(|((o, x), &b)| o.d - (0..p).map(|j| coef[j] * x[j]).sum::<f64>() - beta[b].0)
                 .collect();
             scale = huber_reweight(&res, &self.obs, &mut w);
             let dof = (n as f64 - beta.len() as f64 - p as f64).max(1.0);
@@ -840,8 +879,8 @@ impl DriftDetector {
                 se_pct_per_h: 100.0 * cov[(0, 0)].max(0.0).sqrt(),
                 residual_scale: scale,
             },
-            beta,
-            bucket_scale: bucket_scales(&self.obs, &res),
+            beta: buckets.map(&beta),
+            bucket_scale: bucket_scales(&buckets, &res),
             step_effects,
             mount,
         })
