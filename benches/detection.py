@@ -101,8 +101,10 @@ def score(run: M.Run, session: str) -> dict:
         summary = json.load(f)
     t = run.row.truth
     onset = t.onset if t else 0
-    drift = sorted((x for x in alarms if x["kind"] == "drift" and x["code"] not in ("gain-drift-cleared", "lamp-unstable")
-                    and x["idx"] is not None), key=lambda x: x["idx"])
+    # a drift alarm: a lamp change raised (not one cleared or withdrawn, nor the lamp's
+    # capture-to-capture instability, scored on its own)
+    drift = sorted((x for x in alarms if x["kind"] == "drift" and x["code"] != "lamp-unstable"
+                    and not x["code"].endswith(("-cleared", "-withdrawn")) and x["idx"] is not None), key=lambda x: x["idx"])
     geo = sorted((x for x in alarms if x["kind"] == "positioning" and x["severity"] != "info" and x["idx"] is not None),
                  key=lambda x: x["idx"])
     unstable = sorted((x for x in alarms if x["code"] == "lamp-unstable" and x["idx"] is not None), key=lambda x: x["idx"])
@@ -122,6 +124,7 @@ def score(run: M.Run, session: str) -> dict:
            "positioning_before": brief(first(geo, False)) if t else None,
            "drift_after": brief(first(drift, True)), "positioning_after": brief(first(geo, True)),
            "joint_after": brief(joint), "unstable_after": brief(first(unstable, True)),
+           "codes_after": sorted({x["code"] for x in alarms if x["severity"] != "info" and (x["idx"] or 0) >= onset}),
            "final_rate_pct_per_h": pd.get("rate_pct_per_h"),
            "steps": [100 * math.expm1(st["ln_size"]) for st in summary.get("isotropy_steps") or []]}
     if t and t.kind in ("rate", "rate-exp") and not run.every and os.path.exists(os.path.join(session, "captures.jsonl")):
@@ -174,11 +177,11 @@ def record_one(run: M.Run, lab: str, binary: str) -> float:
         if rc not in (0, 4):
             raise RuntimeError(f"{run.id}: the lockstep run failed (exit {rc}): {err.strip()}")
         s = os.path.join(d, "s")
+        rec = score(run, s)
+        rec["record_cpu_s"] = round(cpu, 2)
         for name in os.listdir(s):
             if name not in KEEP:
                 os.unlink(os.path.join(s, name))
-        rec = score(run, s)
-        rec["record_cpu_s"] = round(cpu, 2)
         write_json_atomic(os.path.join(d, "record.json"), rec)
         return cpu
     finally:
