@@ -33,6 +33,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -277,6 +278,71 @@ def cmd_score(a) -> int:
             f.write("\n")
         print(f"score: {len(records)} records to {a.out}" + (f"; {len(wanted) - len(recorded)} runs not recorded yet" if len(recorded) < len(wanted) else ""))
     return 0 if len(recorded) == len(wanted) else 1
+
+
+# --- one run outside the matrix (benches/colour_drift.py, benches/probe_plan.py) -----------------
+
+BIN = DEFAULT_BIN
+
+
+def run_name(name: str, material: str, preset: str, seed: int) -> str:
+    """The kept session's folder name of a run outside the matrix."""
+    slug = re.sub(r"[^a-z0-9.]+", "-", re.sub(r"\+(?=[0-9.]+)", "plus ", re.sub(r"−(?=[0-9.]+)", "minus ", name)).lower()).strip("-")
+    return f"{slug}-{material}-{preset}-{seed}"
+
+
+def run(tmp, name, material, preset, faults, seed, every, keep=None, config="sim.toml"):
+    """Records one run (any faults, any config of config/) through the fast path into
+    KEEP/<run_name>/s (or a scratch folder); returns (exit code, alarms, summary, CPU s, drift
+    curve)."""
+    r = M.Run(M.Row(name, tuple(faults)), material, preset, seed, every=every, config=config)
+    d = os.path.join(keep or tmp, run_name(name, material, preset, seed))
+    shutil.rmtree(d, ignore_errors=True)
+    os.makedirs(d)
+    cap = tempfile.mkdtemp(prefix="gw-run-", dir=scratch_root())
+    try:
+        with open(os.path.join(d, "scenario.toml"), "w", encoding="utf-8") as f:
+            f.write(r.scenario_toml(cap))
+        with open(os.path.join(d, "config.toml"), "w", encoding="utf-8") as f:
+            f.write(r.config_toml())
+        rc, cpu, err = cpu_of([sys.executable, "-m", "goniosim", "lockstep", os.path.join(d, "scenario.toml"), "--session",
+                               os.path.join(d, "s"), "--config", os.path.join(d, "config.toml"), "--goniowatch", BIN,
+                               "--truth", os.path.join(cap, "truth.jsonl")], cwd=SIM)
+        if rc not in (0, 4):
+            raise RuntimeError(f"{name}: the lockstep run failed (exit {rc}): {err.strip()}")
+        return _results(os.path.join(d, "s"), rc, cpu)
+    finally:
+        shutil.rmtree(cap, ignore_errors=True)
+        if not keep:
+            shutil.rmtree(d, ignore_errors=True)
+
+
+def _results(session, rc, cpu):
+    with open(os.path.join(session, "alarms.jsonl"), encoding="utf-8") as f:
+        alarms = [json.loads(line) for line in f if line.strip()]
+    with open(os.path.join(session, "summary.json"), encoding="utf-8") as f:
+        summary = json.load(f)
+    return rc, alarms, summary, cpu, curve(os.path.join(session, "captures.jsonl"))
+
+
+def replay(keeps, name, material, preset, seed, replay_out=None):
+    """Replays the kept session of a run outside the matrix (the first of `keeps` that has it)
+    with BIN; returns what `run` does, or None when no folder has it."""
+    keeps = keeps.split(",") if isinstance(keeps, str) else keeps
+    rn = run_name(name, material, preset, seed)
+    d = next((os.path.join(k, rn) for k in keeps if os.path.isdir(os.path.join(k, rn, "s"))), None)
+    if d is None:
+        return None
+    out = os.path.join(replay_out, rn) if replay_out else tempfile.mkdtemp(prefix="gw-replay-", dir=scratch_root())
+    try:
+        shutil.rmtree(out, ignore_errors=True)
+        rc, cpu, err = cpu_of([BIN, "replay", os.path.join(d, "s"), "--out", out, "--recorded-outcomes", "--quiet"])
+        if rc not in (0, 4):
+            raise RuntimeError(f"{rn}: the replay failed (exit {rc}): {err.strip()}")
+        return _results(out, rc, cpu)
+    finally:
+        if not replay_out:
+            shutil.rmtree(out, ignore_errors=True)
 
 
 # --- fast path against live ---------------------------------------------------------------------
