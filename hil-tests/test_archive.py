@@ -199,3 +199,59 @@ def test_watch_mode_follows_a_folder_as_it_is_written(tmp_path, wake):
     assert values(session) == values(checked)
     assert ("dark-capture", 250) in verdicts(session)
     assert_replay_identical(session, tmp_path)
+
+
+def test_a_session_folder_belongs_to_one_capture_folder_and_one_config(tmp_path):
+    """`check B --session S` where S holds the check of folder A (or of A with another config)
+    is refused with exit 3 and a message that says why; S is left as it was."""
+    needs_simulator()
+    a, _ = write_archive(tmp_path, "src-a", captures=200, id="src-a")
+    b, _ = write_archive(tmp_path, "src-b", captures=200, id="src-b")
+    session = tmp_path / "one-source"
+    code, out, err = run_check(a, session)
+    assert code == 0, err[-2000:]
+    before = {p.name: p.read_bytes() for p in session.iterdir() if p.is_file()}
+    code, out, err = run_check(b, session)
+    assert code == 3, (code, out, err[-2000:])
+    assert "another capture folder" in err and str(a) in err, err
+    other = tmp_path / "other.toml"
+    other.write_text(open(os.path.join(REPO, "config", "sim.toml"), encoding="utf-8").read().replace("dark_y = 0.5", "dark_y = 0.4"))
+    code, out, err = run_check(a, session, other)
+    assert code == 3, (code, out, err[-2000:])
+    assert "another config" in err, err
+    assert {p.name: p.read_bytes() for p in session.iterdir() if p.is_file()} == before
+
+
+def test_an_all_dark_set_is_not_a_perfect_table_2(tmp_path):
+    """Every capture at or below the dark level (here a config whose dark level is above the
+    white): no pair is scored, and `check` says so and exits 6, never 0 with a Table 2 of zeros."""
+    needs_simulator()
+    folder, _ = write_archive(tmp_path, "dark", captures=400, id="dark")
+    cfg = tmp_path / "dark.toml"
+    cfg.write_text(open(os.path.join(REPO, "config", "sim.toml"), encoding="utf-8").read().replace("dark_y = 0.5", "dark_y = 100000.0"))
+    code, out, err = run_check(folder, tmp_path / "dark-session", cfg)
+    assert code == 6, (code, out, err[-2000:])
+    assert "no reciprocal pair was scored" in err and "rgb_scale" in err, err
+    # the same set with the right dark level scores its pairs and exits 0
+    code, out, err = run_check(folder, tmp_path / "lit-session")
+    assert code == 0, err[-2000:]
+
+
+def test_a_finished_check_does_not_wait_for_sidecar_rows_without_their_files(tmp_path):
+    """Six sidecar rows whose files were deleted: a finished set gets no more files, so each is
+    missing at once (not after `give_up_s`, 30 s each here), counted in the summary and the
+    manifest, and the rest is checked."""
+    needs_simulator()
+    folder, _ = write_archive(tmp_path, "absent", naming="sidecar", captures=300, id="absent")
+    # not in a row: five failures in a row are critical (exit 4), which is another test's matter
+    gone = sorted(p for p in folder.iterdir() if p.name.startswith("cap_"))[100:160:10]
+    for p in gone:
+        p.unlink()
+    session = tmp_path / "absent-session"
+    code, out, err = run_check(folder, session, sidecar_config(tmp_path), timeout=120)
+    assert code == 0, err[-2000:]
+    summary = json.load(open(session / "summary.json"))
+    assert summary["checked"]["missing"] == 6 and summary["checked"]["captures"] == 300, summary["checked"]
+    missing = [m for m in read_jsonl(session / "manifest.jsonl") if m["status"] == "missing"]
+    assert sorted(m["file"].split("/")[-1] for m in missing) == [p.name for p in gone]
+    assert all("after 0.0 s" in (m["error"] or "") for m in missing), missing

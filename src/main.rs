@@ -229,6 +229,8 @@ struct PlanArgs {
 const EXIT_FILE_FAILED: u8 = 1;
 const EXIT_CRITICAL: u8 = 4;
 const EXIT_REPLAY_MISMATCH: u8 = 5;
+/// `check` and watch mode: the result is empty or meaningless (`cli::summary::meaningless`).
+const EXIT_MEANINGLESS: u8 = 6;
 
 /// A mistake in how the command was called (exit status 2).
 #[derive(Debug)]
@@ -390,6 +392,16 @@ fn run_command(args: RunArgs, out: &mut impl Write) -> Result<ExitCode> {
     rt.shutdown_timeout(std::time::Duration::from_secs(1));
     print_summary(&summary, out)?;
     writeln!(out, "results in {}", session.display())?;
+    // watch mode (a files source) judges its result as `check` does
+    let watched = summary.rig.as_deref() == Some(goniowatch::archive::controller::RIG_ID);
+    if let (true, RunEnd::Finished { .. }, Some(why)) = (
+        watched,
+        end,
+        goniowatch::cli::summary::meaningless(&summary),
+    ) {
+        eprintln!("goniowatch: {why}");
+        return Ok(ExitCode::from(EXIT_MEANINGLESS));
+    }
     Ok(match end {
         RunEnd::Finished { critical: false } => ExitCode::SUCCESS,
         RunEnd::Finished { critical: true } => ExitCode::from(EXIT_CRITICAL),
@@ -805,6 +817,9 @@ fn check_command(args: CheckArgs, out: &mut impl Write) -> Result<ExitCode> {
         ))
         .into());
     }
+    if let Some(why) = goniowatch::session::recovery::other_source(&session, &dir_abs, &text)? {
+        anyhow::bail!(why);
+    }
     let workers = workers.map(usize::from).unwrap_or_else(|| {
         std::thread::available_parallelism()
             .map(|n| n.get())
@@ -833,6 +848,12 @@ fn check_command(args: CheckArgs, out: &mut impl Write) -> Result<ExitCode> {
     print_summary(&summary, out)?;
     writeln!(out, "files: {}", listing.describe())?;
     writeln!(out, "results in {}", session.display())?;
+    if let (RunEnd::Finished { .. }, Some(why)) =
+        (end, goniowatch::cli::summary::meaningless(&summary))
+    {
+        eprintln!("goniowatch: {why}");
+        return Ok(ExitCode::from(EXIT_MEANINGLESS));
+    }
     Ok(match end {
         RunEnd::Finished { critical: false } => ExitCode::SUCCESS,
         RunEnd::Finished { critical: true } => ExitCode::from(EXIT_CRITICAL),

@@ -398,3 +398,37 @@ fn the_report_says_what_to_do_about_each_alarm_and_which_captures_it_affects() {
     assert_eq!(first_slipped, Some(from), "{retakes}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `report` of a session whose captures.jsonl was cut, mid-line or at a line boundary, is
+/// refused with exit 3 and a message naming the file and how to rebuild it; nothing is written.
+#[test]
+fn a_report_of_a_cut_result_file_is_refused_not_read_short() {
+    for (name, cut) in [("torn", true), ("short", false)] {
+        let dir = corpus_results("decay");
+        let path = dir.join("captures.jsonl");
+        let text = std::fs::read(&path).unwrap();
+        let lines: Vec<usize> = text
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| **b == b'\n')
+            .map(|(i, _)| i)
+            .collect();
+        let keep = if cut {
+            lines[lines.len() - 8] + 40
+        } else {
+            lines[lines.len() - 9] + 1
+        };
+        std::fs::write(&path, &text[..keep]).unwrap();
+        let r = bin().arg("report").arg(&dir).output().unwrap();
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(3), "{name}: {err}");
+        assert!(
+            err.contains("captures.jsonl")
+                && err.contains(if cut { "torn line" } else { "incomplete" })
+                && err.contains("replay"),
+            "{name}: {err}"
+        );
+        assert!(!dir.join("report").exists(), "{name}: a report was written");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

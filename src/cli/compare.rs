@@ -48,7 +48,7 @@ pub(crate) fn session_values(dir: &Path, dark_y: f64) -> Result<Vec<SessionValue
     }
     let mut seen = HashSet::new();
     let mut out = Vec::new();
-    for rec in crate::session::folder::read_records::<CaptureRecord>(&path)? {
+    for rec in crate::session::folder::read_session_captures(dir)? {
         if rec.probe || rec.status != crate::checks::CaptureStatus::Ok || seen.contains(&rec.entry)
         {
             continue;
@@ -76,8 +76,7 @@ pub(crate) fn session_values(dir: &Path, dark_y: f64) -> Result<Vec<SessionValue
 /// The probes' gain curve: (t in hours, Y of the probe / Y of the first capture of its entry),
 /// starting at (t of that first capture, 1).
 pub(crate) fn probe_gain_curve(dir: &Path, dark_y: f64) -> Result<Vec<(f64, f64)>> {
-    let records: Vec<CaptureRecord> =
-        crate::session::folder::read_records(&dir.join("captures.jsonl"))?;
+    let records: Vec<CaptureRecord> = crate::session::folder::read_session_captures(dir)?;
     let mut curve = crate::checks::ProbeGainCurve::new(dark_y);
     let mut points = Vec::new();
     for rec in &records {

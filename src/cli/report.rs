@@ -29,7 +29,7 @@ pub struct ReportInputs {
 }
 
 pub fn load(dir: &Path) -> Result<ReportInputs> {
-    use crate::session::folder::{load_config, load_summary, read_records};
+    use crate::session::folder::{load_config, load_summary, read_complete_records};
     let (config, config_text) = load_config(dir)?;
     let summary = load_summary(dir)?;
     let crossval = match std::fs::read(dir.join("crossval.json")) {
@@ -40,11 +40,11 @@ pub fn load(dir: &Path) -> Result<ReportInputs> {
         summary,
         config_text,
         config,
-        captures: read_records(&dir.join("captures.jsonl"))?,
-        pairs: read_records(&dir.join("pairs.jsonl"))?,
-        alarms: read_records(&dir.join("alarms.jsonl"))?,
+        captures: crate::session::folder::read_session_captures(dir)?,
+        pairs: read_complete_records(&dir.join("pairs.jsonl"))?,
+        alarms: read_complete_records(&dir.join("alarms.jsonl"))?,
         // sessions recorded before the sweep checks existed have no sweeps.jsonl (read as empty)
-        sweeps: read_records(&dir.join("sweeps.jsonl"))?,
+        sweeps: read_complete_records(&dir.join("sweeps.jsonl"))?,
         crossval,
     })
 }

@@ -2,6 +2,32 @@
 
 use crate::engine::Summary;
 
+/// Why a finished check's result means nothing, if it does not: most of its captures failed
+/// or are missing, or no reciprocal pair was scored (Table 2 would print zeros that look like a
+/// perfect sample). `check` and watch mode then exit with a code of their own, never 0.
+pub fn meaningless(s: &Summary) -> Option<String> {
+    let c = &s.checked;
+    if c.captures == 0 {
+        return Some("no capture was checked".into());
+    }
+    if (c.failed + c.missing) * 2 > c.captures {
+        return Some(format!(
+            "{} of {} checked captures failed or are missing ({} failed, {} missing): the result describes too little of the set to be trusted; the alarms and manifest.jsonl say why each one failed",
+            c.failed + c.missing,
+            c.captures,
+            c.failed,
+            c.missing
+        ));
+    }
+    if s.table2.pairs == 0 {
+        return Some(format!(
+            "no reciprocal pair was scored ({} captures checked, {} ok): Table 2 is empty, not perfect. A pair needs both captures of a reciprocal geometry, each decoded and above the dark level ([checks] dark_y); if most captures raised `dark-capture`, the files hold values on another scale than the config's white ([colour] rgb_scale)",
+            c.captures, c.ok
+        ));
+    }
+    None
+}
+
 /// Print the end-of-run summary in the paper's Table 2 form.
 pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Result<()> {
     writeln!(

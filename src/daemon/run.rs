@@ -371,6 +371,11 @@ async fn start(
     let (stop_tx, stop_rx) = watch::channel(false);
     let outcome_tx = ev_tx.clone();
     let mut ingest = cfg.ingest.clone();
+    if opts.finished_set {
+        // a finished set gets no more files: a listed capture that is not there (a sidecar row
+        // without its file) is missing now, not after `give_up_s`
+        ingest.give_up_s = 0.0;
+    }
     if let Some(w) = opts.workers {
         ingest.workers = w.clamp(1, 64);
         ingest.queue = ingest.queue.max(2 * ingest.workers);

@@ -6,8 +6,7 @@
 //! Why not the interpolant (`resample::LayeredResampler`): it passes through every node, and
 //! the light sweeps need its *slopes* (∂ ln Y / ∂q through the rig's kinematics). With one node
 //! per isotropy class and a per cent of noise in each, an interpolant's slopes are several times
-//! too steep and barely correlated with the BRDF's (BENCHMARKS.md, "Joint slips at every onset
-//! and both signs"). A least-squares polynomial smooths the nodes instead of following them.
+//! too steep and barely correlated with the BRDF's (docs/decisions.md). A least-squares polynomial smooths the nodes instead of following them.
 //! Polynomials in (u, v) are smooth at the pole (θo = 0, where Δφ is undefined), and even in v
 //! they are even in Δφ: the isotropic symmetry f(Δφ) = f(−Δφ) holds by construction, so a node
 //! counts on both sides of the plane of incidence.

@@ -50,6 +50,41 @@ pub(crate) fn read_records<T: serde::de::DeserializeOwned>(path: &Path) -> Resul
     Ok(out)
 }
 
+/// Read a finished session's JSON-lines result file for a command that reports on it
+/// (`report`, `compare`): as `read_records`, but a file that ends in an unterminated line is an
+/// error rather than read short, since a report of part of a file would look complete.
+pub(crate) fn read_complete_records<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Vec<T>> {
+    if let Ok(bytes) = std::fs::read(path) {
+        if bytes.last().is_some_and(|b| *b != b'\n') {
+            let tail = bytes.len() - bytes.iter().rposition(|b| *b == b'\n').map_or(0, |p| p + 1);
+            anyhow::bail!(
+                "{} ends in a torn line ({tail} bytes after its last complete record: a write cut short, or the file was cut); a report of it would leave records out. Resume the session (`goniowatch run` or `check` on it) to rebuild its results from the journal, or replay it (`goniowatch replay SESSION --out DIR`) and report on the replay",
+                path.display()
+            );
+        }
+    }
+    read_records(path)
+}
+
+/// A finished session's `captures.jsonl` for a command that reports on it: complete
+/// (`read_complete_records`), and holding at least the captures its summary counts as checked,
+/// so a file cut at a line boundary is not taken for the whole session either.
+pub(crate) fn read_session_captures(dir: &Path) -> Result<Vec<crate::checks::CaptureRecord>> {
+    let path = dir.join("captures.jsonl");
+    let records: Vec<crate::checks::CaptureRecord> = read_complete_records(&path)?;
+    if let Ok(summary) = load_summary(dir) {
+        let counted = summary.checked.captures;
+        if (records.len() as u64) < counted {
+            anyhow::bail!(
+                "{} holds {} capture records where the session's summary counts {counted} checked captures: the results are incomplete (a file cut short or replaced). Resume the session (`goniowatch run` or `check` on it) to rebuild them from the journal, or replay it (`goniowatch replay SESSION --out DIR`) and report on the replay",
+                path.display(),
+                records.len()
+            );
+        }
+    }
+    Ok(records)
+}
+
 /// A session's stored configuration, loaded once: the parsed config and its text.
 pub fn load_config(dir: &Path) -> Result<(Config, String)> {
     let path = dir.join("config.toml");

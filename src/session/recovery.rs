@@ -89,6 +89,45 @@ impl ConfigGiven<'_> {
     }
 }
 
+/// Why an existing session folder cannot be resumed as a check of `capture_root` with
+/// `config_text`, if it cannot: a session folder belongs to one capture folder and one config,
+/// and a resume of another would report the old folder's results as the new one's. `None`
+/// for a folder that holds no session yet, or the same source.
+pub fn other_source(dir: &Path, capture_root: &Path, config_text: &str) -> Result<Option<String>> {
+    let (stored, info_path) = (dir.join("config.toml"), dir.join("session.json"));
+    if !(stored.exists() && info_path.exists()) {
+        return Ok(None);
+    }
+    let info: SessionInfo = serde_json::from_slice(
+        &std::fs::read(&info_path)
+            .with_context(|| format!("cannot read {}", info_path.display()))?,
+    )
+    .with_context(|| format!("cannot parse {}", info_path.display()))?;
+    let same = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == b,
+    };
+    if !same(&info.capture_root, capture_root) {
+        return Ok(Some(format!(
+            "{} holds the session of another capture folder ({}), not of {}; a session folder belongs to one capture folder. Give another --session (or leave it out: the folder's own DIR.check)",
+            dir.display(),
+            info.capture_root.display(),
+            capture_root.display()
+        )));
+    }
+    let text = std::fs::read_to_string(&stored)
+        .with_context(|| format!("cannot read {}", stored.display()))?;
+    if text != config_text {
+        return Ok(Some(format!(
+            "{} was made with another config ({}, stored as {}); a session keeps the config it was made with. Give another --session to check with this one, or check again with the same config",
+            dir.display(),
+            info.config_source.display(),
+            stored.display()
+        )));
+    }
+    Ok(None)
+}
+
 impl Session {
     /// Create `dir` from a config file, or reopen it (then its stored config is used).
     pub fn open_or_create(
