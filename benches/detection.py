@@ -5,6 +5,7 @@ goniowatch binary, and compare the fast path with live runs.
   python3 benches/detection.py score    [--jobs 2] [--match REGEX] [--lab target/lab] [--bin BIN]
                                         [--out benches/detection-records.json]
   python3 benches/detection.py equivalence [--match REGEX] [--limit N] [--lab target/lab]
+  python3 benches/detection.py diff BEFORE.json AFTER.json
 
 - `record` runs every run of the matrix that has no recording yet through the fast path: the
   simulator in lockstep with `goniowatch lockstep` (no pty, no wall-clock waits), the session
@@ -22,6 +23,9 @@ goniowatch binary, and compare the fast path with live runs.
   capture records, sweeps and pairs byte for byte, and the summary less the link counters.
   Rows with probes are run with the rig paced (25 ms a capture) so that the live daemon keeps
   up, as it does beside a real rig at 7 s a capture.
+
+- `diff` lists the runs whose first alarms differ between two score files (a detector change
+  judged on every run of the matrix).
 
 Each prints its progress (runs done, left, the rate and the time left) and can be interrupted
 and resumed. GONIOWATCH_BIN overrides the binary (default target/release/goniowatch)."""
@@ -430,6 +434,30 @@ def cmd_equivalence(a) -> int:
     return 1 if bad else 0
 
 
+JUDGED = ("drift_before", "positioning_before", "drift_after", "positioning_after", "joint_after", "unstable_after")
+
+
+def cmd_diff(a) -> int:
+    """The runs whose first alarms differ between two score files (two binaries on the same
+    recordings): what a detector change did to every run of the matrix."""
+    with open(a.before, encoding="utf-8") as f:
+        before = {r["id"]: r for r in json.load(f)["records"]}
+    with open(a.after, encoding="utf-8") as f:
+        after = {r["id"]: r for r in json.load(f)["records"]}
+    both = [i for i in before if i in after]
+    changed = 0
+    for i in both:
+        diffs = [k for k in JUDGED if before[i].get(k) != after[i].get(k)]
+        if not diffs:
+            continue
+        changed += 1
+        def show(x):
+            return "–" if x is None else f"{x['code']} @{x['idx']}"
+        print(f"{i}: " + "; ".join(f"{k} {show(before[i].get(k))} → {show(after[i].get(k))}" for k in diffs))
+    print(f"diff: {changed} of {len(both)} runs changed their first alarms ({len(before) - len(both)} only before, {len(after) - len(both)} only after)")
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -445,7 +473,12 @@ def main() -> int:
                            help="the records of every scored run (benches/detection_tables.py reads it)")
         if name == "equivalence":
             p.add_argument("--limit", type=int, default=4, help="at most this many runs")
+    p = sub.add_parser("diff", help="runs whose first alarms differ between two score files")
+    p.add_argument("before")
+    p.add_argument("after")
     a = ap.parse_args()
+    if a.cmd == "diff":
+        return cmd_diff(a)
     if not os.access(a.bin, os.X_OK):
         sys.exit(f"no goniowatch binary at {a.bin}: run `cargo build --release` or set GONIOWATCH_BIN")
     a.bin = os.path.abspath(a.bin)

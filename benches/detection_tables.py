@@ -75,8 +75,13 @@ def median_max(xs) -> str:
     return f"{statistics.median(xs):.0f} ({max(xs):.0f})" if xs else "–"
 
 
+def signed(text: str) -> str:
+    """A number as the tables print it: a true minus sign."""
+    return text.replace("-", "−")
+
+
 def span(xs, fmt="{:+.2f}") -> str:
-    return f"{fmt.format(min(xs))} … {fmt.format(max(xs))}" if xs else "–"
+    return signed(f"{fmt.format(min(xs))} … {fmt.format(max(xs))}") if xs else "–"
 
 
 def by_row(records):
@@ -150,7 +155,7 @@ def decay_table(records) -> str:
         err = [r["final_rate_pct_per_h"] - truth for r in g if r["final_rate_pct_per_h"] is not None]
         within = sum(1 for e in err if abs(e) <= 0.1)
         rows.append([name, f"every {every}" if every else "none", len(g), len(at), median_max(at),
-                     f"{truth:+.3f}", span(err, "{:+.3f}"), of(within, len(err))])
+                     signed(f"{truth:+.3f}"), span(err, "{:+.3f}"), of(within, len(err))])
     return table(["row", "probes", "runs", "flagged", "flagged at, % of the run: median (max)", "truth, %/h",
                   "final rate − truth, %/h", "within ±0.1 %/h"], rows)
 
@@ -223,7 +228,7 @@ def catches(records) -> str:
         lines.append(["no fault (false drift or positioning alarms)", "every 75" if every else "none",
                       of(sum(1 for r in free if false_alarm(r)), len(free)) if free else "–"])
         for size in (-1.5, -2.0, -3.0, 1.5):
-            lines.append([f"lamp step {size:+g} %, within {STEP_WITHIN} captures", "every 75" if every else "none",
+            lines.append([f"lamp step {signed(f'{size:+g}')} %, within {STEP_WITHIN} captures", "every 75" if every else "none",
                           share(lambda r, s=size: r in rs and r["fault"]["kind"] == "step" and r["fault"]["size"] == s,
                                 lambda r: (delay(r, "drift_after") or 10**9) <= STEP_WITHIN)])
         lines.append(["lamp decay 0.5 %/h, flagged before 25 % of the run", "every 75" if every else "none",
