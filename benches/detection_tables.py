@@ -11,7 +11,8 @@ How a run is judged (the onset is the fault's first capture; a fault-free run's 
 - a drift alarm is any `drift` alarm that raises (not one cleared or withdrawn) other than
   `lamp-unstable`; a positioning alarm is a `positioning` alarm of warning severity or above;
 - a lamp step is caught when a drift alarm comes within 300 captures of the onset; its sign is
-  wrong when the alarm's level or rate has the other sign;
+  wrong when the alarm's level or rate has the other sign; it is taken for a joint when a
+  `joint-offset-suspected` follows the onset (a `gain-step` it explains is then withdrawn);
 - a decay is flagged by any drift alarm; its final rate is compared with the mean ln-gain slope
   of the true decay over the run;
 - a positioning fault is named right when the first `joint-offset-suspected` after the onset
@@ -138,10 +139,12 @@ def step_table(records) -> str:
         size = g[0]["fault"]["size"]
         wrong = sum(1 for r in g if r["drift_after"] and alarm_sign(r["drift_after"]) == -math.copysign(1, size))
         fitted = [s for r in g for s in r["steps"][:1]]
-        cells += [of(len(d), len(g)), wrong, median_max(d), span(fitted) + (" %" if fitted else "")]
+        as_joint = sum(1 for r in g if r["joint_after"])
+        cells += [of(len(d), len(g)), wrong, as_joint, median_max(d), span(fitted) + (" %" if fitted else "")]
         rows.append(cells)
     return table(["row", "probes", "sample"] + [f"within {STEP_WITHIN}, {p}" for p in models(records)]
-                 + ["caught at all", "first alarm of the wrong sign", "delay (captures): median (max)", "fitted step"], rows)
+                 + ["caught at all", "first alarm of the wrong sign", "taken for a joint", "delay (captures): median (max)",
+                    "fitted step"], rows)
 
 
 def decay_table(records) -> str:
