@@ -25,8 +25,14 @@ pub struct Retake {
     pub why: String,
 }
 
-/// The retake list of a session, in capture order.
-pub fn retakes(captures: &[CaptureRecord], alarms: &[Alarm]) -> Vec<Retake> {
+/// The retake list of a session, in capture order. A capture's own quality (dark, non-finite
+/// or clipped pixels beyond `spec`'s limits) is judged from its record, not from the alarms,
+/// which hold back all but a few of a code in a storm.
+pub fn retakes(
+    captures: &[CaptureRecord],
+    alarms: &[Alarm],
+    spec: &super::CheckSpec,
+) -> Vec<Retake> {
     let last = captures.iter().map(|c| c.idx).max();
     let mut why: BTreeMap<u64, Vec<String>> = BTreeMap::new();
     let mut add = |idx: u64, reason: String| {
@@ -42,7 +48,20 @@ pub fn retakes(captures: &[CaptureRecord], alarms: &[Alarm]) -> Vec<Retake> {
                 format!("failed: {}", c.error.as_deref().unwrap_or("unreadable")),
             ),
             CaptureStatus::Missing => add(c.idx, "missing: announced, never written".into()),
-            CaptureStatus::Ok => {}
+            CaptureStatus::Ok => {
+                // the same tests as the quality alarms (`capture::quality`)
+                if c.nonfinite.is_some_and(|n| n > spec.nonfinite_max) {
+                    add(c.idx, "non finite pixels".into());
+                }
+                if let (Some(k), Some(n)) = (c.clipped, c.pixels) {
+                    if k as f64 / n.max(1) as f64 > spec.clipped_fraction_max {
+                        add(c.idx, "clipped pixels".into());
+                    }
+                }
+                if c.xyz.is_some_and(|xyz| xyz[1] <= spec.dark_y) {
+                    add(c.idx, "dark capture".into());
+                }
+            }
         }
     }
     // episodes of the pose off the plan: closed ones carry their range; one still open at the
@@ -52,11 +71,6 @@ pub fn retakes(captures: &[CaptureRecord], alarms: &[Alarm]) -> Vec<Retake> {
         let ev = &a.evidence;
         let range = |from: Option<u64>, to: Option<u64>| from.zip(to).map(|(f, t)| f..=t);
         match a.code.as_str() {
-            "dark-capture" | "non-finite-pixels" | "clipped-pixels" => {
-                if let Some(i) = a.idx {
-                    add(i, a.code.replace('-', " "));
-                }
-            }
             "pose-off-plan" if open_pose.is_none() => open_pose = a.idx,
             "pose-off-plan-cleared" => {
                 let r = range(
@@ -140,6 +154,32 @@ mod tests {
         serde_json::from_value(v).unwrap()
     }
 
+    fn spec() -> crate::checks::CheckSpec {
+        crate::checks::CheckSpec::default()
+    }
+
+    /// Ten dark captures and 361 clipped ones: every one is listed, although a storm of alarms
+    /// of one code shows only the first few in full.
+    #[test]
+    fn every_bad_capture_is_listed_whatever_the_alarms_held_back() {
+        let mut caps: Vec<CaptureRecord> = (0..400)
+            .map(|i| cap(i, i as usize, CaptureStatus::Ok))
+            .collect();
+        for c in caps.iter_mut() {
+            c.xyz = Some([50.0, 50.0, 50.0]);
+            c.pixels = Some(256);
+            c.clipped = Some(if c.idx < 361 { 200 } else { 0 });
+            c.nonfinite = Some(0);
+        }
+        for c in caps.iter_mut().filter(|c| (370..380).contains(&c.idx)) {
+            c.xyz = Some([0.0, 0.0, 0.0]);
+        }
+        let r = retakes(&caps, &[], &spec());
+        assert_eq!(r.iter().filter(|x| x.why.contains("clipped")).count(), 361);
+        assert_eq!(r.iter().filter(|x| x.why.contains("dark")).count(), 10);
+        assert_eq!(r.len(), 371);
+    }
+
     fn alarm(code: &str, idx: u64, evidence: serde_json::Value) -> Alarm {
         Alarm::new(
             AlarmKind::Positioning,
@@ -161,8 +201,9 @@ mod tests {
         caps[5] = cap(5, 5, CaptureStatus::Failed);
         // entry 5 was taken again later and is fine (before the slip)
         caps[60] = cap(60, 5, CaptureStatus::Ok);
+        // capture 7 is dark by its record (its alarm may have been held back in a storm)
+        caps[7].xyz = Some([0.0, 0.0, 0.0]);
         let alarms = vec![
-            alarm("dark-capture", 7, json!({})),
             alarm("pose-off-plan", 20, json!({})),
             alarm(
                 "pose-off-plan-cleared",
@@ -175,7 +216,7 @@ mod tests {
                 json!({"joint": 2, "offset_deg": 1.1, "since_idx": 90}),
             ),
         ];
-        let r = retakes(&caps, &alarms);
+        let r = retakes(&caps, &alarms, &spec());
         let idx: Vec<u64> = r.iter().map(|x| x.idx).collect();
         assert_eq!(
             idx,
@@ -199,7 +240,7 @@ mod tests {
                 handling: crate::measure::alarm::Handling::Retake,
             }),
         );
-        let r = retakes(&caps[..], &[slip]);
+        let r = retakes(&caps[..], &[slip], &spec());
         assert_eq!(r.first().map(|x| x.idx), Some(3));
         let slipped: Vec<u64> = r
             .iter()
@@ -214,9 +255,9 @@ mod tests {
         let caps: Vec<CaptureRecord> = (0..10)
             .map(|i| cap(i, i as usize, CaptureStatus::Ok))
             .collect();
-        assert!(retakes(&caps, &[]).is_empty());
-        let r = retakes(&caps, &[alarm("pose-off-plan", 7, json!({}))]);
+        assert!(retakes(&caps, &[], &spec()).is_empty());
+        let r = retakes(&caps, &[alarm("pose-off-plan", 7, json!({}))], &spec());
         assert_eq!(r.iter().map(|x| x.idx).collect::<Vec<_>>(), vec![7, 8, 9]);
-        assert!(retakes(&[], &[alarm("pose-off-plan", 7, json!({}))]).is_empty());
+        assert!(retakes(&[], &[alarm("pose-off-plan", 7, json!({}))], &spec()).is_empty());
     }
 }

@@ -922,7 +922,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
         esc(&inp.config_text)
     );
     // the retake list ends the report: what to take again, and why
-    let retakes = crate::checks::retakes::retakes(&inp.captures, &inp.alarms);
+    let retakes = crate::checks::retakes::retakes(&inp.captures, &inp.alarms, &inp.config.checks);
     h.push_str("<h2>Retake list</h2>");
     if retakes.is_empty() {
         h.push_str("<p>No capture needs taking again: none failed, went missing, was dark or had bad pixels, was taken off the plan, or came after a slipped joint. (Lamp drift is not a reason: the corrected colours divide it out.)</p>");
@@ -1126,7 +1126,7 @@ impl CsvRow for SweepRecord {
 /// retakes.csv: one row per capture to take again.
 fn retakes_csv(inp: &ReportInputs) -> String {
     let mut out = String::from("idx,entry,light,camera,why\n");
-    for r in crate::checks::retakes::retakes(&inp.captures, &inp.alarms) {
+    for r in crate::checks::retakes::retakes(&inp.captures, &inp.alarms, &inp.config.checks) {
         let _ = writeln!(
             out,
             "{},{},{},{},{}",
