@@ -211,6 +211,12 @@ fn wanted(name: &str, spec: &SourceSpec) -> bool {
         .any(|e| lower.ends_with(&format!(".{}", e.to_ascii_lowercase())))
 }
 
+/// Whether (θ, φ) in degrees names a direction without wrapping: θ ∈ [0, 90], φ ∈ [0, 360]
+/// (false for NaN).
+fn angles_in_range(theta: f64, phi: f64) -> bool {
+    (0.0..=90.0).contains(&theta) && (0.0..=360.0).contains(&phi)
+}
+
 /// The plan direction within `tol_deg` of (θ, φ), if any (the nearest).
 fn direction_of(plan: &SamplingPlan, theta: f64, phi: f64, tol_deg: f64) -> Option<usize> {
     let v = Spherical::from_deg(theta, phi).to_vector();
@@ -314,6 +320,15 @@ pub fn build(
         let entry = match (p.entry, p.angles) {
             (Some(e), _) if e < plan.capture_count() => Ok(e),
             (Some(e), _) => Err(format!("entry {e} (the plan has {})", plan.capture_count())),
+            (None, Some([tl, pl, tv, pv]))
+                if !angles_in_range(tl, pl) || !angles_in_range(tv, pv) =>
+            {
+                // a θ below 0 or beyond 90° or a φ outside [0°, 360°] would wrap onto another
+                // direction (θ = −15° is θ = 15° turned by 180°): a wrong name, never a placement
+                Err(format!(
+                    "light ({tl}°, {pl}°) or camera ({tv}°, {pv}°) is outside θ ∈ [0°, 90°], φ ∈ [0°, 360°]"
+                ))
+            }
             (None, Some([tl, pl, tv, pv])) => {
                 let finite = [tl, pl, tv, pv].iter().all(|v| v.is_finite());
                 match (
@@ -581,6 +596,32 @@ mod tests {
         spec.angle_tolerance_deg = 0.1;
         let l = build(&facts(&names), None, &spec, &plan, &rig).unwrap();
         assert!(l.captures.is_empty());
+    }
+
+    /// An angle that would wrap onto another direction (θ = −15°, θ = 95°, φ = 375°, φ = −15°)
+    /// is skipped with its reason, never placed.
+    #[test]
+    fn angles_that_would_wrap_are_skipped_not_placed() {
+        let (plan, rig, mut spec) = setup();
+        spec.sidecar = Some("captures.csv".into());
+        let csv = "file,theta_i,phi_i,theta_o,phi_o,t\n\
+                   a.hdr,-15,0,30,0,0\n\
+                   b.hdr,15,375,30,0,7\n\
+                   c.hdr,15,0,95,0,14\n\
+                   d.hdr,15,0,30,-15,21\n\
+                   e.hdr,15,0,30,0,28\n";
+        let rows = parse_sidecar(csv, true).unwrap();
+        let names: Vec<String> = ["a.hdr", "b.hdr", "c.hdr", "d.hdr", "e.hdr", "captures.csv"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        let l = build(&facts(&names), Some(&rows), &spec, &plan, &rig).unwrap();
+        assert_eq!(l.captures.len(), 1, "{:?}", l.skipped);
+        assert_eq!(l.captures[0].file, "e.hdr");
+        for f in ["a.hdr", "b.hdr", "c.hdr", "d.hdr"] {
+            let (_, why) = l.skipped.iter().find(|(n, _)| n == f).unwrap();
+            assert!(why.to_string().contains("outside θ"), "{f}: {why}");
+        }
     }
 
     #[test]
