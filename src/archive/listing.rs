@@ -211,6 +211,10 @@ fn wanted(name: &str, spec: &SourceSpec) -> bool {
         .any(|e| lower.ends_with(&format!(".{}", e.to_ascii_lowercase())))
 }
 
+/// The farthest a capture's modification time may lie from the set's median under
+/// `order = "mtime"`: the span of controller time a CAPTURE line may carry (1e7 s, 116 days).
+const MAX_MTIME_SPREAD_S: f64 = 1e7;
+
 /// Whether (θ, φ) in degrees names a direction without wrapping: θ ∈ [0, 90], φ ∈ [0, 360]
 /// (false for NaN).
 fn angles_in_range(theta: f64, phi: f64) -> bool {
@@ -370,7 +374,27 @@ pub fn build(
                 SkipReason::Unordered("no modification time (the file is absent)".into()),
             ));
         }
-        entries = with;
+        // a modification time far from the set's median (a file from 1970, a copy that reset
+        // its time) would put every other capture beyond the longest run a controller time may
+        // span, and the whole set would be refused: that file is left out instead
+        let mut times: Vec<f64> = with.iter().filter_map(|(_, p, _)| p.mtime).collect();
+        times.sort_by(f64::total_cmp);
+        let median = times.get(times.len() / 2).copied().unwrap_or(0.0);
+        let (kept, far): (Vec<_>, Vec<_>) = with.into_iter().partition(|(_, p, _)| {
+            p.mtime
+                .is_some_and(|m| (m - median).abs() <= MAX_MTIME_SPREAD_S)
+        });
+        for (name, p, _) in far {
+            skipped.push((
+                name,
+                SkipReason::Unordered(format!(
+                    "its modification time is {:.0} days from the set's median ({:.0} s since 1970 against {median:.0}): a clock or a copy changed it, so it cannot be ordered by time; set source.order = \"plan\" (or a sidecar with times) to place it",
+                    (p.mtime.unwrap_or(0.0) - median).abs() / 86_400.0,
+                    p.mtime.unwrap_or(0.0)
+                )),
+            ));
+        }
+        entries = kept;
     }
     let key = |p: &Placement, e: usize| -> (f64, usize) {
         match order {
@@ -600,6 +624,32 @@ mod tests {
 
     /// An angle that would wrap onto another direction (θ = −15°, θ = 95°, φ = 375°, φ = −15°)
     /// is skipped with its reason, never placed.
+    /// One file from 1970 among files of today, ordered by modification time: that file is
+    /// skipped with its reason; the others keep their times relative to the first of them.
+    #[test]
+    fn a_modification_time_far_from_the_rest_is_left_out_not_the_set() {
+        let (plan, rig, mut spec) = setup();
+        spec.order = OrderRule::Mtime;
+        let names: Vec<String> = [
+            "tl000_pl000_tv015_pv000.hdr",
+            "tl000_pl000_tv015_pv060.hdr",
+            "tl000_pl000_tv015_pv120.hdr",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        let mut f = facts(&names);
+        let now = 1.7e9;
+        f[0].mtime_s = Some(now);
+        f[1].mtime_s = Some(86_400.0);
+        f[2].mtime_s = Some(now + 7.0);
+        let l = build(&f, None, &spec, &plan, &rig).unwrap();
+        assert_eq!(l.captures.len(), 2, "{:?}", l.skipped);
+        assert_eq!(l.captures[1].t, 7.0);
+        let (_, why) = l.skipped.iter().find(|(n, _)| n == &names[1]).unwrap();
+        assert!(why.to_string().contains("modification time"), "{why}");
+    }
+
     #[test]
     fn angles_that_would_wrap_are_skipped_not_placed() {
         let (plan, rig, mut spec) = setup();
