@@ -165,9 +165,10 @@ def cpu_of(cmd: list[str], cwd: str | None = None, timeout: float = 1800) -> tup
     return os.waitstatus_to_exitcode(status), ru.ru_utime + ru.ru_stime, tail
 
 
-def record_one(run: M.Run, lab: str, binary: str) -> float:
-    """Records one run through the fast path; returns its CPU seconds (simulator and daemon)."""
-    d = os.path.join(lab, "runs", run.id)
+def lockstep_into(run: M.Run, d: str, binary: str, label: str) -> tuple[int, float]:
+    """Records `run` through the fast path into the new folder D/s (its scenario and config
+    beside it, its captures in a scratch folder removed after); returns the exit code and the
+    CPU seconds of simulator and daemon."""
     shutil.rmtree(d, ignore_errors=True)
     os.makedirs(d)
     cap = tempfile.mkdtemp(prefix="gw-lab-", dir=scratch_root())
@@ -180,17 +181,24 @@ def record_one(run: M.Run, lab: str, binary: str) -> float:
                                "--session", os.path.join(d, "s"), "--config", os.path.join(d, "config.toml"),
                                "--goniowatch", binary, "--truth", os.path.join(cap, "truth.jsonl")], cwd=SIM)
         if rc not in (0, 4):
-            raise RuntimeError(f"{run.id}: the lockstep run failed (exit {rc}): {err.strip()}")
-        s = os.path.join(d, "s")
-        rec = score(run, s)
-        rec["record_cpu_s"] = round(cpu, 2)
-        for name in os.listdir(s):
-            if name not in KEEP:
-                os.unlink(os.path.join(s, name))
-        write_json_atomic(os.path.join(d, "record.json"), rec)
-        return cpu
+            raise RuntimeError(f"{label}: the lockstep run failed (exit {rc}): {err.strip()}")
+        return rc, cpu
     finally:
         shutil.rmtree(cap, ignore_errors=True)
+
+
+def record_one(run: M.Run, lab: str, binary: str) -> float:
+    """Records one run through the fast path; returns its CPU seconds (simulator and daemon)."""
+    d = os.path.join(lab, "runs", run.id)
+    _, cpu = lockstep_into(run, d, binary, run.id)
+    s = os.path.join(d, "s")
+    rec = score(run, s)
+    rec["record_cpu_s"] = round(cpu, 2)
+    for name in os.listdir(s):
+        if name not in KEEP:
+            os.unlink(os.path.join(s, name))
+    write_json_atomic(os.path.join(d, "record.json"), rec)
+    return cpu
 
 
 def binary_id(binary: str) -> str:
@@ -301,22 +309,10 @@ def run(tmp, name, material, preset, faults, seed, every, keep=None, config="sim
     curve)."""
     r = M.Run(M.Row(name, tuple(faults)), material, preset, seed, every=every, config=config)
     d = os.path.join(keep or tmp, run_name(name, material, preset, seed))
-    shutil.rmtree(d, ignore_errors=True)
-    os.makedirs(d)
-    cap = tempfile.mkdtemp(prefix="gw-run-", dir=scratch_root())
     try:
-        with open(os.path.join(d, "scenario.toml"), "w", encoding="utf-8") as f:
-            f.write(r.scenario_toml(cap))
-        with open(os.path.join(d, "config.toml"), "w", encoding="utf-8") as f:
-            f.write(r.config_toml())
-        rc, cpu, err = cpu_of([sys.executable, "-m", "goniosim", "lockstep", os.path.join(d, "scenario.toml"), "--session",
-                               os.path.join(d, "s"), "--config", os.path.join(d, "config.toml"), "--goniowatch", BIN,
-                               "--truth", os.path.join(cap, "truth.jsonl")], cwd=SIM)
-        if rc not in (0, 4):
-            raise RuntimeError(f"{name}: the lockstep run failed (exit {rc}): {err.strip()}")
+        rc, cpu = lockstep_into(r, d, BIN, name)
         return _results(os.path.join(d, "s"), rc, cpu)
     finally:
-        shutil.rmtree(cap, ignore_errors=True)
         if not keep:
             shutil.rmtree(d, ignore_errors=True)
 
