@@ -255,3 +255,34 @@ def test_a_finished_check_does_not_wait_for_sidecar_rows_without_their_files(tmp
     missing = [m for m in read_jsonl(session / "manifest.jsonl") if m["status"] == "missing"]
     assert sorted(m["file"].split("/")[-1] for m in missing) == [p.name for p in gone]
     assert all("after 0.0 s" in (m["error"] or "") for m in missing), missing
+
+
+def test_every_plan_entry_without_a_capture_is_reported_and_listed_for_retaking(tmp_path):
+    """Three files of a set deleted, one replaced by a symbolic link to another capture: the four
+    entries are not captured, which the listing, the summary and the retake list say (the
+    link among the skipped files with why), and nothing else changes."""
+    needs_simulator()
+    folder, _ = write_archive(tmp_path, "holes", captures=300, id="holes")
+    names = sorted(p.name for p in folder.iterdir() if p.suffix == ".hdr")
+    gone = [names[40], names[41], names[200]]
+    for n in gone:
+        (folder / n).unlink()
+    (folder / names[120]).unlink()
+    os.symlink(folder / names[121], folder / names[120])
+    session = tmp_path / "holes-session"
+    code, out, err = run_check(folder, session)
+    assert code == 0, err[-3000:]
+    assert f"skipped {names[120]}: a symbolic link" in err, err
+    planned = 6561
+    assert f"{planned - 296} plan entries have no capture" in err, err
+    summary = json.load(open(session / "summary.json"))
+    assert summary["entries_not_captured"] == planned - 296 and summary["checked"]["captures"] == 296
+    assert f"not captured: {planned - 296} plan entries" in out, out
+    r = subprocess.run([binary(), "report", str(session)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    import csv
+    import io
+    retakes = list(csv.DictReader(io.StringIO((session / "report" / "retakes.csv").read_text())))
+    holes = [int(x["entry"]) for x in retakes if x["idx"] == "" and int(x["entry"]) < 300]
+    assert holes == [40, 41, 120, 200], holes
+    assert all(x["why"].startswith("not captured") for x in retakes if x["idx"] == "")

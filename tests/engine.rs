@@ -1317,3 +1317,88 @@ fn a_sample_without_a_pose_sensitive_to_joint_3_says_so_once_and_probes_the_lamp
         .iter()
         .any(|b| b.what.contains("joints 1, 2 and 3")));
 }
+
+/// The archive controller and the engine with the engine's first RESYNC held back until the
+/// controller has announced a whole full-size listing live (the order a slow first listing of a
+/// 6,561-file folder gives): the RESYNC is answered once, the engine does not ask again for
+/// every 64 live lines, and the lines exchanged stay linear in the set.
+#[test]
+fn a_resync_behind_a_full_size_first_listing_does_not_cascade() {
+    use goniowatch::archive::controller::ArchiveController;
+    use goniowatch::archive::listing::ArchiveCapture;
+    use std::collections::VecDeque;
+    const N: usize = 6561;
+    let mut e = engine();
+    let mut ctl = ArchiveController::new("set", N);
+    let mut to_ctl: VecDeque<String> = VecDeque::new();
+    let sends = |out: Vec<Output>, q: &mut VecDeque<String>| {
+        for o in out {
+            if let Output::Send(l) = o {
+                q.push_back(l);
+            }
+        }
+    };
+    sends(e.handle(&Input::Connected), &mut to_ctl);
+    ctl.handle_connect();
+    // every line the controller has queued goes to the engine; returns (lines, RESYNCs sent)
+    fn pump(
+        e: &mut Engine,
+        ctl: &mut ArchiveController,
+        q: &mut VecDeque<String>,
+    ) -> (usize, usize) {
+        let (mut lines, mut resyncs) = (0, 0);
+        while let Some(line) = ctl.poll_line() {
+            lines += 1;
+            for o in e.handle(&Input::Rx { line }) {
+                if let Output::Send(l) = o {
+                    if parse(&l).unwrap().verb == "RESYNC" {
+                        resyncs += 1;
+                    }
+                    q.push_back(l);
+                }
+            }
+        }
+        (lines, resyncs)
+    }
+    let (mut from_ctl, mut resyncs) = (0usize, 0usize);
+    // IDENT → SUBSCRIBE, RESYNC from=0
+    let (l, r) = pump(&mut e, &mut ctl, &mut to_ctl);
+    from_ctl += l;
+    resyncs += r;
+    assert_eq!(resyncs, 1);
+    // the SUBSCRIBE reaches the controller; the RESYNC waits behind the first listing
+    let mut held = VecDeque::new();
+    while let Some(line) = to_ctl.pop_front() {
+        if parse(&line).unwrap().verb == "RESYNC" {
+            held.push_back(line);
+        } else {
+            ctl.handle_line(&line);
+        }
+    }
+    assert_eq!(held.len(), 1);
+    to_ctl = held;
+    for entry in 0..N {
+        ctl.handle_capture(ArchiveCapture {
+            file: format!("cap_{entry:05}.hdr"),
+            entry,
+            t: entry as f64 * 7.0,
+            pose: [0.0, 90.0, -90.0, 15.0],
+            sub: None,
+            exposure: None,
+        });
+    }
+    ctl.handle_end();
+    // from here on every line is delivered as soon as it is sent
+    loop {
+        let (l, r) = pump(&mut e, &mut ctl, &mut to_ctl);
+        from_ctl += l;
+        resyncs += r;
+        let Some(line) = to_ctl.pop_front() else {
+            break;
+        };
+        ctl.handle_line(&line);
+    }
+    assert!(resyncs <= 2, "{resyncs} RESYNCs");
+    assert!(from_ctl <= 2 * N + 20, "{from_ctl} lines for {N} captures");
+    assert_eq!(e.summary().captures_announced, N as u64);
+}

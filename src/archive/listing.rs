@@ -76,6 +76,10 @@ pub enum SkipReason {
     Duplicate { entry: usize, kept: String },
     /// The order or time it needs is missing.
     Unordered(String),
+    /// A symbolic link: links are not followed (a capture is a file of the folder).
+    Link,
+    /// Its name is not valid UTF-8 (shown with the invalid bytes replaced).
+    NameNotUtf8,
 }
 
 impl std::fmt::Display for SkipReason {
@@ -89,6 +93,11 @@ impl std::fmt::Display for SkipReason {
                 write!(f, "plan entry {entry} again ({kept} is kept)")
             }
             SkipReason::Unordered(why) => write!(f, "{why}"),
+            SkipReason::Link => write!(
+                f,
+                "a symbolic link: links are not followed; copy the file into the folder"
+            ),
+            SkipReason::NameNotUtf8 => write!(f, "the name is not valid UTF-8; rename the file"),
         }
     }
 }
@@ -125,6 +134,9 @@ pub struct Listing {
     pub skipped: Vec<(String, SkipReason)>,
     pub order: OrderRule,
     pub times: TimeSource,
+    /// The plan's entries that no capture stands for (no file, or only files that were
+    /// skipped), in entry order.
+    pub unfilled: Vec<usize>,
 }
 
 impl Listing {
@@ -145,8 +157,24 @@ impl Listing {
                 "no capture times: capture index × {seconds_per_capture} s (source.seconds_per_capture), so drift rates are per capture index, not per hour of the run"
             ),
         };
+        let unfilled = match self.unfilled.len() {
+            0 => String::new(),
+            n => {
+                let first: Vec<String> = self
+                    .unfilled
+                    .iter()
+                    .take(8)
+                    .map(|e| e.to_string())
+                    .collect();
+                format!(
+                    "; {n} plan entries have no capture ({}{}): they are reported as not captured",
+                    first.join(", "),
+                    if n > 8 { ", …" } else { "" }
+                )
+            }
+        };
         format!(
-            "{} captures placed, {} files skipped; order: {order}; {times}",
+            "{} captures placed, {} files skipped{unfilled}; order: {order}; {times}",
             self.captures.len(),
             self.skipped.len()
         )
@@ -489,11 +517,15 @@ pub fn build(
         });
     }
     skipped.sort_by(|a, b| a.0.cmp(&b.0));
+    let unfilled = (0..plan.capture_count())
+        .filter(|e| !seen.contains_key(e))
+        .collect();
     Ok(Listing {
         captures,
         skipped,
         order,
         times,
+        unfilled,
     })
 }
 
@@ -560,6 +592,32 @@ mod tests {
             .unwrap();
         assert_eq!(l.captures[0].sub, want.substitute.map(|s| s.1));
         assert!(l.captures[0].sub.is_some());
+    }
+
+    /// A full Bonn set with twelve files deleted and one entry present only as a file that
+    /// cannot be placed: the thirteen entries are the listing's unfilled ones, and it says so.
+    #[test]
+    fn plan_entries_without_a_placed_file_are_listed_as_unfilled() {
+        let (plan, rig, spec) = setup();
+        let gone: Vec<usize> = (0..12).map(|k| 17 + k * 521).collect();
+        let mut names: Vec<String> = (0..plan.capture_count())
+            .filter(|e| !gone.contains(e) && *e != 6000)
+            .map(|e| bonn(&plan, e, None))
+            .collect();
+        // entry 6000's file under a name the pattern does not match
+        names.push("set/IMG_6000.hdr".into());
+        let l = build(&facts(&names), None, &spec, &plan, &rig).unwrap();
+        let mut want = gone.clone();
+        want.push(6000);
+        want.sort();
+        assert_eq!(l.unfilled, want);
+        assert_eq!(l.captures.len(), plan.capture_count() - 13);
+        assert!(
+            l.describe()
+                .contains("13 plan entries have no capture (17, 538,"),
+            "{}",
+            l.describe()
+        );
     }
 
     #[test]

@@ -96,6 +96,12 @@ fn isotropy_drift_spec() -> DriftSpec {
     }
 }
 
+/// How often the isotropy classes' colour fits are refitted (pairs): a lamp's colour
+/// temperature moves over hours, and 100 pairs are about 2 % of a UBO run, so a refit every 100
+/// pairs costs the colour alarm at most 100 pairs of delay and a fifth of the refits of the gain
+/// fit (every 20), which must follow steps.
+const COLOUR_REFIT_PAIRS: usize = 100;
+
 impl ColourStage {
     /// The colour fits for `source`, with the fits' model `fits` (its own rate alarm is
     /// switched off: the colour alarm is decided on the combined rate).
@@ -285,7 +291,14 @@ impl DriftStage {
     pub(super) fn new(colour: &ColourDriftSpec) -> Self {
         DriftStage {
             detector: DriftDetector::new(isotropy_drift_spec()),
-            colour: ColourStage::new("isotropy classes", colour.clone(), isotropy_drift_spec()),
+            colour: ColourStage::new(
+                "isotropy classes",
+                colour.clone(),
+                DriftSpec {
+                    refit_every: COLOUR_REFIT_PAIRS,
+                    ..isotropy_drift_spec()
+                },
+            ),
             first_of_geometry: HashMap::new(),
             interpolated: 0,
         }

@@ -14,10 +14,10 @@ use crate::measure::alarm::{Affects, Alarm};
 use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet};
 
-/// One capture to take again.
+/// One capture to take again, or a plan entry never captured (no capture index).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Retake {
-    pub idx: u64,
+    pub idx: Option<u64>,
     pub entry: usize,
     pub light: usize,
     pub camera: usize,
@@ -126,7 +126,7 @@ pub fn retakes(
                 return None;
             }
             Some(Retake {
-                idx,
+                idx: Some(idx),
                 entry: c.entry,
                 light: c.light,
                 camera: c.camera,
@@ -134,6 +134,42 @@ pub fn retakes(
             })
         })
         .collect()
+}
+
+/// The retake list of a session with `plan` whose controller planned the first `planned`
+/// entries (a shorter session than the plan takes the first ones in acquisition order):
+/// `retakes`, then, once the session is `finished`, every one of those entries that no regular
+/// capture stands for (a file source's entry without a file, a run that ended before it), in
+/// entry order.
+pub fn session_retakes(
+    captures: &[CaptureRecord],
+    alarms: &[Alarm],
+    spec: &super::CheckSpec,
+    plan: &crate::measure::plan::SamplingPlan,
+    planned: usize,
+    finished: bool,
+) -> Vec<Retake> {
+    let mut list = retakes(captures, alarms, spec);
+    if finished {
+        let taken: BTreeSet<usize> = captures
+            .iter()
+            .filter(|c| !c.probe)
+            .map(|c| c.entry)
+            .collect();
+        for entry in (0..planned.min(plan.capture_count())).filter(|e| !taken.contains(e)) {
+            let Ok(pe) = plan.entry(entry) else {
+                continue;
+            };
+            list.push(Retake {
+                idx: None,
+                entry,
+                light: pe.light,
+                camera: pe.camera,
+                why: "not captured: the session ended with no capture of this plan entry".into(),
+            });
+        }
+    }
+    list
 }
 
 #[cfg(test)]
@@ -217,7 +253,7 @@ mod tests {
             ),
         ];
         let r = retakes(&caps, &alarms, &spec());
-        let idx: Vec<u64> = r.iter().map(|x| x.idx).collect();
+        let idx: Vec<u64> = r.iter().map(|x| x.idx.unwrap()).collect();
         assert_eq!(
             idx,
             vec![3, 4, 7, 20, 21, 22, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99]
@@ -241,11 +277,11 @@ mod tests {
             }),
         );
         let r = retakes(&caps[..], &[slip], &spec());
-        assert_eq!(r.first().map(|x| x.idx), Some(3));
+        assert_eq!(r.first().map(|x| x.idx), Some(Some(3)));
         let slipped: Vec<u64> = r
             .iter()
             .filter(|x| x.why.contains("joint"))
-            .map(|x| x.idx)
+            .map(|x| x.idx.unwrap())
             .collect();
         assert_eq!(slipped, (85..100).collect::<Vec<u64>>());
     }
@@ -257,7 +293,33 @@ mod tests {
             .collect();
         assert!(retakes(&caps, &[], &spec()).is_empty());
         let r = retakes(&caps, &[alarm("pose-off-plan", 7, json!({}))], &spec());
-        assert_eq!(r.iter().map(|x| x.idx).collect::<Vec<_>>(), vec![7, 8, 9]);
+        assert_eq!(
+            r.iter().map(|x| x.idx.unwrap()).collect::<Vec<_>>(),
+            vec![7, 8, 9]
+        );
         assert!(retakes(&[], &[alarm("pose-off-plan", 7, json!({}))], &spec()).is_empty());
+    }
+
+    /// A finished session lists the plan entries no capture stands for after its captures;
+    /// an unfinished one does not (they may still come).
+    #[test]
+    fn a_finished_session_lists_its_never_captured_entries() {
+        let plan = crate::measure::plan::SamplingPlan::ubo();
+        let caps: Vec<CaptureRecord> = (0..plan.capture_count() as u64)
+            .filter(|&i| i != 17 && i != 4000)
+            .map(|i| cap(i, i as usize, CaptureStatus::Ok))
+            .collect();
+        let n = plan.capture_count();
+        let r = session_retakes(&caps, &[], &spec(), &plan, n, true);
+        let entries: Vec<(Option<u64>, usize)> = r.iter().map(|x| (x.idx, x.entry)).collect();
+        assert_eq!(entries, [(None, 17), (None, 4000)]);
+        assert_eq!((r[1].light, r[1].camera), (4000 / 81, 4000 % 81));
+        assert!(r[0].why.starts_with("not captured"));
+        assert!(session_retakes(&caps, &[], &spec(), &plan, n, false).is_empty());
+        // a session planned as the first 4,000 entries misses only entry 17
+        assert_eq!(
+            session_retakes(&caps, &[], &spec(), &plan, 4000, true).len(),
+            1
+        );
     }
 }

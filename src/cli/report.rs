@@ -922,7 +922,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
         esc(&inp.config_text)
     );
     // the retake list ends the report: what to take again, and why
-    let retakes = crate::checks::retakes::retakes(&inp.captures, &inp.alarms, &inp.config.checks);
+    let retakes = session_retakes(inp);
     h.push_str("<h2>Retake list</h2>");
     if retakes.is_empty() {
         h.push_str("<p>No capture needs taking again: none failed, went missing, was dark or had bad pixels, was taken off the plan, or came after a slipped joint. (Lamp drift is not a reason: the corrected colours divide it out.)</p>");
@@ -942,7 +942,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
             let _ = write!(
                 h,
                 "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-                r.idx,
+                opt(r.idx),
                 r.entry,
                 dir(r.light),
                 dir(r.camera),
@@ -1123,14 +1123,29 @@ impl CsvRow for SweepRecord {
     }
 }
 
-/// retakes.csv: one row per capture to take again.
+/// The session's retake list (with its never-captured plan entries once it is finished).
+fn session_retakes(inp: &ReportInputs) -> Vec<crate::checks::retakes::Retake> {
+    match inp.config.plan() {
+        Ok(plan) => crate::checks::retakes::session_retakes(
+            &inp.captures,
+            &inp.alarms,
+            &inp.config.checks,
+            &plan,
+            usize::try_from(inp.summary.captures_planned).unwrap_or(usize::MAX),
+            inp.summary.finished,
+        ),
+        Err(_) => crate::checks::retakes::retakes(&inp.captures, &inp.alarms, &inp.config.checks),
+    }
+}
+
+/// retakes.csv: one row per capture to take again (a never-captured plan entry has no idx).
 fn retakes_csv(inp: &ReportInputs) -> String {
     let mut out = String::from("idx,entry,light,camera,why\n");
-    for r in crate::checks::retakes::retakes(&inp.captures, &inp.alarms, &inp.config.checks) {
+    for r in session_retakes(inp) {
         let _ = writeln!(
             out,
             "{},{},{},{},{}",
-            r.idx,
+            opt(r.idx),
             r.entry,
             r.light,
             r.camera,

@@ -47,6 +47,13 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
         s.checked.missing,
         s.checked.probes
     )?;
+    if s.finished && s.entries_not_captured > 0 {
+        writeln!(
+            out,
+            "not captured: {} plan entries have no capture (retakes.csv lists them)",
+            s.entries_not_captured
+        )?;
+    }
     writeln!(
         out,
         "pairs: {} exact, {} need resampling, {} grazing; isotropy comparisons: {}",

@@ -11,7 +11,7 @@
 //! The folder is only read.
 
 use crate::archive::controller::ArchiveController;
-use crate::archive::listing::{self, FileFact, Listing, SidecarRow};
+use crate::archive::listing::{self, FileFact, Listing, SidecarRow, SkipReason};
 use crate::archive::SourceSpec;
 use crate::engine::Input;
 use crate::measure::kinematics::Rig;
@@ -32,10 +32,19 @@ pub(crate) struct ArchiveLink {
     pub(crate) finished: bool,
 }
 
+/// What a folder listing found: the regular files under the root, and the entries that cannot
+/// be captures (links, names that are not UTF-8) with why.
+pub(crate) struct Found {
+    pub(crate) files: Vec<FileFact>,
+    pub(crate) refused: Vec<(String, SkipReason)>,
+}
+
 /// Every regular file under `root` (names relative to it, `/`-separated), leaving out names
-/// that start with `.` (partial writes, editor files) and links.
-pub(crate) fn list_files(root: &Path) -> Result<Vec<FileFact>> {
+/// that start with `.` (partial writes, editor files); links and names that are not UTF-8 are
+/// refused with their reason, so that they appear among the skipped files.
+pub(crate) fn list_files(root: &Path) -> Result<Found> {
     let mut out = Vec::new();
+    let mut refused = Vec::new();
     let walk = walkdir::WalkDir::new(root)
         .follow_links(false)
         .sort_by_file_name()
@@ -54,14 +63,21 @@ pub(crate) fn list_files(root: &Path) -> Result<Vec<FileFact>> {
                 continue;
             }
         };
-        if !e.file_type().is_file() {
-            continue;
-        }
         let Ok(rel) = e.path().strip_prefix(root) else {
             continue;
         };
+        if e.path_is_symlink() {
+            refused.push((rel.to_string_lossy().replace('\\', "/"), SkipReason::Link));
+            continue;
+        }
+        if !e.file_type().is_file() {
+            continue;
+        }
         let Some(name) = rel.to_str() else {
-            tracing::warn!("files source: {} is not UTF-8; left out", rel.display());
+            refused.push((
+                rel.to_string_lossy().replace('\\', "/"),
+                SkipReason::NameNotUtf8,
+            ));
             continue;
         };
         let mtime_s = e
@@ -76,7 +92,10 @@ pub(crate) fn list_files(root: &Path) -> Result<Vec<FileFact>> {
         });
     }
     out.sort_by(|a, b| a.name.cmp(&b.name));
-    Ok(out)
+    Ok(Found {
+        files: out,
+        refused,
+    })
 }
 
 /// Read the sidecar named in `spec`, if any.
@@ -97,15 +116,18 @@ fn read_sidecar(root: &Path, spec: &SourceSpec) -> Result<Option<Vec<SidecarRow>
 
 /// List and place the capture folder's files.
 pub(crate) fn place(link: &ArchiveLink) -> Result<Listing> {
-    let files = list_files(&link.root)?;
+    let found = list_files(&link.root)?;
     let sidecar = read_sidecar(&link.root, &link.spec)?;
-    Ok(listing::build(
-        &files,
+    let mut listing = listing::build(
+        &found.files,
         sidecar.as_deref(),
         &link.spec,
         &link.plan,
         &link.rig,
-    )?)
+    )?;
+    listing.skipped.extend(found.refused);
+    listing.skipped.sort_by(|a, b| a.0.cmp(&b.0));
+    Ok(listing)
 }
 
 /// Place the files of `root` as a session with `config` would (for `check` to refuse a folder

@@ -91,6 +91,10 @@ pub struct Summary {
     pub rig: Option<String>,
     pub captures_planned: u64,
     pub captures_announced: u64,
+    /// Plan entries no announced capture stands for (a file source's entries without a file,
+    /// a run that ended early): once the session is finished they will not be captured.
+    #[serde(default)]
+    pub entries_not_captured: u64,
     pub checked: CheckCounts,
     pub table2: Table2,
     pub isotropy: Table2,
@@ -331,12 +335,29 @@ impl Engine {
         v
     }
 
+    /// The planned entries (the first `captures_planned` of the plan, in acquisition order)
+    /// that no announced regular capture stands for, in entry order.
+    pub fn entries_not_captured(&self) -> Vec<usize> {
+        let taken: std::collections::BTreeSet<usize> = self
+            .ledger
+            .announced
+            .values()
+            .filter(|a| !a.probe)
+            .map(|a| a.entry)
+            .collect();
+        let planned = usize::try_from(self.captures_planned).unwrap_or(usize::MAX);
+        (0..planned.min(self.checker.plan().capture_count()))
+            .filter(|e| !taken.contains(e))
+            .collect()
+    }
+
     pub fn summary(&self) -> Summary {
         Summary {
             session: self.link.session.clone(),
             rig: self.link.rig_id.clone(),
             captures_planned: self.captures_planned,
             captures_announced: self.ledger.announced.len() as u64,
+            entries_not_captured: self.entries_not_captured().len() as u64,
             checked: self.checker.counts().clone(),
             table2: self.checker.table2().clone(),
             isotropy: self.checker.isotropy_table().clone(),
@@ -621,13 +642,20 @@ impl Engine {
         self.link.stats.bytes += line.len() as u64 + 1;
         self.link.resync.lines_since = self.link.resync.lines_since.saturating_add(1);
         let parsed = protocol::parse_message(line);
-        // replayed CAPTURE lines are the answer arriving, not silence
-        let replayed = match &parsed {
-            Ok(l) => matches!(&l.message, FromController::Capture(a) if a.replay),
+        // replayed CAPTURE lines are the answer arriving, not silence; a live CAPTURE of the
+        // lowest index not yet seen is the controller working through a backlog sent before it
+        // read the RESYNC (a files source's first listing of thousands of captures): neither
+        // says the reply was lost, and asking again would be answered with the whole backlog
+        // once more, for every 64 lines of it
+        let lowest = self.lowest_unseen();
+        let answering = match &parsed {
+            Ok(l) => {
+                matches!(&l.message, FromController::Capture(a) if a.replay || a.idx == lowest)
+            }
             Err(LineError::Content { replay, .. }) => *replay,
             Err(LineError::Frame(_)) => false,
         };
-        if self.link.resync.outstanding.is_some() && !replayed {
+        if self.link.resync.outstanding.is_some() && !answering {
             self.link.resync.age += 1;
             if self.link.resync.age > RESYNC_LINES {
                 // the reply was lost on the wire: ask again

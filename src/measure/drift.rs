@@ -312,20 +312,47 @@ struct Buckets {
     of: Vec<usize>,
 }
 
-impl Buckets {
-    fn of(obs: &[PairObservation]) -> Buckets {
-        let keys: Vec<(i64, i64)> = obs
-            .iter()
-            .map(|o| o.bucket)
-            .collect::<std::collections::BTreeSet<_>>()
-            .into_iter()
-            .collect();
-        let index: BTreeMap<(i64, i64), usize> =
-            keys.iter().enumerate().map(|(i, k)| (*k, i)).collect();
-        let of = obs.iter().map(|o| index[&o.bucket]).collect();
-        Buckets { keys, of }
+/// The geometry buckets seen so far, kept beside the observations: each bucket gets an id when
+/// first seen, each observation carries its bucket's id, and a fit's `Buckets` (key-order
+/// indices) come from a rank table without a tree lookup per observation.
+#[derive(Debug, Clone, Default)]
+struct BucketIndex {
+    ids: BTreeMap<(i64, i64), usize>,
+    /// Each observation's bucket id (parallel to `DriftDetector::obs`).
+    of_id: Vec<usize>,
+}
+
+impl BucketIndex {
+    fn push(&mut self, bucket: (i64, i64)) {
+        let next = self.ids.len();
+        let id = *self.ids.entry(bucket).or_insert(next);
+        self.of_id.push(id);
     }
 
+    /// The index of exactly `obs` (after observations were taken out).
+    fn rebuild(obs: &[PairObservation]) -> BucketIndex {
+        let mut b = BucketIndex::default();
+        for o in obs {
+            b.push(o.bucket);
+        }
+        b
+    }
+
+    fn buckets(&self) -> Buckets {
+        let mut rank = vec![0usize; self.ids.len()];
+        let mut keys = Vec::with_capacity(self.ids.len());
+        for (pos, (k, &id)) in self.ids.iter().enumerate() {
+            rank[id] = pos;
+            keys.push(*k);
+        }
+        Buckets {
+            keys,
+            of: self.of_id.iter().map(|&id| rank[id]).collect(),
+        }
+    }
+}
+
+impl Buckets {
     /// The bucket effects as the map the detector keeps.
     fn map<T: Copy>(&self, values: &[T]) -> BTreeMap<(i64, i64), T> {
         self.keys
@@ -335,9 +362,6 @@ impl Buckets {
             .collect()
     }
 }
-
-/// Per bucket: the sum of weights, the weighted sums of each column and of d, the count.
-type BucketSums = (f64, Vec<f64>, f64, usize);
 
 /// A known gain step (its time found elsewhere, e.g. by the light sweeps) and its fitted size.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -388,6 +412,8 @@ pub(crate) enum DriftEvent {
 pub(crate) struct DriftDetector {
     spec: DriftSpec,
     obs: Vec<PairObservation>,
+    /// The observations' buckets.
+    index: BucketIndex,
     estimate: Option<DriftEstimate>,
     /// Bucket effects and bucket sizes from the last fit.
     beta: BTreeMap<(i64, i64), (f64, usize)>,
@@ -420,6 +446,7 @@ impl DriftDetector {
         DriftDetector {
             spec,
             obs: Vec::new(),
+            index: BucketIndex::default(),
             estimate: None,
             beta: BTreeMap::new(),
             bucket_scale: BTreeMap::new(),
@@ -453,6 +480,7 @@ impl DriftDetector {
         self.pose_break = Some(t_h);
         let before = self.obs.len();
         self.obs.retain(|o| o.t_b_h < t_h);
+        self.index = BucketIndex::rebuild(&self.obs);
         self.left_out += before - self.obs.len();
         if self.obs.len() < self.spec.min_pairs {
             // too few pairs before the slip for a rate of their own
@@ -594,6 +622,7 @@ impl DriftDetector {
                 }
             }
         }
+        self.index.push(o.bucket);
         self.obs.push(o);
         if self.obs.len() >= self.spec.min_pairs
             && self.obs.len().is_multiple_of(self.spec.refit_every.max(1))
@@ -679,7 +708,7 @@ impl DriftDetector {
         let n = self.obs.len();
         // precision weights from each observation's own uncertainty (equal in the first pass)
         let mut w: Vec<f64> = self.obs.iter().map(|o| prior_weight(0.0, o)).collect();
-        let buckets = Buckets::of(&self.obs);
+        let buckets = self.index.buckets();
         let mut r = 0.0;
         let mut beta: Vec<(f64, usize)> = Vec::new();
         let mut scale = 0.0;
@@ -695,15 +724,18 @@ impl DriftDetector {
                 e.2 += wi * o.d;
                 e.3 += 1;
             }
+            // the bucket means (a bucket whose every observation has zero weight adds nothing)
+            let means: Vec<Option<(f64, f64)>> = acc
+                .iter()
+                .map(|&(sw, sx, sy, _)| (sw > 0.0).then(|| (sx / sw, sy / sw)))
+                .collect();
             let (mut sxx, mut sxy) = (0.0, 0.0);
             for ((o, wi), &b) in self.obs.iter().zip(&w).zip(&buckets.of) {
-                let (sw, sx, sy, _) = acc[b];
-                // a bucket whose every observation has zero weight adds nothing
-                if !(sw > 0.0) {
+                let Some((mx, my)) = means[b] else {
                     continue;
-                }
-                let x = (o.t_b_h - o.t_a_h) - sx / sw;
-                let y = o.d - sy / sw;
+                };
+                let x = (o.t_b_h - o.t_a_h) - mx;
+                let y = o.d - my;
                 sxx += wi * x * x;
                 sxy += wi * x * y;
             }
@@ -745,63 +777,105 @@ impl DriftDetector {
         let n = self.obs.len();
         let k = self.step_times.len();
         let p = 1 + k + if mount { 4 } else { 0 };
-        let row = |o: &PairObservation| -> Vec<f64> {
-            let mut x = Vec::with_capacity(p);
-            x.push(o.t_b_h - o.t_a_h);
+        // the design, flat: row i is rows[i * p..(i + 1) * p]
+        let mut rows: Vec<f64> = Vec::with_capacity(n * p);
+        for o in &self.obs {
+            rows.push(o.t_b_h - o.t_a_h);
             for &tau in &self.step_times {
-                x.push(if o.t_a_h < tau && tau <= o.t_b_h {
+                rows.push(if o.t_a_h < tau && tau <= o.t_b_h {
                     1.0
                 } else {
                     0.0
                 });
             }
             if mount {
-                x.extend_from_slice(&o.mount);
+                rows.extend_from_slice(&o.mount);
             }
-            x
-        };
-        let rows: Vec<Vec<f64>> = self.obs.iter().map(row).collect();
+        }
         let mut w: Vec<f64> = self.obs.iter().map(|o| prior_weight(0.0, o)).collect();
-        let buckets = Buckets::of(&self.obs);
+        let buckets = self.index.buckets();
+        let nk = buckets.keys.len();
         let mut coef = DVector::<f64>::zeros(p);
         let mut cov = DMatrix::<f64>::zeros(p, p);
         let mut beta: Vec<(f64, usize)> = Vec::new();
         let mut scale = 0.0;
         let mut res: Vec<f64> = Vec::new();
         let mut inflation = 1.0;
+        // per bucket: the sum of weights, the weighted sums of each column (flat, p a bucket)
+        // and of d, the count
+        let mut acc_w = vec![0.0; nk];
+        let mut acc_x = vec![0.0; nk * p];
+        let mut acc_y = vec![0.0; nk];
+        let mut acc_n = vec![0usize; nk];
         for _ in 0..5 {
             // weighted bucket means of every column and of d
-            let mut acc: Vec<BucketSums> = vec![(0.0, vec![0.0; p], 0.0, 0); buckets.keys.len()];
-            for (((o, x), wi), &b) in self.obs.iter().zip(&rows).zip(&w).zip(&buckets.of) {
-                let e = &mut acc[b];
-                e.0 += wi;
+            acc_w.fill(0.0);
+            acc_x.fill(0.0);
+            acc_y.fill(0.0);
+            acc_n.fill(0);
+            for (((o, x), wi), &b) in self
+                .obs
+                .iter()
+                .zip(rows.chunks_exact(p))
+                .zip(&w)
+                .zip(&buckets.of)
+            {
+                acc_w[b] += wi;
+                let sx = &mut acc_x[b * p..(b + 1) * p];
                 for j in 0..p {
-                    e.1[j] += wi * x[j];
+                    sx[j] += wi * x[j];
                 }
-                e.2 += wi * o.d;
-                e.3 += 1;
+                acc_y[b] += wi * o.d;
+                acc_n[b] += 1;
             }
             // the normal equations of the centred, weighted design, accumulated row by row:
             // p is at most a few columns, so this costs O(n·p²) without an n × p matrix
-            let mut ata = DMatrix::<f64>::zeros(p, p);
-            let mut atb = DVector::<f64>::zeros(p);
+            let mut ata_flat = vec![0.0; p * p];
+            let mut atb_flat = vec![0.0; p];
             let mut xc = vec![0.0; p];
-            for (((o, x), wi), &b) in self.obs.iter().zip(&rows).zip(&w).zip(&buckets.of) {
-                let (sw, sx, sy, _) = &acc[b];
-                if !(*sw > 0.0) {
+            // the bucket means of every column and of d (a bucket whose every observation has
+            // zero weight adds nothing)
+            let live: Vec<bool> = acc_w.iter().map(|&sw| sw > 0.0).collect();
+            let mean_x: Vec<f64> = (0..nk * p).map(|i| acc_x[i] / acc_w[i / p]).collect();
+            let mean_y: Vec<f64> = (0..nk).map(|b| acc_y[b] / acc_w[b]).collect();
+            for (((o, x), wi), &b) in self
+                .obs
+                .iter()
+                .zip(rows.chunks_exact(p))
+                .zip(&w)
+                .zip(&buckets.of)
+            {
+                if !live[b] {
                     continue;
                 }
+                let mx = &mean_x[b * p..(b + 1) * p];
                 for j in 0..p {
-                    xc[j] = x[j] - sx[j] / sw;
+                    xc[j] = x[j] - mx[j];
                 }
-                let yc = o.d - sy / sw;
+                let yc = o.d - mean_y[b];
                 for j in 0..p {
-                    atb[j] += wi * xc[j] * yc;
-                    for l in 0..=j {
-                        ata[(j, l)] += wi * xc[j] * xc[l];
+                    // (wi·xc_j)·… is how `wi * xc[j] * x` groups: the same products as before
+                    let wx = wi * xc[j];
+                    atb_flat[j] += wx * yc;
+                    let row = &mut ata_flat[j * p..j * p + j + 1];
+                    for (a, x) in row.iter_mut().zip(&xc[..=j]) {
+                        *a += wx * x;
                     }
                 }
             }
+            let mut ata =
+                DMatrix::<f64>::from_fn(
+                    p,
+                    p,
+                    |j, l| {
+                        if l <= j {
+                            ata_flat[j * p + l]
+                        } else {
+                            0.0
+                        }
+                    },
+                );
+            let atb = DVector::<f64>::from_column_slice(&atb_flat);
             for j in 0..p {
                 for l in 0..j {
                     ata[(l, j)] = ata[(j, l)];
@@ -814,17 +888,17 @@ impl DriftDetector {
             if !coef.iter().all(|c| c.is_finite()) {
                 return None;
             }
-            beta = acc
-                .iter()
-                .map(|(sw, sx, sy, nb)| {
+            beta = (0..nk)
+                .map(|b| {
+                    let sx = &acc_x[b * p..(b + 1) * p];
                     let fx: f64 = (0..p).map(|j| coef[j] * sx[j]).sum();
-                    ((sy - fx) / sw, *nb)
+                    ((acc_y[b] - fx) / acc_w[b], acc_n[b])
                 })
                 .collect();
             res = self
                 .obs
                 .iter()
-                .zip(&rows)
+                .zip(rows.chunks_exact(p))
                 .zip(&buckets.of)
                 .map(|((o, x), &b)| o.d - (0..p).map(|j| coef[j] * x[j]).sum::<f64>() - beta[b].0)
                 .collect();

@@ -609,12 +609,14 @@ mod tests {
         let got = r.at(&wi, &wo).unwrap().value;
         let got2 = r.at(&rot(&wi, 1.0), &rot(&wo, 1.0)).unwrap().value;
         assert!((got2[1] - got[1]).abs() < 1e-9 * got[1]);
-        // layered data at the square's own scale leave some nodes with coplanar neighbours: a
-        // typed error, not a wrong value
-        let coplanar = Resampler::isotropic(&samples, &ResampleSpec::default()).unwrap_err();
+        // layered data at the square's own scale give some nodes coplanar nearest neighbours:
+        // their fits take more nodes (Renka's rule), from the layers above and below, until the
+        // fit is well conditioned, and the value agrees with the finer θ scale's
+        let layered = Resampler::isotropic(&samples, &ResampleSpec::default()).unwrap();
+        let v = layered.at(&wi, &wo).unwrap().value;
         assert!(
-            matches!(coplanar, ResampleError::Build(ShepardError::Collinear(_))),
-            "{coplanar:?}"
+            (v[1] - got[1]).abs() < 0.05 * got[1],
+            "{v:?} against {got:?}"
         );
     }
 

@@ -13,7 +13,6 @@
 //!
 //! A point within no node's radius has no value (`ShepardError::Outside`), never a silent 0.
 
-use nalgebra::{DMatrix, DVector};
 use thiserror::Error;
 
 #[derive(Debug, Error, PartialEq)]
@@ -151,28 +150,78 @@ pub struct Shepard {
     grid: Grid,
 }
 
-/// Solve the least-squares system; returns the solution and min |R_ii| over `check`.
+/// Solve the least-squares system `rows · x ≈ rhs` (`rows` flat, `m` coefficients a row; fewer
+/// rows than coefficients are padded with zero rows) by Householder QR, the reflections
+/// applied to the right-hand side as they are made (Q is never formed); returns the solution
+/// (None when R is singular or the solution is not finite) and min |R_ii| over `check`. The
+/// systems are at most 40 + 3 rows by 10 columns, so one flat column-major buffer is all the
+/// storage.
 fn qr_solve(
-    rows: &[Vec<f64>],
+    rows: &[f64],
     rhs: &[f64],
     m: usize,
     check: std::ops::Range<usize>,
-) -> Option<(DVector<f64>, f64)> {
-    let nrows = rows.len().max(m);
-    let mut a = DMatrix::<f64>::zeros(nrows, m);
-    let mut b = DVector::<f64>::zeros(nrows);
-    for (i, (r, y)) in rows.iter().zip(rhs).enumerate() {
-        for j in 0..m {
-            a[(i, j)] = r[j];
+) -> (Option<Vec<f64>>, f64) {
+    let given = rhs.len().min(rows.len() / m.max(1));
+    let n = given.max(m);
+    // column-major: a[c * n + r]
+    let mut a = vec![0.0; n * m];
+    let mut b = vec![0.0; n];
+    for r in 0..given {
+        for c in 0..m {
+            a[c * n + r] = rows[r * m + c];
         }
-        b[i] = *y;
+        b[r] = rhs[r];
     }
-    let qr = a.qr();
-    let r = qr.r();
-    let dmin = check.map(|i| r[(i, i)].abs()).fold(f64::INFINITY, f64::min);
-    let qtb = qr.q().transpose() * b;
-    let sol = r.solve_upper_triangular(&qtb.rows(0, m).into_owned())?;
-    sol.iter().all(|v| v.is_finite()).then_some((sol, dmin))
+    let mut diag = vec![0.0; m];
+    let mut v = vec![0.0; n];
+    for j in 0..m {
+        let len = n - j;
+        let col = &a[j * n + j..(j + 1) * n];
+        let norm = col.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if norm == 0.0 {
+            // a zero column below the diagonal: R_jj = 0, nothing to reflect
+            continue;
+        }
+        let x0 = col[0];
+        // the sign that avoids cancellation in v₀ = x₀ − α
+        let alpha = if x0 >= 0.0 { -norm } else { norm };
+        v[..len].copy_from_slice(col);
+        v[0] -= alpha;
+        let vn2: f64 = v[..len].iter().map(|x| x * x).sum();
+        diag[j] = alpha;
+        if !(vn2 > 0.0) {
+            continue;
+        }
+        for c in j + 1..m {
+            let cc = &mut a[c * n + j..(c + 1) * n];
+            let s: f64 = v[..len].iter().zip(cc.iter()).map(|(x, y)| x * y).sum();
+            let f = 2.0 * s / vn2;
+            for (y, x) in cc.iter_mut().zip(&v[..len]) {
+                *y -= f * x;
+            }
+        }
+        let bb = &mut b[j..];
+        let s: f64 = v[..len].iter().zip(bb.iter()).map(|(x, y)| x * y).sum();
+        let f = 2.0 * s / vn2;
+        for (y, x) in bb.iter_mut().zip(&v[..len]) {
+            *y -= f * x;
+        }
+    }
+    let dmin = check.map(|i| diag[i].abs()).fold(f64::INFINITY, f64::min);
+    // back substitution on R (its diagonal in `diag`, above it in `a`)
+    let mut x = vec![0.0; m];
+    for i in (0..m).rev() {
+        if diag[i] == 0.0 {
+            return (None, dmin);
+        }
+        let mut s = b[i];
+        for k in i + 1..m {
+            s -= a[k * n + i] * x[k];
+        }
+        x[i] = s / diag[i];
+    }
+    (x.iter().all(|v| v.is_finite()).then_some(x), dmin)
 }
 
 /// A uniform cell grid over the nodes (about 3 nodes per cell, as Renka recommends) for the
@@ -569,40 +618,39 @@ fn nodal_fit(
         ..
     } = r;
     loop {
-        let mut rows = Vec::with_capacity(neq + m);
+        let mut rows = Vec::with_capacity((neq + m) * m);
         let mut rhs = Vec::with_capacity(neq + m);
         for i in 0..neq {
             let j = nb(i).1;
             let d = [p[j][0] - pk[0], p[j][1] - pk[1], p[j][2] - pk[2]];
             let dist = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
             if dist <= 0.0 || dist >= rq {
-                rows.push(vec![0.0; m]);
+                rows.extend(std::iter::repeat_n(0.0, m));
                 rhs.push(0.0);
                 continue;
             }
             let w = (rq - dist) / rq / dist;
             method.terms_at(&d, sf, terms);
-            rows.push(terms.iter().map(|t| t * w).collect());
+            rows.extend(terms.iter().map(|t| t * w));
             rhs.push((f[j] - fk) * w);
         }
-        let (sol, dmin) = qr_solve(&rows, &rhs, m, 0..m).ok_or(ShepardError::Collinear(k))?;
+        // an ill-conditioned (or exactly singular) fit takes more nodes: only a well-conditioned
+        // one is solved
+        let (sol, dmin) = qr_solve(&rows, &rhs, m, 0..m);
         if dmin * rq >= DTOL {
-            return Ok(sol.iter().copied().collect());
+            return sol.ok_or(ShepardError::Collinear(k));
         }
         if neq == lmax {
             // damp the highest-order terms: the fit tends to the next lower degree
             for i in 0..method.damped() {
-                let mut e = vec![0.0; m];
-                e[i] = method.damping(rq);
-                rows.push(e);
+                rows.extend((0..m).map(|c| if c == i { method.damping(rq) } else { 0.0 }));
                 rhs.push(0.0);
             }
-            let (sol, dmin) = qr_solve(&rows, &rhs, m, method.checked_after_damping())
-                .ok_or(ShepardError::Collinear(k))?;
+            let (sol, dmin) = qr_solve(&rows, &rhs, m, method.checked_after_damping());
             if dmin * rq < DTOL {
                 return Err(ShepardError::Collinear(k));
             }
-            return Ok(sol.iter().copied().collect());
+            return sol.ok_or(ShepardError::Collinear(k));
         }
         // take one more node (all of a tie) and widen rq to just beyond it
         loop {
