@@ -286,3 +286,48 @@ def test_every_plan_entry_without_a_capture_is_reported_and_listed_for_retaking(
     holes = [int(x["entry"]) for x in retakes if x["idx"] == "" and int(x["entry"]) < 300]
     assert holes == [40, 41, 120, 200], holes
     assert all(x["why"].startswith("not captured") for x in retakes if x["idx"] == "")
+
+
+def test_a_finished_check_of_a_folder_that_has_grown_is_refused_not_reported_stale(tmp_path):
+    """Check half a folder, add the rest, run the same command: the finished session is not
+    reported as the folder's result (it was: "200 captures placed", "100 checked", exit 0);
+    it is refused with exit 3 and what to do, and left as it was; a new session checks all."""
+    needs_simulator()
+    folder, _ = write_archive(tmp_path, "grow", captures=200, id="grow")
+    later = tmp_path / "later"
+    later.mkdir()
+    names = sorted(p.name for p in folder.iterdir() if p.suffix == ".hdr")
+    for n in names[100:]:
+        os.rename(folder / n, later / n)
+    session = tmp_path / "grow-session"
+    code, out, err = run_check(folder, session)
+    assert code == 0, err[-2000:]
+    before = {p.name: p.read_bytes() for p in session.iterdir() if p.is_file()}
+    for n in names[100:]:
+        os.rename(later / n, folder / n)
+    code, out, err = run_check(folder, session)
+    assert code == 3, (code, out, err[-2000:])
+    assert "finished check of 100 captures" in err and "100 captures it has not checked" in err and "--session NEW" in err, err
+    assert {p.name: p.read_bytes() for p in session.iterdir() if p.is_file()} == before
+    # a new session checks all 200
+    code, out, err = run_check(folder, tmp_path / "grow-all")
+    assert code == 0, err[-2000:]
+    assert json.load(open(tmp_path / "grow-all" / "summary.json"))["checked"]["captures"] == 200
+
+
+def test_a_sidecar_that_does_not_parse_is_a_configuration_error(tmp_path):
+    """A sidecar row with a value that is not a number: exit 2, as the README's table says for
+    the configuration's input, with the sidecar's line named; nothing is written."""
+    needs_simulator()
+    folder, _ = write_archive(tmp_path, "badcar", naming="sidecar", captures=50, id="badcar")
+    table = folder / "captures.csv"
+    lines = table.read_text().splitlines()
+    cols = lines[1].split(",")
+    cols[1] = "north"
+    lines[1] = ",".join(cols)
+    table.write_text("\n".join(lines) + "\n")
+    session = tmp_path / "badcar-session"
+    code, out, err = run_check(folder, session, sidecar_config(tmp_path))
+    assert code == 2, (code, out, err[-2000:])
+    assert "sidecar" in err and "line" in err, err
+    assert not session.exists()

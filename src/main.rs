@@ -273,7 +273,8 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
-            // usage, configuration and malformed input files named on the command line are 2;
+            // usage, configuration, a files source's sidecar and pattern, and malformed input
+            // files named on the command line are 2;
             // anything else at run time is 3
             let usage = e.chain().any(|c| {
                 c.downcast_ref::<goniowatch::config::ConfigError>()
@@ -282,6 +283,10 @@ fn main() -> ExitCode {
                         .is_some()
                     || c.downcast_ref::<UsageError>().is_some()
                     || c.downcast_ref::<goniowatch::measure::probe_plan::ProbePlanError>()
+                        .is_some()
+                    // a sidecar table that does not parse, or a pattern and order that cannot
+                    // place anything: the configuration's input, as a config error is
+                    || c.downcast_ref::<goniowatch::archive::listing::ListingError>()
                         .is_some()
             });
             ExitCode::from(if usage { 2 } else { 3 })
@@ -818,6 +823,10 @@ fn check_command(args: CheckArgs, out: &mut impl Write) -> Result<ExitCode> {
         .into());
     }
     if let Some(why) = goniowatch::session::recovery::other_source(&session, &dir_abs, &text)? {
+        anyhow::bail!(why);
+    }
+    let placed: Vec<String> = listing.captures.iter().map(|c| c.file.clone()).collect();
+    if let Some(why) = goniowatch::session::recovery::finished_check_outdated(&session, &placed)? {
         anyhow::bail!(why);
     }
     let workers = workers.map(usize::from).unwrap_or_else(|| {

@@ -128,6 +128,37 @@ pub fn other_source(dir: &Path, capture_root: &Path, config_text: &str) -> Resul
     Ok(None)
 }
 
+/// Why a finished check in `dir` cannot be resumed on a folder whose listing now places
+/// `placed` (file names relative to the capture folder), if it cannot: a finished check has
+/// written its end-of-set results (the pairs resolved at the end, the final alarms), so captures
+/// that appeared since are not appended to it, and reporting the old result for the new folder
+/// would be wrong. None for a session that is not finished, or whose captures are the folder's.
+pub fn finished_check_outdated(dir: &Path, placed: &[String]) -> Result<Option<String>> {
+    let Ok(summary) = super::folder::load_summary(dir) else {
+        return Ok(None);
+    };
+    if !summary.finished {
+        return Ok(None);
+    }
+    let seen: std::collections::BTreeSet<String> = super::folder::read_session_captures(dir)?
+        .into_iter()
+        .filter(|c| !c.probe)
+        .map(|c| c.file)
+        .collect();
+    let new: Vec<&String> = placed.iter().filter(|f| !seen.contains(*f)).collect();
+    if new.is_empty() {
+        return Ok(None);
+    }
+    Ok(Some(format!(
+        "{} holds a finished check of {} captures, and the folder now places {} captures it has not checked (the first: {}); a finished check is not extended, because its end-of-set results are written. Check the folder into a new session folder (--session NEW) to check all {} captures",
+        dir.display(),
+        seen.len(),
+        new.len(),
+        new[0],
+        placed.len()
+    )))
+}
+
 impl Session {
     /// Create `dir` from a config file, or reopen it (then its stored config is used).
     pub fn open_or_create(
