@@ -286,6 +286,12 @@ def test_every_plan_entry_without_a_capture_is_reported_and_listed_for_retaking(
     holes = [int(x["entry"]) for x in retakes if x["idx"] == "" and int(x["entry"]) < 300]
     assert holes == [40, 41, 120, 200], holes
     assert all(x["why"].startswith("not captured") for x in retakes if x["idx"] == "")
+    # a capture folder given by a link to it is followed, and the link is not a skipped file
+    alias = tmp_path / "holes-alias"
+    os.symlink(folder, alias)
+    code, out, err = run_check(alias, tmp_path / "alias-session")
+    assert code == 0, err[-3000:]
+    assert "296 captures placed, 1 files skipped" in err, err
 
 
 def test_a_finished_check_of_a_folder_that_has_grown_is_refused_not_reported_stale(tmp_path):

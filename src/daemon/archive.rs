@@ -66,7 +66,8 @@ pub(crate) fn list_files(root: &Path) -> Result<Found> {
         let Ok(rel) = e.path().strip_prefix(root) else {
             continue;
         };
-        if e.path_is_symlink() {
+        // (the root itself may be a link to the capture folder: it is followed)
+        if e.depth() > 0 && e.path_is_symlink() {
             refused.push((rel.to_string_lossy().replace('\\', "/"), SkipReason::Link));
             continue;
         }
