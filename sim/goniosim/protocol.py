@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import binascii
+import re
 
 from dataclasses import dataclass, field
 
@@ -17,10 +18,16 @@ def crc16_ccitt_false(data: bytes) -> int:
 
 
 _SAFE = set(range(0x21, 0x7F)) - {ord("%"), ord("*"), ord("=")}
+# A value made only of safe characters is sent as it is: the common case, tested without a loop.
+_ALL_SAFE = re.compile(r"[!-$&-)+-<>-~]*")
+# Every byte printable (0x20-0x7E): the framing's rule for a whole line.
+_PRINTABLE = re.compile(rb"[ -~]*")
 
 
 def encode_value(text: str) -> str:
     """Percent-encode a value: bytes outside 0x21-0x7E and % * = become %XX."""
+    if _ALL_SAFE.fullmatch(text):
+        return text
     out = []
     for b in text.encode("utf-8"):
         out.append(chr(b) if b in _SAFE else f"%{b:02X}")
@@ -82,7 +89,7 @@ def parse(line: bytes) -> Message:
     if len(line) > MAX_LINE:
         raise ProtocolError("line too long")
     line = line.rstrip(b"\n").rstrip(b"\r")
-    if any(b < 0x20 or b > 0x7E for b in line):
+    if not _PRINTABLE.fullmatch(line):
         raise ProtocolError("non-printable byte")
     text = line.decode("ascii")
     star = text.rfind("*")

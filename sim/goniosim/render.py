@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 
@@ -10,6 +11,21 @@ import numpy as np
 from .material import Material, Realism, specular
 
 HOLDER_ALBEDO = (0.10, 0.10, 0.11)
+
+
+@functools.lru_cache(maxsize=8)
+def _pixel_grid(h: int, w: int, holder_px: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sample's mask inside the holder border, and the pixel centres u, v (each in its own
+    axis's units, from the image centre). The same for every capture of a run, so built once;
+    the arrays are read-only because they are shared."""
+    mask = np.zeros((h, w), dtype=bool)
+    mask[holder_px : h - holder_px, holder_px : w - holder_px] = True
+    y, x = np.mgrid[0:h, 0:w]
+    u = (x + 0.5) / w - 0.5
+    v = (y + 0.5) / h - 0.5
+    for a in (mask, u, v):
+        a.setflags(write=False)
+    return mask, u, v
 
 
 def render(
@@ -31,11 +47,7 @@ def render(
     spec = specular(wi, wo, material)
     img = gain * ci * (albedo + math.pi * spec)  # pi * (albedo/pi + spec)
     holder = gain * ci * np.array(HOLDER_ALBEDO)
-    mask = np.zeros((h, w), dtype=bool)
-    mask[holder_px : h - holder_px, holder_px : w - holder_px] = True
-    y, x = np.mgrid[0:h, 0:w]
-    u = (x + 0.5) / w - 0.5
-    v = (y + 0.5) / h - 0.5
+    mask, u, v = _pixel_grid(h, w, holder_px)
     if realism.footprint > 0.0:
         # lamp footprint: along the projected light direction
         pi_az = math.atan2(wi[1], wi[0])
@@ -91,7 +103,9 @@ def add_noise(img: np.ndarray, rng: np.random.Generator, photons_per_unit: float
 
 def encode_rgbe(img: np.ndarray) -> bytes:
     """Flat (uncompressed) RGBE scanlines, top row first."""
-    rgb = np.clip(np.nan_to_num(img, nan=0.0, posinf=1e38, neginf=0.0), 0.0, None)
+    # NaN and Inf have no RGBE form: NaN and -Inf are stored as 0, +Inf as the largest value
+    finite = np.isfinite(img).all()
+    rgb = np.maximum(img if finite else np.nan_to_num(img, nan=0.0, posinf=1e38, neginf=0.0), 0.0)
     m = rgb.max(axis=2)
     mant, exp = np.frexp(m)
     scale = np.where(m > 1e-32, mant * 256.0 / np.where(m > 0, m, 1.0), 0.0)

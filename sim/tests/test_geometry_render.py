@@ -225,3 +225,14 @@ def test_anisotropic_ggx_matches_the_isotropic_one_when_the_roughnesses_agree():
         h = (math.sqrt(1 - cos_h**2) * 0.6, math.sqrt(1 - cos_h**2) * 0.8, cos_h)
         assert ggx_d_aniso(h, 0.3, 0.3) == pytest.approx(ggx_d(cos_h, 0.3), rel=1e-12)
         assert smith_g1_aniso(h, 0.3, 0.3) == pytest.approx(smith_g1(cos_h, 0.3), rel=1e-12)
+
+
+def test_rgbe_stores_non_finite_pixels_as_the_format_allows():
+    img = np.full((2, 2, 3), 0.5)
+    img[0, 0, 0], img[0, 1, 1], img[1, 0, 2], img[1, 1, 0] = np.nan, -np.inf, np.inf, -1.0
+    px = hdr_bytes(img)
+    back = decode_hdr(px)
+    # a zero channel reads back as half a code step of its pixel's exponent
+    assert back[0, 0, 0] < 0.005 and back[0, 1, 1] < 0.005 and back[1, 1, 0] < 0.005
+    assert back[1, 0, 2] > 1e37  # +Inf as the largest value
+    assert np.allclose(back[0, 0, 1:], 0.5, rtol=0.01)

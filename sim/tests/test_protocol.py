@@ -75,3 +75,24 @@ def test_protocol_doc_examples():
         P.parse(mt.group(1).encode() + b"\n")
         checked += 1
     assert checked >= 20 and bad == 1
+
+
+def test_encode_value_agrees_with_the_byte_rule_on_every_character_class():
+    # the fast path (a value sent as it is) must give what the per-byte rule gives
+    safe = set(range(0x21, 0x7F)) - {ord("%"), ord("*"), ord("=")}
+    samples = ["", "plain", "a/b_c-d.hdr", "%", "*", "=", " ", "~!", "ü", "\x00\x1f\x7f", "x=1*2%3"]
+    samples += [chr(c) for c in range(0x00, 0x180)]
+    for text in samples:
+        slow = "".join(chr(b) if b in safe else f"%{b:02X}" for b in text.encode("utf-8"))
+        assert P.encode_value(text) == slow, repr(text)
+        assert P.decode_value(P.encode_value(text)) == text
+
+
+def test_parse_refuses_any_byte_outside_the_printable_range():
+    for b in list(range(0x00, 0x20)) + list(range(0x7F, 0x100)):
+        if b in (0x0A, 0x0D):
+            continue  # the line ending, stripped
+        payload = b"1 HELLO x=" + bytes([b])
+        line = payload + b"*%04X\n" % P.crc16_ccitt_false(payload)
+        with pytest.raises(P.ProtocolError):
+            P.parse(line)
