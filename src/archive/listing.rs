@@ -21,6 +21,8 @@ pub struct FileFact {
     pub name: String,
     /// Modification time, seconds since the Unix epoch.
     pub mtime_s: Option<f64>,
+    /// Size in bytes (with the time, how watch mode tells that a file changed).
+    pub size: Option<u64>,
 }
 
 /// One row of a sidecar table.
@@ -72,7 +74,7 @@ pub enum SkipReason {
     NotInSidecar,
     /// Its angles or entry are not in the plan.
     NotInPlan(String),
-    /// Another file stands for the same plan entry, earlier in the order.
+    /// Another file stands for the same plan entry and is preferred by [`DUPLICATE_RULE`].
     Duplicate { entry: usize, kept: String },
     /// The order or time it needs is missing.
     Unordered(String),
@@ -128,9 +130,31 @@ pub struct ArchiveCapture {
     pub exposure: Option<f64>,
 }
 
+/// Which of several files placed on one plan entry stands for it, in both `check` and watch
+/// mode (said in the README and the alarm).
+pub const DUPLICATE_RULE: &str = "the file fewest folders deep, then the one with the shortest name (copies add \" copy\" or \" (1)\"), then the one whose extension is written as in source.extensions, then the earliest in the capture order, then the first by name";
+
+/// Files placed on the same plan entry: the one kept by [`DUPLICATE_RULE`] and the others.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct DuplicateGroup {
+    pub entry: usize,
+    /// The file checked for the entry.
+    pub kept: String,
+    pub others: Vec<String>,
+    /// Watch mode only: the file the rule keeps, when it arrived after `kept` was checked (a
+    /// checked capture is not taken back; `check` of the finished folder keeps this one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rule_prefers: Option<String>,
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct Listing {
     pub captures: Vec<ArchiveCapture>,
+    /// The absolute time (seconds; since the Unix epoch for modification times) that the
+    /// captures' `t` count from: 0 when the times are capture positions.
+    pub origin_s: f64,
+    /// Plan entries that more than one file was placed on, in entry order.
+    pub duplicates: Vec<DuplicateGroup>,
     pub skipped: Vec<(String, SkipReason)>,
     pub order: OrderRule,
     pub times: TimeSource,
@@ -237,6 +261,16 @@ fn wanted(name: &str, spec: &SourceSpec) -> bool {
     spec.extensions
         .iter()
         .any(|e| lower.ends_with(&format!(".{}", e.to_ascii_lowercase())))
+}
+
+/// A file's place in [`DUPLICATE_RULE`] before the capture order: folders deep, length of its
+/// own name, and whether its extension is written otherwise than in `source.extensions`.
+fn duplicate_rank(name: &str, spec: &SourceSpec) -> (usize, usize, bool) {
+    let depth = name.matches('/').count();
+    let own = name.rsplit('/').next().unwrap_or(name);
+    let ext = own.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
+    let as_configured = spec.extensions.iter().any(|e| e == ext);
+    (depth, own.chars().count(), !as_configured)
 }
 
 /// The farthest a capture's modification time may lie from the set's median under
@@ -432,12 +466,48 @@ pub fn build(
             _ => (e as f64, e),
         }
     };
-    entries.sort_by(|a, b| {
+    let order_of = |a: &(String, Placement, usize), b: &(String, Placement, usize)| {
         let (ka, kb) = (key(&a.1, a.2), key(&b.1, b.2));
         ka.0.total_cmp(&kb.0)
             .then(ka.1.cmp(&kb.1))
             .then(a.0.cmp(&b.0))
-    });
+    };
+    // one file per plan entry, by DUPLICATE_RULE; the others are skipped and grouped
+    let mut by_entry: BTreeMap<usize, Vec<(String, Placement, usize)>> = BTreeMap::new();
+    for e in entries {
+        by_entry.entry(e.2).or_default().push(e);
+    }
+    let mut duplicates = Vec::new();
+    let mut entries = Vec::new();
+    for (entry, mut files) in by_entry {
+        files.sort_by(|a, b| {
+            duplicate_rank(&a.0, spec)
+                .cmp(&duplicate_rank(&b.0, spec))
+                .then_with(|| order_of(a, b))
+        });
+        let mut files = files.into_iter();
+        let Some(kept) = files.next() else { continue };
+        let others: Vec<String> = files.map(|(name, _, _)| name).collect();
+        for name in &others {
+            skipped.push((
+                name.clone(),
+                SkipReason::Duplicate {
+                    entry,
+                    kept: kept.0.clone(),
+                },
+            ));
+        }
+        if !others.is_empty() {
+            duplicates.push(DuplicateGroup {
+                entry,
+                kept: kept.0.clone(),
+                others,
+                rule_prefers: None,
+            });
+        }
+        entries.push(kept);
+    }
+    entries.sort_by(order_of);
     // times, relative to the first capture
     let times = match order {
         OrderRule::Time => TimeSource::Sidecar,
@@ -461,16 +531,6 @@ pub fn build(
     let mut seen: BTreeMap<usize, String> = BTreeMap::new();
     let mut captures = Vec::new();
     for (name, p, entry) in entries {
-        if let Some(kept) = seen.get(&entry) {
-            skipped.push((
-                name,
-                SkipReason::Duplicate {
-                    entry,
-                    kept: kept.clone(),
-                },
-            ));
-            continue;
-        }
         let pe = match plan.entry(entry) {
             Ok(pe) => pe,
             Err(e) => {
@@ -520,8 +580,15 @@ pub fn build(
     let unfilled = (0..plan.capture_count())
         .filter(|e| !seen.contains_key(e))
         .collect();
+    let origin_s = match times {
+        TimeSource::Index { .. } => 0.0,
+        _ if t0.is_finite() => t0,
+        _ => 0.0,
+    };
     Ok(Listing {
         captures,
+        origin_s,
+        duplicates,
         skipped,
         order,
         times,
@@ -566,6 +633,7 @@ mod tests {
             .map(|n| FileFact {
                 name: n.clone(),
                 mtime_s: None,
+                size: None,
             })
             .collect()
     }
@@ -654,12 +722,82 @@ mod tests {
             why["tl017_pl000_tv000_pv000.hdr"],
             SkipReason::NotInPlan(_)
         ));
-        // the same entry twice: the first by name is kept, the other named
+        // the same entry twice: the top-level file is kept, the other named
         let dup = why
             .iter()
             .find(|(_, r)| matches!(r, SkipReason::Duplicate { .. }))
             .unwrap();
+        assert_eq!(*dup.0, "copy/tl015_pl000_tv000_pv000.EXR");
         assert!(dup.1.to_string().contains("is kept"), "{}", dup.1);
+    }
+
+    /// Copies, a sub-folder, an upper-case twin and a later index of one entry: the original
+    /// is kept whatever the byte order of the names, and the group names the others.
+    #[test]
+    fn duplicates_are_settled_by_the_rule_not_by_the_byte_order_of_names() {
+        let (plan, rig, spec) = setup();
+        let name = bonn(&plan, 100, None)
+            .trim_start_matches("set/")
+            .to_string();
+        let stem = name.trim_end_matches(".hdr");
+        let names = vec![
+            format!("rejected/{name}"),
+            format!("{stem} copy.hdr"),
+            format!("{stem} (1).hdr"),
+            format!("{}.HDR", stem.to_uppercase()),
+            name.clone(),
+        ];
+        for rotate in 0..names.len() {
+            let mut n = names.clone();
+            n.rotate_left(rotate);
+            let l = build(&facts(&n), None, &spec, &plan, &rig).unwrap();
+            assert_eq!(l.captures.len(), 1);
+            assert_eq!(l.captures[0].file, name);
+            assert_eq!(l.duplicates.len(), 1);
+            let g = &l.duplicates[0];
+            assert_eq!((g.entry, g.kept.as_str()), (100, name.as_str()));
+            let mut others = g.others.clone();
+            others.sort();
+            let mut want: Vec<String> = names.iter().filter(|x| **x != name).cloned().collect();
+            want.sort();
+            assert_eq!(others, want);
+        }
+        // two indexed captures of one entry: the earlier in the capture order is kept
+        let n = vec![bonn(&plan, 100, Some(7)), bonn(&plan, 100, Some(3))];
+        let l = build(&facts(&n), None, &spec, &plan, &rig).unwrap();
+        assert_eq!(l.captures[0].file, n[1]);
+    }
+
+    /// Watch mode and `check` share the time origin: times count from the earliest capture's
+    /// absolute time, which the listing gives.
+    #[test]
+    fn the_listing_gives_the_absolute_origin_of_its_times() {
+        let (plan, rig, mut spec) = setup();
+        spec.order = OrderRule::Mtime;
+        let names = [bonn(&plan, 3, None), bonn(&plan, 4, None)];
+        let files: Vec<FileFact> = names
+            .iter()
+            .zip([1_700_000_007.0, 1_700_000_000.0])
+            .map(|(n, m)| FileFact {
+                name: n.clone(),
+                mtime_s: Some(m),
+                size: Some(10),
+            })
+            .collect();
+        let l = build(&files, None, &spec, &plan, &rig).unwrap();
+        assert_eq!(l.origin_s, 1_700_000_000.0);
+        assert_eq!(
+            l.captures
+                .iter()
+                .map(|c| (c.entry, c.t))
+                .collect::<Vec<_>>(),
+            [(4, 0.0), (3, 7.0)]
+        );
+        spec.order = OrderRule::Plan;
+        assert_eq!(
+            build(&files, None, &spec, &plan, &rig).unwrap().origin_s,
+            0.0
+        );
     }
 
     #[test]

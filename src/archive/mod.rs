@@ -3,6 +3,8 @@
 //!
 //! - [`listing`]: file names (a pattern with named groups) or a sidecar table → plan entries,
 //!   capture order and times; what cannot be placed is reported with its reason, never guessed.
+//! - [`follow`]: watch mode's memory between listings: what to announce, what to check again
+//!   after its file changed, which duplicates to report.
 //! - [`controller`]: the controller's side of the protocol for such a listing, as a pure state
 //!   machine. The engine, journal, resume and replay then work exactly as with a real rig: the
 //!   lines it writes are what the engine receives and the journal records.
@@ -10,6 +12,7 @@
 //! Pure: file facts (names, modification times) and sidecar rows come in as data.
 
 pub mod controller;
+pub mod follow;
 pub mod listing;
 
 use serde::{Deserialize, Serialize};

@@ -4,20 +4,26 @@
 //! journal, resume and replay are those of a protocol session.
 //!
 //! - A finished set (`goniowatch check`) is listed once and then ends (`STATUS state=done`).
-//! - Watch mode (`goniowatch run` with a files source) lists the folder every `poll_ms` and
-//!   announces new captures as they appear; whether a file is finished is the ingestion's
-//!   question, as for announced files. It ends when every plan entry has been announced.
+//! - Watch mode (`goniowatch run` with a files source) lists the folder every `poll_ms` (and
+//!   at once on a file-system event) and announces new captures as they appear; whether a file
+//!   is finished is the ingestion's question, as for announced files. `archive::follow` keeps
+//!   what was announced, so a failed or missing capture is checked again when its file changes,
+//!   and a resumed session numbers on from where it stood. A folder moved away and made again
+//!   is watched anew. It ends when every plan entry has been announced.
+//! - Files placed on the same plan entry are settled by the listing's duplicate rule and
+//!   reported to the engine (`Input::Duplicates`), which alarms them.
 //!
 //! The folder is only read.
 
 use crate::archive::controller::ArchiveController;
-use crate::archive::listing::{self, FileFact, Listing, SidecarRow, SkipReason};
+use crate::archive::follow::Follower;
+use crate::archive::listing::{self, ArchiveCapture, FileFact, Listing, SidecarRow, SkipReason};
 use crate::archive::SourceSpec;
 use crate::engine::Input;
 use crate::measure::kinematics::Rig;
 use crate::measure::plan::SamplingPlan;
 use anyhow::{Context, Result};
-use std::collections::BTreeSet;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 use tokio::sync::{mpsc, watch};
@@ -30,6 +36,11 @@ pub(crate) struct ArchiveLink {
     pub(crate) rig: Rig,
     /// The set is finished: list once and end.
     pub(crate) finished: bool,
+    /// Watch mode resuming a session: its captures so far, in index order, and whether each
+    /// is known to be usable (see `Engine::announced_captures`).
+    pub(crate) prior: Vec<(u64, ArchiveCapture, Option<bool>)>,
+    /// Watch mode: the ingestion's verdicts (`Some(sha256)` when the capture decoded).
+    pub(crate) outcomes: Option<mpsc::UnboundedReceiver<(u64, Option<String>)>>,
 }
 
 /// What a folder listing found: the regular files under the root, and the entries that cannot
@@ -81,15 +92,16 @@ pub(crate) fn list_files(root: &Path) -> Result<Found> {
             ));
             continue;
         };
-        let mtime_s = e
-            .metadata()
-            .ok()
+        let meta = e.metadata().ok();
+        let mtime_s = meta
+            .as_ref()
             .and_then(|m| m.modified().ok())
             .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
             .map(|d| d.as_secs_f64());
         out.push(FileFact {
             name: name.replace('\\', "/"),
             mtime_s,
+            size: meta.map(|m| m.len()),
         });
     }
     out.sort_by(|a, b| a.name.cmp(&b.name));
@@ -117,7 +129,20 @@ fn read_sidecar(root: &Path, spec: &SourceSpec) -> Result<Option<Vec<SidecarRow>
 
 /// List and place the capture folder's files.
 pub(crate) fn place(link: &ArchiveLink) -> Result<Listing> {
+    Ok(place_with_prints(link)?.0)
+}
+
+/// Each listed file's size and modification time, by name.
+type Prints = BTreeMap<String, (u64, Option<f64>)>;
+
+/// List and place the capture folder's files; also each file's fingerprint.
+fn place_with_prints(link: &ArchiveLink) -> Result<(Listing, Prints)> {
     let found = list_files(&link.root)?;
+    let prints: Prints = found
+        .files
+        .iter()
+        .filter_map(|f| f.size.map(|s| (f.name.clone(), (s, f.mtime_s))))
+        .collect();
     let sidecar = read_sidecar(&link.root, &link.spec)?;
     let mut listing = listing::build(
         &found.files,
@@ -128,7 +153,27 @@ pub(crate) fn place(link: &ArchiveLink) -> Result<Listing> {
     )?;
     listing.skipped.extend(found.refused);
     listing.skipped.sort_by(|a, b| a.0.cmp(&b.0));
-    Ok(listing)
+    Ok((listing, prints))
+}
+
+/// The SHA-256 of a capture file's bytes now (watch mode asks it of a checked file that
+/// changed, to tell a rewrite from a touch).
+fn content_of(root: &Path, name: &str) -> Option<String> {
+    use sha2::{Digest, Sha256};
+    let path = super::ingest::resolve(root, name).ok()?;
+    let bytes = std::fs::read(path).ok()?;
+    Some(
+        Sha256::digest(&bytes)
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect(),
+    )
+}
+
+/// What tells one folder from another made at the same path (device and inode).
+fn identity(root: &Path) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata(root).ok().map(|m| (m.dev(), m.ino()))
 }
 
 /// Place the files of `root` as a session with `config` would (for `check` to refuse a folder
@@ -140,6 +185,8 @@ pub fn preflight(root: &Path, config: &crate::config::Config) -> Result<Listing>
         plan: config.plan()?,
         rig: Rig::new(config.rig.clone())?,
         finished: true,
+        prior: Vec::new(),
+        outcomes: None,
     })
 }
 
@@ -197,9 +244,13 @@ fn flush(ctl: &mut ArchiveController, events: &mpsc::UnboundedSender<Input>) -> 
     true
 }
 
+/// How often watch mode looks whether the folder was replaced (a cheap `stat`), whatever
+/// `poll_ms` is.
+const IDENTITY_CHECK: Duration = Duration::from_secs(1);
+
 /// Run the link until `stop` turns true: inputs to `events`, the engine's lines from `lines`.
 pub(crate) async fn run(
-    link: ArchiveLink,
+    mut link: ArchiveLink,
     events: mpsc::UnboundedSender<Input>,
     mut lines: mpsc::UnboundedReceiver<String>,
     mut stop: watch::Receiver<bool>,
@@ -215,8 +266,15 @@ pub(crate) async fn run(
         return;
     }
     ctl.handle_connect();
-    let mut announced: BTreeSet<String> = BTreeSet::new();
-    let mut entries: BTreeSet<usize> = BTreeSet::new();
+    let mut follower = Follower::new();
+    for (idx, c, usable) in std::mem::take(&mut link.prior) {
+        if !follower.handle_prior(idx, &c, usable) {
+            tracing::warn!("files source: capture {idx} of the session breaks the numbering; captures from it on are placed anew");
+            break;
+        }
+        ctl.handle_capture(c);
+    }
+    let mut outcomes = link.outcomes.take();
     let mut ended = false;
     let mut said = false;
     let mut last_error: Option<String> = None;
@@ -225,34 +283,72 @@ pub(crate) async fn run(
     // `poll_ms` stays as the fallback for file systems that send no events (network shares)
     let (wake_tx, mut wake) = mpsc::unbounded_channel::<()>();
     let watching = !link.finished && link.spec.notify;
-    let mut watcher = None;
+    // held for its lifetime: dropping it ends the watch
+    let mut _watcher = None;
+    let mut watched: Option<(u64, u64)> = None;
     let mut watch_failed = false;
+    let mut seen_folder: Option<(u64, u64)> = None;
     let link = std::sync::Arc::new(link);
     let mut tick = tokio::time::interval(poll);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut look = tokio::time::interval(IDENTITY_CHECK.min(poll));
+    look.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
         tokio::select! {
             _ = tick.tick(), if !ended => {
-                // (again) until the folder exists and can be watched
-                if watching && watcher.is_none() && !watch_failed && link.root.is_dir() {
-                    watcher = watch_folder(&link.root, wake_tx.clone());
-                    watch_failed = watcher.is_none();
+                // (again) until the folder exists and can be watched; a folder replaced since
+                // it was watched is watched anew
+                let now = identity(&link.root);
+                if watching && now.is_some() && now != watched && !watch_failed {
+                    if watched.is_some() {
+                        tracing::warn!("files source: {} was replaced; watching the new folder", link.root.display());
+                        eprintln!("goniowatch: files source: {} was replaced by another folder; watching the new one", link.root.display());
+                    }
+                    _watcher = watch_folder(&link.root, wake_tx.clone());
+                    watch_failed = _watcher.is_none();
+                    watched = if watch_failed { None } else { now };
+                } else if !watching && now.is_some() && seen_folder.is_some() && now != seen_folder {
+                    eprintln!("goniowatch: files source: {} was replaced by another folder; listing the new one", link.root.display());
+                }
+                if now.is_some() {
+                    seen_folder = now;
                 }
                 let l = link.clone();
-                match tokio::task::spawn_blocking(move || place(&l)).await {
-                    Ok(Ok(listing)) => {
+                match tokio::task::spawn_blocking(move || place_with_prints(&l)).await {
+                    Ok(Ok((listing, prints))) => {
                         last_error = None;
                         if !said && (link.finished || !listing.captures.is_empty()) {
                             eprintln!("{}", describe(&listing, 20));
                             said = true;
                         }
-                        for c in listing.captures {
-                            if !entries.contains(&c.entry) && announced.insert(c.file.clone()) {
-                                entries.insert(c.entry);
-                                ctl.handle_capture(c);
+                        let root = link.root.clone();
+                        let step = if link.finished {
+                            // a finished set is placed once, as listed (nothing to check again)
+                            follower.handle_listing(&listing, &prints, &mut |_| None)
+                        } else {
+                            follower.handle_listing(&listing, &prints, &mut |name| content_of(&root, name))
+                        };
+                        if step.rechecks > 0 {
+                            eprintln!("goniowatch: files source: {} capture file(s) changed after a failed, missing or superseded check; checking them again", step.rechecks);
+                        }
+                        // before the captures, so the engine holds each step when it checks its capture
+                        for (idx, back) in step.steps_back {
+                            if events.send(Input::TimeSteppedBack { idx, step: back }).is_err() {
+                                return;
                             }
                         }
-                        if link.finished || entries.len() >= planned {
+                        for (_, c) in step.announce {
+                            ctl.handle_capture(c);
+                        }
+                        if !flush(&mut ctl, &events) {
+                            return;
+                        }
+                        if !step.duplicates.is_empty()
+                            && events.send(Input::Duplicates { groups: step.duplicates }).is_err()
+                        {
+                            return;
+                        }
+                        if link.finished || follower.complete(planned) {
                             ctl.handle_end();
                             ended = true;
                         }
@@ -263,12 +359,26 @@ pub(crate) async fn run(
                         let msg = format!("{e:#}");
                         if last_error.as_ref() != Some(&msg) {
                             tracing::warn!("files source: {msg}; listing again");
+                            eprintln!("goniowatch: files source: {msg}; listing again");
                             last_error = Some(msg);
                         }
                     }
                     Err(e) => tracing::warn!("files source: listing failed: {e}"),
                 }
             }
+            _ = look.tick(), if !ended && watching => {
+                // a folder moved away and made again sends no event to the old watch
+                let now = identity(&link.root);
+                if now.is_some() && watched.is_some() && now != watched {
+                    tick.reset_immediately();
+                }
+            }
+            Some((idx, checked)) = async {
+                match outcomes.as_mut() {
+                    Some(rx) => rx.recv().await,
+                    None => std::future::pending().await,
+                }
+            } => follower.handle_outcome(idx, checked),
             line = lines.recv() => match line {
                 Some(line) => ctl.handle_line(&line),
                 None => return,

@@ -8,6 +8,7 @@
 use super::ingest::{Job, Pool};
 use super::sinks::{log_alarm, run_hook};
 use super::status::{Published, StatusModel};
+use crate::checks::Outcome;
 use crate::engine::{Engine, Input, Output, Summary};
 use crate::session::folder::{Results, SessionLock};
 use crate::session::journal::{now_ms, JournalEntry, JournalItem, JsonlFile};
@@ -370,6 +371,10 @@ async fn start(
     let (link_tx, link_rx) = mpsc::unbounded_channel::<String>();
     let (stop_tx, stop_rx) = watch::channel(false);
     let outcome_tx = ev_tx.clone();
+    // watch mode follows the verdicts, to check a failed capture again when its file changes
+    let watch_files = cfg.source.kind == crate::archive::SourceKind::Files && !opts.finished_set;
+    let (verdict_tx, verdict_rx) = mpsc::unbounded_channel::<(u64, Option<String>)>();
+    let verdict_tx = watch_files.then_some(verdict_tx);
     let mut ingest = cfg.ingest.clone();
     if opts.finished_set {
         // a finished set gets no more files: a listed capture that is not there (a sidecar row
@@ -385,6 +390,13 @@ async fn start(
         ingest,
         cfg.capture,
         move |idx, outcome| {
+            if let Some(tx) = &verdict_tx {
+                let checked = match &outcome {
+                    Outcome::Ok { sha256, .. } => Some(sha256.clone()),
+                    Outcome::Failed { .. } | Outcome::Missing { .. } => None,
+                };
+                let _ = tx.send((idx, checked));
+            }
             let _ = outcome_tx.send(Input::Outcome { idx, outcome });
         },
     );
@@ -459,6 +471,26 @@ async fn start(
                 plan: cfg.plan()?,
                 rig: crate::measure::kinematics::Rig::new(cfg.rig.clone())?,
                 finished: opts.finished_set,
+                prior: if watch_files {
+                    live.engine
+                        .announced_captures()
+                        .into_iter()
+                        .map(|(a, usable)| {
+                            let c = crate::archive::listing::ArchiveCapture {
+                                file: a.file,
+                                entry: a.entry,
+                                t: a.t,
+                                pose: a.cmd,
+                                sub: a.substitute,
+                                exposure: a.exposure,
+                            };
+                            (a.idx, c, usable)
+                        })
+                        .collect()
+                } else {
+                    Vec::new()
+                },
+                outcomes: watch_files.then_some(verdict_rx),
             };
             tokio::spawn(super::archive::run(archive, ev_tx, link_rx, stop_rx))
         }

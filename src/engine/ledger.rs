@@ -18,6 +18,8 @@ pub(super) struct Ledger {
     pub(super) refused: BTreeMap<u64, u32>,
     /// Refused indices a clean resync passed over without a readable line: asked once more.
     pub(super) resend_asked: BTreeSet<u64>,
+    /// Checked captures whose file failed to decode or never appeared.
+    pub(super) unusable: BTreeSet<u64>,
     /// The next index to check.
     pub(super) next_check: u64,
     /// The controller's next index, as far as it has told.

@@ -8,9 +8,12 @@ use std::collections::VecDeque;
 /// Where the link to the controller stands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub(super) enum LinkState {
-    /// No port: before the first connection, after a loss, after a daemon restart.
+    /// No port yet: before the first connection and after a daemon restart (not a fault: the
+    /// port is being opened).
     #[default]
-    Down,
+    Closed,
+    /// The port was lost (EOF, EIO, unplugged): reconnecting.
+    Lost,
     /// The port is open and HELLO sent; the controller has not accepted a subscription yet.
     Greeting,
     /// Subscribed: the controller sends its events.
@@ -114,7 +117,12 @@ pub(super) struct Link {
 
 impl Link {
     pub(super) fn is_connected(&self) -> bool {
-        self.state != LinkState::Down
+        matches!(self.state, LinkState::Greeting | LinkState::Subscribed)
+    }
+
+    /// The port was lost and has not been opened again since (a daemon restart forgets it).
+    pub(super) fn is_lost(&self) -> bool {
+        self.state == LinkState::Lost
     }
 
     pub(super) fn is_subscribed(&self) -> bool {
@@ -132,21 +140,21 @@ impl Link {
 
     /// The port was lost.
     pub(super) fn lost(&mut self) {
-        self.state = LinkState::Down;
+        self.state = LinkState::Lost;
         self.resync.forget();
     }
 
     /// The daemon restarted on the session: no port, no conversation.
     pub(super) fn restarted(&mut self) {
         self.stats.restarts += 1;
-        self.state = LinkState::Down;
+        self.state = LinkState::Closed;
         self.resync.forget();
         self.expect_seq = None;
     }
 
     /// The controller took our subscription (only an open port can be subscribed).
     pub(super) fn subscribed(&mut self) {
-        if self.state != LinkState::Down {
+        if self.is_connected() {
             self.state = LinkState::Subscribed;
         }
     }

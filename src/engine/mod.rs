@@ -42,6 +42,17 @@ pub enum Input {
     Outcome { idx: u64, outcome: Outcome },
     /// Files in the session's capture folder that no CAPTURE line announced.
     Unannounced { files: Vec<String> },
+    /// A files source placed more than one file on these plan entries (the listing's
+    /// duplicate rule kept one of each).
+    Duplicates {
+        groups: Vec<crate::archive::listing::DuplicateGroup>,
+    },
+    /// A files source found that the times of its files went back at capture `idx` and
+    /// removed the step from that capture's time on (the engine alarms it when `idx` is checked).
+    TimeSteppedBack {
+        idx: u64,
+        step: crate::measure::timeline::StepBack,
+    },
     /// The daemon restarted on an existing session (after a crash or a stop).
     Restart,
     /// Nothing arrived from the controller for a while (the shell's clock decides how long);
@@ -145,6 +156,10 @@ pub struct Engine {
     finished: bool,
     /// Controller time of the last checked capture (the time of end-of-session results).
     last_t: f64,
+    /// Capture times in check order, with steps back removed.
+    timeline: crate::measure::timeline::TimeLine,
+    /// Steps back that a files source removed from its times, by the capture they came at.
+    steps_back: BTreeMap<u64, crate::measure::timeline::StepBack>,
     alarm_book: alarms::AlarmBook,
     paused_for: BTreeSet<String>,
     captures_planned: u64,
@@ -166,6 +181,50 @@ pub struct Engine {
     regular_announced: u64,
     /// Inputs handled so far (the alarm aggregation's clock).
     inputs: u64,
+}
+
+/// The alarm for files placed on one plan entry.
+fn duplicate_alarm(g: &crate::archive::listing::DuplicateGroup) -> Alarm {
+    let others = g
+        .others
+        .iter()
+        .take(5)
+        .cloned()
+        .collect::<Vec<_>>()
+        .join(", ");
+    let more = match g.others.len() {
+        n if n > 5 => format!(" and {} more", n - 5),
+        _ => String::new(),
+    };
+    let prefers = match &g.rule_prefers {
+        Some(p) => format!(
+            "; {p} arrived after {} was checked and is what `goniowatch check` of the finished folder keeps: the rule is {}",
+            g.kept,
+            crate::archive::listing::DUPLICATE_RULE
+        ),
+        None => format!(" (the rule: {})", crate::archive::listing::DUPLICATE_RULE),
+    };
+    Alarm::new(
+        AlarmKind::CaptureQuality,
+        Severity::Warning,
+        "duplicate-files",
+        format!(
+            "plan entry {} has {} files: {} is checked, {others}{more} left out{prefers}",
+            g.entry,
+            g.others.len() + 1,
+            g.kept
+        ),
+    )
+    .with(json!({
+        "entry": g.entry,
+        "kept": g.kept,
+        "others": g.others,
+        "rule_prefers": g.rule_prefers,
+    }))
+    .advise(
+        "Move the copies and rejected files out of the capture folder (or rename them so the pattern does not match), so that each plan entry has one file.",
+        None,
+    )
 }
 
 /// An outstanding RESYNC whose ACK has not come after this many received lines is sent again.
@@ -214,6 +273,8 @@ impl Engine {
             done: false,
             finished: false,
             last_t: 0.0,
+            timeline: crate::measure::timeline::TimeLine::default(),
+            steps_back: BTreeMap::new(),
             alarm_book: alarms::AlarmBook::default(),
             paused_for: BTreeSet::new(),
             captures_planned,
@@ -290,6 +351,26 @@ impl Engine {
         self.ledger.pending_ingest()
     }
 
+    /// Every announced capture in index order, and whether it is known to be usable: `Some(false)`
+    /// when its file failed or never appeared, `Some(true)` once checked otherwise, `None` while
+    /// it waits (for a files source's watch mode to resume where it stood).
+    pub(crate) fn announced_captures(&self) -> Vec<(Announcement, Option<bool>)> {
+        self.ledger
+            .announced
+            .iter()
+            .map(|(i, a)| {
+                let usable = if self.ledger.unusable.contains(i) {
+                    Some(false)
+                } else if *i < self.ledger.next_check {
+                    Some(true)
+                } else {
+                    None
+                };
+                (a.clone(), usable)
+            })
+            .collect()
+    }
+
     /// Every file name the controller announced in this session.
     pub(crate) fn announced_files(&self) -> impl Iterator<Item = &str> {
         self.ledger.announced.values().map(|a| a.file.as_str())
@@ -298,7 +379,7 @@ impl Engine {
     /// Alarm conditions that hold right now (evaluated on start and resume).
     pub fn active_conditions(&self) -> Vec<Alarm> {
         let mut v = Vec::new();
-        if !self.link.is_connected() && self.link.stats.connects > 0 {
+        if self.link.is_lost() {
             v.push(Alarm::new(
                 AlarmKind::Link,
                 Severity::Warning,
@@ -481,7 +562,7 @@ impl Engine {
                     AlarmKind::Link,
                     Severity::Warning,
                     "bad-announcement",
-                    format!("a CAPTURE line was malformed and names no readable capture index ({why}); asking the controller again"),
+                    format!("a CAPTURE line was malformed and names no readable capture index ({why}); asking {} again", self.source_name()),
                 ),
             );
             self.request_resync(out);
@@ -499,7 +580,7 @@ impl Engine {
                     AlarmKind::Link,
                     Severity::Warning,
                     "bad-announcement",
-                    format!("the CAPTURE line for capture {i} was malformed ({why}); asking the controller to send it again"),
+                    format!("the CAPTURE line for capture {i} was malformed ({why}); asking {} to send it again", self.source_name()),
                 )
                 .at(Some(i), None),
             );
@@ -511,7 +592,7 @@ impl Engine {
                     AlarmKind::CaptureQuality,
                     Severity::Warning,
                     "announcement-refused",
-                    format!("the controller sent the same malformed CAPTURE line for capture {i} again ({why}); capture {i} is skipped and checking goes on"),
+                    format!("{} sent the same malformed CAPTURE line for capture {i} again ({why}); capture {i} is skipped and checking goes on", self.source_name()),
                 )
                 .at(Some(i), None)
                 .with(json!({"idx": i, "reason": why})),
@@ -597,6 +678,15 @@ impl Engine {
                     }
                 }
             }
+            Input::TimeSteppedBack { idx, step } => {
+                self.steps_back.insert(*idx, *step);
+            }
+            Input::Duplicates { groups } => {
+                for g in groups {
+                    let a = duplicate_alarm(g);
+                    self.alarm(&mut out, a);
+                }
+            }
             Input::Unannounced { files } => {
                 if !files.is_empty() {
                     self.alarm(
@@ -606,8 +696,13 @@ impl Engine {
                             Severity::Warning,
                             "unannounced-files",
                             format!(
-                                "{} file(s) in the capture folder were never announced by the controller: {}",
+                                "{} file(s) in the capture folder {}: {}",
                                 files.len(),
+                                if self.captures_are_files() {
+                                    "were not placed as captures (the skipped files say why)"
+                                } else {
+                                    "were never announced by the controller"
+                                },
                                 files.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
                             ),
                         )
@@ -792,7 +887,7 @@ impl Engine {
                     AlarmKind::CaptureQuality,
                     Severity::Warning,
                     "announcement-refused",
-                    format!("the controller did not send a readable CAPTURE line for capture {i} when asked again; capture {i} is skipped and checking goes on"),
+                    format!("{} did not send a readable CAPTURE line for capture {i} when asked again; capture {i} is skipped and checking goes on", self.source_name()),
                 )
                 .at(Some(i), None)
                 .with(json!({"idx": i, "reason": "no readable line after a resend was asked"})),
@@ -807,7 +902,10 @@ impl Engine {
                         AlarmKind::CaptureQuality,
                         Severity::Warning,
                         "capture-never-announced",
-                        format!("capture {i} is not in the controller's capture log (resync reports next = {next})"),
+                        format!(
+                            "capture {i} is not in {}'s capture log (resync reports next = {next})",
+                            self.source_name()
+                        ),
                     )
                     .at(Some(i), None),
                 );
@@ -820,7 +918,7 @@ impl Engine {
                     AlarmKind::CaptureQuality,
                     Severity::Critical,
                     "capture-never-announced",
-                    format!("{} captures between {first} and {last} are not in the controller's capture log (resync reports next = {next})", lost.len()),
+                    format!("{} captures between {first} and {last} are not in {}'s capture log (resync reports next = {next})", lost.len(), self.source_name()),
                 )
                 .with(json!({"count": lost.len(), "first": first, "last": last})),
             );
@@ -999,6 +1097,53 @@ impl Engine {
         }
     }
 
+    /// Whether the captures are files placed by goniowatch itself (`check`, watch mode), not
+    /// announced by a controller: the messages then name the folder, not a controller.
+    fn captures_are_files(&self) -> bool {
+        self.link.rig_id.as_deref() == Some(crate::archive::controller::RIG_ID)
+    }
+
+    /// Who announces the captures, for the messages.
+    fn source_name(&self) -> &'static str {
+        if self.captures_are_files() {
+            "the capture folder's listing"
+        } else {
+            "the controller"
+        }
+    }
+
+    fn step_back_alarm(
+        &self,
+        input: &CaptureInput,
+        step: crate::measure::timeline::StepBack,
+    ) -> Alarm {
+        let whose = if self.captures_are_files() {
+            "the capture times (the files' modification times, or the sidecar's times)"
+        } else {
+            "the controller's clock"
+        };
+        Alarm::new(
+            AlarmKind::Link,
+            Severity::Warning,
+            "time-stepped-back",
+            format!(
+                "{whose} went back by {:.1} s at capture {} ({:.3} s after {:.3} s): a clock was set back or the times were changed; from this capture on, times go on from the capture before it in capture order (the step is removed), so drift rates do not see the same time twice",
+                step.step_s, input.idx, step.announced_s, step.previous_s
+            ),
+        )
+        .at(Some(input.idx), Some(input.t))
+        .with(json!({
+            "step_s": step.step_s,
+            "announced_t": step.announced_s,
+            "previous_t": step.previous_s,
+            "shift_s": step.shift_s,
+        }))
+        .advise(
+            "Check the clock of the rig's computer (a manual correction, a time-zone change, a failing clock battery) and keep it from stepping during a run; the drift rates across the step are approximate.",
+            None,
+        )
+    }
+
     fn drain(&mut self, out: &mut Vec<Output>) {
         loop {
             let i = self.ledger.next_check;
@@ -1006,17 +1151,22 @@ impl Engine {
                 let Some(outcome) = self.ledger.outcomes.remove(&i) else {
                     break;
                 };
+                let (t, step_back) = self.timeline.handle_capture(a.t);
+                let step_back = step_back.or_else(|| self.steps_back.remove(&i));
                 let input = CaptureInput {
                     idx: i,
                     entry: a.entry,
                     file: a.file.clone(),
-                    t: a.t,
+                    t,
                     cmd: a.cmd,
                     enc: a.enc,
                     substitute: a.substitute,
                     probe: a.probe,
                     outcome: at_exposure(outcome.clone(), a.exposure),
                 };
+                if !matches!(outcome, Outcome::Ok { .. }) {
+                    self.ledger.unusable.insert(i);
+                }
                 let (status, size, sha, error) = match &outcome {
                     Outcome::Ok { size, sha256, .. } => {
                         ("ok", Some(*size), Some(sha256.clone()), None)
@@ -1032,6 +1182,10 @@ impl Engine {
                     sha256: sha,
                     error,
                 }));
+                if let Some(step) = step_back {
+                    let a = self.step_back_alarm(&input, step);
+                    self.alarm(out, a);
+                }
                 let res = self.checker.check(&input);
                 self.last_t = input.t;
                 if let Some(c) = res.capture {

@@ -24,3 +24,4 @@ pub mod shepard;
 pub mod smooth_brdf;
 pub mod stats;
 pub mod sweeps;
+pub mod timeline;
