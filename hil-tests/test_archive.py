@@ -121,8 +121,14 @@ def test_check_reports_what_it_cannot_place_or_read(tmp_path):
     assert "skipped 00999_tl017_pl000_tv000_pv000.hdr: not in the plan" in err, err
     failed = {c["idx"]: c for c in read_jsonl(session / "captures.jsonl") if c["status"] == "failed"}
     assert set(failed) == {10, 20}, failed
-    codes = {a["code"] for a in read_jsonl(session / "alarms.jsonl")}
-    assert "unannounced-files" in codes, codes
+    alarms = read_jsonl(session / "alarms.jsonl")
+    skipped = [a for a in alarms if a["code"] == "skipped-files"]
+    assert len(skipped) == 1 and skipped[0]["severity"] == "warning", skipped
+    why = {f["file"]: f["kind"] for f in skipped[0]["evidence"]["files"]}
+    assert why == {"notes.txt": "not-a-capture", "IMG_0001.hdr": "no-match", "00999_tl017_pl000_tv000_pv000.hdr": "not-in-plan"}, why
+    summary = json.loads((session / "summary.json").read_text())
+    assert summary["files_skipped"] == {"not-a-capture": 1, "no-match": 1, "not-in-plan": 1}, summary
+    assert "files not placed: 3" in out, out
     assert {n: (folder / n).read_bytes() for n in os.listdir(folder)} == before, "the capture folder was changed"
 
 

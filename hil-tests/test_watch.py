@@ -210,8 +210,21 @@ def test_copies_and_rejected_files_do_not_win_over_the_original(tmp_path):
     code, out, err = run_check(folder, session)
     assert code == 0, err[-2000:]
     dups = [x for x in read_jsonl(session / "alarms.jsonl") if x["code"] == "duplicate-files"]
-    assert sorted(x["evidence"]["kept"] for x in dups) == sorted([a.name, b.name, c.name]), dups
-    assert all(len(x["evidence"]["others"]) == 1 for x in dups)
+    assert len(dups) == 1, dups
+    groups = dups[0]["evidence"]["groups"]
+    assert sorted(g["kept"] for g in groups) == sorted([a.name, b.name, c.name]), groups
+    assert all(len(g["others"]) == 1 for g in groups)
+    summary = json.loads((session / "summary.json").read_text())
+    assert summary["entries_with_duplicates"] == 3, summary
+    assert summary["files_skipped"] == {"duplicate": 3}, summary
+    assert "duplicates: 3 plan entries" in out, out
+    # the report names each file left out and the one checked instead
+    r = subprocess.run([binary(), "report", str(session)], capture_output=True, text=True, timeout=120)
+    assert r.returncode in (0, 4), r.stderr[-2000:]
+    html = (session / "report" / "report.html").read_text()
+    assert "Plan entries and files" in html
+    for name in (a.stem + " copy.hdr", b.stem.upper() + ".HDR", "rejected/" + c.name):
+        assert name in html, name
     kept = {x["file"] for x in read_jsonl(session / "captures.jsonl")}
     assert {a.name, b.name, c.name} <= kept
     assert not any("copy" in k or k.endswith(".HDR") or k.startswith("rejected/") for k in kept)
@@ -233,3 +246,27 @@ def test_a_resumed_check_says_nothing_of_a_serial_link(tmp_path):
     alarms = read_jsonl(session / "alarms.jsonl")
     assert not any(a["code"] == "port-lost" for a in alarms), alarms
     assert not any("the controller" in a["message"] for a in alarms), [a["message"] for a in alarms]
+
+
+def test_the_report_of_a_killed_check_counts_the_captures_it_recorded(tmp_path):
+    """A check killed between two writes of summary.json leaves more capture records than the
+    summary counts: the report counts the records and says why, rather than a stale count."""
+    needs_simulator()
+    folder, _ = write_archive(tmp_path, "killed", captures=200, id="killed")
+    session = tmp_path / "killed-session"
+    code, _, err = run_check(folder, session)
+    assert code == 0, err[-2000:]
+    # what a kill leaves: the summary as written some captures before the end, not finished
+    path = session / "summary.json"
+    s = json.loads(path.read_text())
+    s["finished"] = False
+    s["checked"]["captures"] = 120
+    s["checked"]["ok"] = 120
+    path.write_text(json.dumps(s))
+    out = tmp_path / "killed-report"
+    r = subprocess.run([binary(), "report", str(session), "--out", str(out)], capture_output=True, text=True, timeout=120)
+    assert r.returncode in (0, 4), r.stderr[-2000:]
+    html = (out / "report.html").read_text()
+    assert "200 of 6561 planned captures checked" in html, html[:3000]
+    assert "stopped after its summary was last written (120 captures)" in html
+    assert "<td>captures checked</td><td>200</td>" in html

@@ -64,7 +64,7 @@ pub enum ListingError {
 }
 
 /// Why a file is not among the captures.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum SkipReason {
     /// Its name does not end in one of `[source] extensions`.
     NotACapture,
@@ -82,6 +82,22 @@ pub enum SkipReason {
     Link,
     /// Its name is not valid UTF-8 (shown with the invalid bytes replaced).
     NameNotUtf8,
+}
+
+impl SkipReason {
+    /// The reason's kind, as the summary counts skipped files.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            SkipReason::NotACapture => "not-a-capture",
+            SkipReason::NoMatch => "no-match",
+            SkipReason::NotInSidecar => "not-in-sidecar",
+            SkipReason::NotInPlan(_) => "not-in-plan",
+            SkipReason::Duplicate { .. } => "duplicate",
+            SkipReason::Unordered(_) => "unordered",
+            SkipReason::Link => "link",
+            SkipReason::NameNotUtf8 => "name-not-utf8",
+        }
+    }
 }
 
 impl std::fmt::Display for SkipReason {

@@ -26,12 +26,37 @@ pub struct ReportInputs {
     /// The light sweeps (isotropic samples; empty when the checks did not run).
     pub sweeps: Vec<SweepRecord>,
     pub crossval: Option<CompareReport>,
+    /// The checked count of `summary.json` when the run stopped before writing it again (a
+    /// killed run): the capture counts shown are then those of `captures.jsonl`.
+    pub summary_behind: Option<u64>,
+}
+
+/// A run stopped between two writes of `summary.json` (killed, the machine lost) has capture
+/// records the summary does not count: its capture counts are taken from the records (the
+/// pairs and tables are as the summary last had them). Returns the summary's count when so.
+fn catch_up_counts(summary: &mut Summary, captures: &[CaptureRecord]) -> Option<u64> {
+    use crate::checks::CaptureStatus;
+    let before = summary.checked.captures;
+    if summary.finished || captures.len() as u64 <= before {
+        return None;
+    }
+    let c = &mut summary.checked;
+    let count =
+        |f: &dyn Fn(&CaptureRecord) -> bool| captures.iter().filter(|r| f(r)).count() as u64;
+    c.captures = captures.len() as u64;
+    c.ok = count(&|r| r.status == CaptureStatus::Ok);
+    c.failed = count(&|r| r.status == CaptureStatus::Failed);
+    c.missing = count(&|r| r.status == CaptureStatus::Missing);
+    c.probes = count(&|r| r.probe);
+    Some(before)
 }
 
 pub fn load(dir: &Path) -> Result<ReportInputs> {
     use crate::session::folder::{load_config, load_summary, read_complete_records};
     let (config, config_text) = load_config(dir)?;
-    let summary = load_summary(dir)?;
+    let mut summary = load_summary(dir)?;
+    let captures = crate::session::folder::read_session_captures(dir)?;
+    let summary_behind = catch_up_counts(&mut summary, &captures);
     let crossval = match std::fs::read(dir.join("crossval.json")) {
         Ok(b) => Some(serde_json::from_slice(&b).context("crossval.json")?),
         Err(_) => None,
@@ -40,12 +65,13 @@ pub fn load(dir: &Path) -> Result<ReportInputs> {
         summary,
         config_text,
         config,
-        captures: crate::session::folder::read_session_captures(dir)?,
+        captures,
         pairs: read_complete_records(&dir.join("pairs.jsonl"))?,
         alarms: read_complete_records(&dir.join("alarms.jsonl"))?,
         // sessions recorded before the sweep checks existed have no sweeps.jsonl (read as empty)
         sweeps: read_complete_records(&dir.join("sweeps.jsonl"))?,
         crossval,
+        summary_behind,
     })
 }
 
@@ -736,6 +762,88 @@ fn table3_html(c: &CompareReport) -> String {
     s
 }
 
+/// A files source's accounting: plan entries without a capture, entries with more than one
+/// file (which one was checked), and the files not placed with why. Empty for a rig session
+/// with none of these.
+fn files_section(inp: &ReportInputs) -> String {
+    let s = &inp.summary;
+    let skipped: u64 = s.files_skipped.values().sum();
+    if s.entries_not_captured == 0 && s.entries_with_duplicates == 0 && skipped == 0 {
+        return String::new();
+    }
+    let mut h = String::from("<h2>Plan entries and files</h2><table>");
+    let _ = write!(
+        h,
+        "<tr><td>plan entries without a capture{}</td><td>{}</td></tr>",
+        if s.finished {
+            " (on the retake list)"
+        } else {
+            " so far"
+        },
+        s.entries_not_captured
+    );
+    let _ = write!(
+        h,
+        "<tr><td>plan entries with more than one file (one checked)</td><td>{}</td></tr>",
+        s.entries_with_duplicates
+    );
+    for (kind, n) in &s.files_skipped {
+        let _ = write!(
+            h,
+            "<tr><td>files not placed: {}</td><td>{n}</td></tr>",
+            esc(kind)
+        );
+    }
+    h.push_str("</table>");
+    const SHOWN: usize = 200;
+    let mut rows: Vec<(String, String)> = Vec::new();
+    for a in inp.alarms.iter() {
+        match a.code.as_str() {
+            "duplicate-files" => {
+                for g in a.evidence["groups"].as_array().into_iter().flatten() {
+                    let kept = g["kept"].as_str().unwrap_or("?");
+                    let entry = &g["entry"];
+                    for o in g["others"].as_array().into_iter().flatten() {
+                        rows.push((
+                            o.as_str().unwrap_or("?").to_string(),
+                            format!("plan entry {entry} again ({kept} is checked)"),
+                        ));
+                    }
+                }
+            }
+            "skipped-files" => {
+                for f in a.evidence["files"].as_array().into_iter().flatten() {
+                    rows.push((
+                        f["file"].as_str().unwrap_or("?").to_string(),
+                        f["why"].as_str().unwrap_or("?").to_string(),
+                    ));
+                }
+            }
+            _ => {}
+        }
+    }
+    if !rows.is_empty() {
+        rows.sort();
+        rows.dedup();
+        let _ = write!(
+            h,
+            "<table class=alarms><tr><th>file not placed</th><th>why</th></tr>"
+        );
+        for (f, why) in rows.iter().take(SHOWN) {
+            let _ = write!(h, "<tr><td>{}</td><td>{}</td></tr>", esc(f), esc(why));
+        }
+        h.push_str("</table>");
+        if rows.len() > SHOWN {
+            let _ = write!(
+                h,
+                "<p class=muted>… and {} more (the alarms' evidence in alarms.jsonl has them all).</p>",
+                rows.len() - SHOWN
+            );
+        }
+    }
+    h
+}
+
 /// The report's HTML.
 pub(crate) fn render_html(inp: &ReportInputs) -> Result<String> {
     let plan = inp.config.plan().context("the session's plan")?;
@@ -769,15 +877,19 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
         c.captures.saturating_sub(c.probes),
         s.captures_planned,
         if s.finished {
-            " · run finished"
+            " · run finished".to_string()
+        } else if let Some(before) = inp.summary_behind {
+            format!(" · run not finished; it stopped after its summary was last written ({before} captures): the capture counts are those of captures.jsonl, the pairs and tables those of the summary")
         } else {
-            " · run not finished"
+            " · run not finished".to_string()
         }
     );
 
     // summary
     let _ = write!(h, "<h2>Summary</h2><table><tr><td>captures checked</td><td>{}</td></tr><tr><td>usable</td><td>{}</td></tr><tr><td>failed</td><td>{}</td></tr><tr><td>missing</td><td>{}</td></tr><tr><td>drift probes</td><td>{}</td></tr><tr><td>exact reciprocal pairs</td><td>{}</td></tr><tr><td>occlusion substitutes vs interpolated partner</td><td>{} ({} unresolved)</td></tr><tr><td>pairs needing resampling / grazing</td><td>{} / {}</td></tr><tr><td>isotropy comparisons</td><td>{}</td></tr><tr><td>captures off the plan / encoders against commands</td><td>{} / {}</td></tr><tr><td>alarms</td><td>{}</td></tr></table>",
         c.captures, c.ok, c.failed, c.missing, c.probes, c.pairs_exact, c.pairs_interpolated, c.pairs_unresolved, c.pairs_needs_resampling, c.pairs_grazing, c.isotropy_comparisons, c.pose_off_plan, c.encoder_mismatch, alarm_total(inp));
+
+    h.push_str(&files_section(inp));
 
     let _ = write!(h, "<h2>Reciprocity (the paper's Table 2)</h2><p class=muted>Means over pairs after the cosine re-correction; XYZ on the configured scale, L*a*b* under the configured white.</p>");
     let mut sets: Vec<(&str, &Table2)> = vec![("exact reciprocal pairs", &s.table2)];

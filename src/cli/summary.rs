@@ -54,6 +54,26 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
             s.entries_not_captured
         )?;
     }
+    if s.entries_with_duplicates > 0 {
+        writeln!(
+            out,
+            "duplicates: {} plan entries have more than one file (one is checked; the duplicate-files alarms name the others)",
+            s.entries_with_duplicates
+        )?;
+    }
+    if !s.files_skipped.is_empty() {
+        let by_kind: Vec<String> = s
+            .files_skipped
+            .iter()
+            .map(|(k, n)| format!("{n} {k}"))
+            .collect();
+        writeln!(
+            out,
+            "files not placed: {} ({}; the report lists them with why)",
+            s.files_skipped.values().sum::<u64>(),
+            by_kind.join(", ")
+        )?;
+    }
     writeln!(
         out,
         "pairs: {} exact, {} need resampling, {} grazing; isotropy comparisons: {}",

@@ -202,6 +202,21 @@ pub fn describe(listing: &Listing, show: usize) -> String {
     s
 }
 
+/// How many files not placed one `Input::Skipped` names (it is one journal line); all are counted.
+const MAX_SKIPPED_NAMED: usize = 1000;
+
+/// The engine input for a listing's files not placed.
+fn skipped_input(skipped: &[(String, SkipReason)]) -> Input {
+    let mut counts: BTreeMap<String, u64> = BTreeMap::new();
+    for (_, why) in skipped {
+        *counts.entry(why.kind().to_string()).or_default() += 1;
+    }
+    Input::Skipped {
+        files: skipped.iter().take(MAX_SKIPPED_NAMED).cloned().collect(),
+        counts,
+    }
+}
+
 /// After a file-system event, how long to wait for the burst around it before listing.
 const WAKE_SETTLE: Duration = Duration::from_millis(50);
 
@@ -349,6 +364,10 @@ pub(crate) async fn run(
                             return;
                         }
                         if link.finished || follower.complete(planned) {
+                            // the final listing's files not placed, for the summary and the report
+                            if events.send(skipped_input(&listing.skipped)).is_err() {
+                                return;
+                            }
                             ctl.handle_end();
                             ended = true;
                         }

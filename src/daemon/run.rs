@@ -67,6 +67,8 @@ struct Live {
     /// Files in the capture folder that are not captures by definition (a files source's
     /// sidecar), left out of the unannounced files.
     not_captures: BTreeSet<String>,
+    /// The captures are a files source's (its listing accounts for every file).
+    files_source: bool,
     finished: bool,
     last_plain_report: Instant,
     hooks: Vec<tokio::task::JoinHandle<()>>,
@@ -416,6 +418,7 @@ async fn start(
             }
             _ => BTreeSet::new(),
         },
+        files_source: cfg.source.kind == crate::archive::SourceKind::Files,
         finished: false,
         last_plain_report: Instant::now(),
         hooks: Vec::new(),
@@ -520,8 +523,11 @@ async fn steps(live: &mut Live, ch: &mut Channels, keep_running: bool) -> Result
             });
         }
         if live.finished && !keep_running {
-            let files = live.unannounced();
-            live.process(Input::Unannounced { files })?;
+            // a files source's listing has named every file it did not place, with why
+            if !live.files_source {
+                let files = live.unannounced();
+                live.process(Input::Unannounced { files })?;
+            }
             return Ok(RunEnd::Finished {
                 critical: live.engine.critical_raised(),
             });

@@ -53,6 +53,12 @@ pub enum Input {
         idx: u64,
         step: crate::measure::timeline::StepBack,
     },
+    /// A files source's final listing: the files it did not place, with why (at most as many
+    /// as a journal line holds), and how many there are of each reason's kind.
+    Skipped {
+        files: Vec<(String, crate::archive::listing::SkipReason)>,
+        counts: BTreeMap<String, u64>,
+    },
     /// The daemon restarted on an existing session (after a crash or a stop).
     Restart,
     /// Nothing arrived from the controller for a while (the shell's clock decides how long);
@@ -106,6 +112,13 @@ pub struct Summary {
     /// a run that ended early): once the session is finished they will not be captured.
     #[serde(default)]
     pub entries_not_captured: u64,
+    /// A files source: files under the capture folder that were not placed as captures, by
+    /// reason (`SkipReason::kind`; files left out by the duplicate rule included).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub files_skipped: BTreeMap<String, u64>,
+    /// A files source: plan entries more than one file was placed on (one of them is checked).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub entries_with_duplicates: u64,
     pub checked: CheckCounts,
     pub table2: Table2,
     pub isotropy: Table2,
@@ -160,6 +173,10 @@ pub struct Engine {
     timeline: crate::measure::timeline::TimeLine,
     /// Steps back that a files source removed from its times, by the capture they came at.
     steps_back: BTreeMap<u64, crate::measure::timeline::StepBack>,
+    /// A files source's files not placed, by reason's kind (its last listing).
+    files_skipped: BTreeMap<String, u64>,
+    /// Plan entries a files source placed more than one file on.
+    duplicate_entries: BTreeSet<usize>,
     alarm_book: alarms::AlarmBook,
     paused_for: BTreeSet<String>,
     captures_planned: u64,
@@ -183,8 +200,75 @@ pub struct Engine {
     inputs: u64,
 }
 
+fn is_zero(n: &u64) -> bool {
+    *n == 0
+}
+
+/// The alarm for the files a files source did not place, when any is not a duplicate (those
+/// have their own alarm).
+fn skipped_alarm(
+    files: &[(String, crate::archive::listing::SkipReason)],
+    counts: &BTreeMap<String, u64>,
+) -> Option<Alarm> {
+    use crate::archive::listing::SkipReason;
+    let total: u64 = counts
+        .iter()
+        .filter(|(k, _)| k.as_str() != "duplicate")
+        .map(|(_, n)| n)
+        .sum();
+    if total == 0 {
+        return None;
+    }
+    let listed: Vec<&(String, SkipReason)> = files
+        .iter()
+        .filter(|(_, r)| !matches!(r, SkipReason::Duplicate { .. }))
+        .collect();
+    let by_kind = counts
+        .iter()
+        .filter(|(k, _)| k.as_str() != "duplicate")
+        .map(|(k, n)| format!("{n} {k}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let first = listed
+        .iter()
+        .take(3)
+        .map(|(f, r)| format!("{f} ({r})"))
+        .collect::<Vec<_>>()
+        .join("; ");
+    // files of other types (notes, thumbnails) are said, not warned of
+    let severity = if counts
+        .keys()
+        .all(|k| k == "duplicate" || k == "not-a-capture")
+    {
+        Severity::Info
+    } else {
+        Severity::Warning
+    };
+    Some(
+        Alarm::new(
+            AlarmKind::CaptureQuality,
+            severity,
+            "skipped-files",
+            format!("{total} file(s) under the capture folder were not placed as captures ({by_kind}): {first}"),
+        )
+        .with(json!({
+            "counts": counts,
+            "files": listed
+                .iter()
+                .map(|(f, r)| json!({"file": f, "kind": r.kind(), "why": r.to_string()}))
+                .collect::<Vec<_>>(),
+        }))
+        .advise(
+            "The report lists each file not placed and why. A capture among them needs a name that source.pattern matches (or a sidecar row) and angles on the plan; other files can stay or be moved out of the capture folder.",
+            None,
+        ),
+    )
+}
+
 /// The alarm for files placed on one plan entry.
-fn duplicate_alarm(g: &crate::archive::listing::DuplicateGroup) -> Alarm {
+fn duplicate_alarm(groups: &[crate::archive::listing::DuplicateGroup]) -> Option<Alarm> {
+    use crate::archive::listing::DUPLICATE_RULE;
+    let g = groups.first()?;
     let others = g
         .others
         .iter()
@@ -198,32 +282,35 @@ fn duplicate_alarm(g: &crate::archive::listing::DuplicateGroup) -> Alarm {
     };
     let prefers = match &g.rule_prefers {
         Some(p) => format!(
-            "; {p} arrived after {} was checked and is what `goniowatch check` of the finished folder keeps: the rule is {}",
-            g.kept,
-            crate::archive::listing::DUPLICATE_RULE
-        ),
-        None => format!(" (the rule: {})", crate::archive::listing::DUPLICATE_RULE),
-    };
-    Alarm::new(
-        AlarmKind::CaptureQuality,
-        Severity::Warning,
-        "duplicate-files",
-        format!(
-            "plan entry {} has {} files: {} is checked, {others}{more} left out{prefers}",
-            g.entry,
-            g.others.len() + 1,
+            "; {p} arrived after {} was checked and is what `goniowatch check` of the finished folder keeps",
             g.kept
         ),
-    )
-    .with(json!({
-        "entry": g.entry,
-        "kept": g.kept,
-        "others": g.others,
-        "rule_prefers": g.rule_prefers,
-    }))
-    .advise(
-        "Move the copies and rejected files out of the capture folder (or rename them so the pattern does not match), so that each plan entry has one file.",
-        None,
+        None => String::new(),
+    };
+    let rest = match groups.len() {
+        1 => String::new(),
+        n => format!(
+            " ({} more plan entries have more than one file; the evidence lists them all)",
+            n - 1
+        ),
+    };
+    Some(
+        Alarm::new(
+            AlarmKind::CaptureQuality,
+            Severity::Warning,
+            "duplicate-files",
+            format!(
+                "plan entry {} has {} files: {} is checked, {others}{more} left out{prefers}{rest}; the rule: {DUPLICATE_RULE}",
+                g.entry,
+                g.others.len() + 1,
+                g.kept
+            ),
+        )
+        .with(json!({ "groups": groups }))
+        .advise(
+            "Move the copies and rejected files out of the capture folder (or rename them so the pattern does not match), so that each plan entry has one file.",
+            None,
+        ),
     )
 }
 
@@ -275,6 +362,8 @@ impl Engine {
             last_t: 0.0,
             timeline: crate::measure::timeline::TimeLine::default(),
             steps_back: BTreeMap::new(),
+            files_skipped: BTreeMap::new(),
+            duplicate_entries: BTreeSet::new(),
             alarm_book: alarms::AlarmBook::default(),
             paused_for: BTreeSet::new(),
             captures_planned,
@@ -439,6 +528,8 @@ impl Engine {
             captures_planned: self.captures_planned,
             captures_announced: self.ledger.announced.len() as u64,
             entries_not_captured: self.entries_not_captured().len() as u64,
+            files_skipped: self.files_skipped.clone(),
+            entries_with_duplicates: self.duplicate_entries.len() as u64,
             checked: self.checker.counts().clone(),
             table2: self.checker.table2().clone(),
             isotropy: self.checker.isotropy_table().clone(),
@@ -681,9 +772,17 @@ impl Engine {
             Input::TimeSteppedBack { idx, step } => {
                 self.steps_back.insert(*idx, *step);
             }
+            Input::Skipped { files, counts } => {
+                self.files_skipped = counts.clone();
+                if let Some(a) = skipped_alarm(files, counts) {
+                    self.alarm(&mut out, a);
+                }
+            }
             Input::Duplicates { groups } => {
-                for g in groups {
-                    let a = duplicate_alarm(g);
+                self.duplicate_entries
+                    .extend(groups.iter().map(|g| g.entry));
+                // one alarm a listing, whatever the number of entries (no storm to thin)
+                if let Some(a) = duplicate_alarm(groups) {
                     self.alarm(&mut out, a);
                 }
             }
