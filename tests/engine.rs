@@ -6,7 +6,13 @@ use goniowatch::config::Config;
 use goniowatch::engine::{Engine, Input, Output};
 use goniowatch::fixtures::{self, Controller};
 use goniowatch::measure::alarm::{Affects, Alarm, Handling};
-use goniowatch::protocol::parse;
+use goniowatch::protocol::{parse, ToController};
+
+/// The command a line from the engine carries, with its sequence number.
+fn command(line: &str) -> (u32, ToController) {
+    let m = parse(line).unwrap();
+    (m.seq, ToController::from_message(&m).unwrap())
+}
 
 /// config/sim.toml, the simulated rig's configuration, as text.
 fn sim_toml() -> String {
@@ -417,7 +423,10 @@ fn absurd_indices_from_the_wire_are_refused() {
     ));
     out.extend(e.handle(&Input::Idle));
     let r = out.iter().rev().find_map(|o| match o {
-        Output::Send(l) => parse(l).ok().filter(|m| m.verb == "RESYNC").map(|m| m.seq),
+        Output::Send(l) => match command(l) {
+            (seq, ToController::Resync { .. }) => Some(seq),
+            _ => None,
+        },
         _ => None,
     });
     if let Some(r) = r {
@@ -456,13 +465,15 @@ fn a_long_resync_reply_is_not_asked_again_midway() {
     loop {
         for o in pending.drain(..) {
             if let Output::Send(l) = o {
-                let m = parse(&l).unwrap();
-                match m.verb.as_str() {
-                    "HELLO" => wire.push_back(c.ident(1)),
-                    "SUBSCRIBE" => wire.push_back(c.line("ACK", &[("ref", m.seq.to_string())])),
-                    "RESYNC" => {
+                let (seq, cmd) = command(&l);
+                match cmd {
+                    ToController::Hello { .. } => wire.push_back(c.ident(1)),
+                    ToController::Subscribe => {
+                        wire.push_back(c.line("ACK", &[("ref", seq.to_string())]))
+                    }
+                    ToController::Resync { from } => {
                         resyncs += 1;
-                        for i in m.get_u64("from").unwrap()..n_log {
+                        for i in from..n_log {
                             wire.push_back(capture_at(
                                 &mut c,
                                 i,
@@ -474,7 +485,7 @@ fn a_long_resync_reply_is_not_asked_again_midway() {
                         wire.push_back(c.line(
                             "ACK",
                             &[
-                                ("ref", m.seq.to_string()),
+                                ("ref", seq.to_string()),
                                 ("count", "0".into()),
                                 ("next", n_log.to_string()),
                                 ("state", "running".into()),
@@ -755,11 +766,9 @@ fn hostile_replay(
     let mut got = Vec::new();
     for o in out {
         let Output::Send(l) = o else { continue };
-        let m = parse(l).unwrap();
-        if m.verb != "RESYNC" {
+        let (seq, ToController::Resync { from }) = command(l) else {
             continue;
-        }
-        let from = m.get_u64("from").unwrap();
+        };
         for i in from..next {
             let line = if i == bad {
                 let p = format!(
@@ -779,7 +788,7 @@ fn hostile_replay(
         let ack = c.line(
             "ACK",
             &[
-                ("ref", m.seq.to_string()),
+                ("ref", seq.to_string()),
                 ("count", "0".into()),
                 ("next", next.to_string()),
                 ("state", "running".into()),
@@ -1351,7 +1360,7 @@ fn a_resync_behind_a_full_size_first_listing_does_not_cascade() {
             lines += 1;
             for o in e.handle(&Input::Rx { line }) {
                 if let Output::Send(l) = o {
-                    if parse(&l).unwrap().verb == "RESYNC" {
+                    if matches!(command(&l).1, ToController::Resync { .. }) {
                         resyncs += 1;
                     }
                     q.push_back(l);
@@ -1369,7 +1378,7 @@ fn a_resync_behind_a_full_size_first_listing_does_not_cascade() {
     // the SUBSCRIBE reaches the controller; the RESYNC waits behind the first listing
     let mut held = VecDeque::new();
     while let Some(line) = to_ctl.pop_front() {
-        if parse(&line).unwrap().verb == "RESYNC" {
+        if matches!(command(&line).1, ToController::Resync { .. }) {
             held.push_back(line);
         } else {
             ctl.handle_line(&line);

@@ -8,7 +8,7 @@
 //! the plan's pose as both commanded and encoder pose.
 
 use super::listing::ArchiveCapture;
-use crate::protocol::{format, parse};
+use crate::protocol::{format, parse, ToController};
 use std::collections::VecDeque;
 
 /// The `rig` of the `IDENT` it sends.
@@ -142,17 +142,24 @@ impl ArchiveController {
             return;
         };
         let r = m.seq.to_string();
-        match m.verb.as_str() {
-            "HELLO" => self.ident(),
-            "SUBSCRIBE" => {
+        let command = match ToController::from_message(&m) {
+            Ok(c) => c,
+            Err(e) => {
+                self.send("NAK", &[("ref", r), ("reason", e.nak_reason().into())]);
+                return;
+            }
+        };
+        match command {
+            ToController::Hello { .. } => self.ident(),
+            ToController::Subscribe => {
                 self.send("ACK", &[("ref", r)]);
                 self.status();
                 self.subscribed = true;
                 // announced before the subscription: the daemon asks with RESYNC
                 self.announced = self.captures.len();
             }
-            "RESYNC" => {
-                let from = m.get_u64("from").unwrap_or(0) as usize;
+            ToController::Resync { from } => {
+                let from = usize::try_from(from).unwrap_or(usize::MAX);
                 let upto = if self.subscribed {
                     self.announced
                 } else {
@@ -170,10 +177,13 @@ impl ArchiveController {
                 ];
                 self.send("ACK", &fields);
             }
-            "PAUSE" | "RESUME" | "PROBE" | "POSE?" => {
+            // a folder has no arm to pause, probe or read
+            ToController::Pause
+            | ToController::Resume
+            | ToController::Probe { .. }
+            | ToController::PoseQuery => {
                 self.send("NAK", &[("ref", r), ("reason", "refused".into())]);
             }
-            _ => self.send("NAK", &[("ref", r), ("reason", "unknown-verb".into())]),
         }
     }
 
@@ -228,8 +238,8 @@ mod tests {
             .collect()
     }
 
-    fn daemon(seq: u32, verb: &str, fields: &[(&str, String)]) -> String {
-        format(seq, verb, fields)
+    fn daemon(seq: u32, command: ToController) -> String {
+        command.encode(seq)
     }
 
     #[test]
@@ -243,12 +253,12 @@ mod tests {
             matches!(&first[..], [FromController::Ident(i)] if i.captures == Some(6561) && i.rig.as_deref() == Some(RIG_ID))
         );
         // nothing is announced before the subscription; RESYNC gives what there is
-        c.handle_line(&daemon(0, "SUBSCRIBE", &[]));
+        c.handle_line(&daemon(0, ToController::Subscribe));
         let sub = drain(&mut c);
         assert!(
             matches!(&sub[..], [FromController::Ack(_), FromController::Status(s)] if s.state.as_deref() == Some("running") && s.next == Some(2))
         );
-        c.handle_line(&daemon(1, "RESYNC", &[("from", "0".into())]));
+        c.handle_line(&daemon(1, ToController::Resync { from: 0 }));
         let rs = drain(&mut c);
         assert_eq!(rs.len(), 3);
         assert!(matches!(&rs[0], FromController::Capture(a) if a.idx == 0 && a.replay));
@@ -262,12 +272,25 @@ mod tests {
             matches!(&tail[1], FromController::Status(s) if s.state.as_deref() == Some("done") && s.next == Some(3))
         );
         // what needs a rig is refused; a garbled line gets a bad-crc NAK
-        c.handle_line(&daemon(2, "PAUSE", &[]));
-        c.handle_line(&daemon(3, "PROBE", &[("entry", "4".into())]));
+        c.handle_line(&daemon(2, ToController::Pause));
+        c.handle_line(&daemon(3, ToController::Probe { entry: 4 }));
         c.handle_line("garbage");
+        // a verb the protocol does not have, and a RESYNC without its index
+        c.handle_line(&format(4, "DANCE", &[]));
+        c.handle_line(&format(5, "RESYNC", &[]));
         let naks = drain(&mut c);
-        assert_eq!(naks.len(), 3);
-        assert!(naks.iter().all(|m| matches!(m, FromController::Nak(_))));
+        assert_eq!(naks.len(), 5);
+        let reasons: Vec<&str> = naks
+            .iter()
+            .map(|m| match m {
+                FromController::Nak(n) => n.reason.as_deref().unwrap_or("?"),
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        assert_eq!(
+            reasons,
+            ["refused", "refused", "bad-crc", "unknown-verb", "bad-args"]
+        );
         // a capture after the end is ignored
         c.handle_capture(capture(9, 99.0));
         assert_eq!(c.captures(), 3);

@@ -20,7 +20,8 @@ mod link;
 use crate::config::{AlarmSpec, Config, ConfigError};
 use crate::measure::alarm::{Alarm, AlarmKind, Severity};
 use crate::protocol::{
-    self, Ack, Announcement, FromController, Ident, LineError, Nak, Status, PROTO_VERSION,
+    self, Ack, Announcement, FromController, Ident, LineError, Nak, Status, ToController,
+    PROTO_VERSION,
 };
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -405,9 +406,14 @@ impl Engine {
         {
             return;
         }
-        self.send(out, "PROBE", &[("entry", entry.to_string())]);
+        self.send(out, ToController::Probe { entry });
         if let Some(s) = self.checker.sentinel() {
-            self.send(out, "PROBE", &[("entry", s.pose.entry.to_string())]);
+            self.send(
+                out,
+                ToController::Probe {
+                    entry: s.pose.entry,
+                },
+            );
         }
         self.probe_due_at = (self.regular_announced / self.probe_every + 1) * self.probe_every;
     }
@@ -550,9 +556,9 @@ impl Engine {
         }
     }
 
-    fn send(&mut self, out: &mut Vec<Output>, verb: &str, fields: &[(&str, String)]) -> u32 {
+    fn send(&mut self, out: &mut Vec<Output>, command: ToController) -> u32 {
         let seq = self.link.tx_seq;
-        out.push(Output::Send(protocol::format(seq, verb, fields)));
+        out.push(Output::Send(command.encode(seq)));
         self.link.tx_seq = (self.link.tx_seq + 1) % protocol::SEQ_MOD;
         seq
     }
@@ -561,8 +567,10 @@ impl Engine {
         let client = format!("goniowatch/{}", env!("CARGO_PKG_VERSION"));
         self.send(
             out,
-            "HELLO",
-            &[("proto", PROTO_VERSION.to_string()), ("client", client)],
+            ToController::Hello {
+                proto: PROTO_VERSION.to_string(),
+                client,
+            },
         );
     }
 
@@ -576,7 +584,7 @@ impl Engine {
             && self.link.is_connected()
             && self.paused_for.insert(a.code.clone())
         {
-            self.send(out, "PAUSE", &[]);
+            self.send(out, ToController::Pause);
         }
         if let Some(a) = self.alarm_book.admit(a, self.inputs) {
             out.push(Output::Alarm(a));
@@ -632,7 +640,7 @@ impl Engine {
         }
         self.link.resync.needed = false;
         self.link.resync.gap_during = false;
-        let seq = self.send(out, "RESYNC", &[("from", from.to_string())]);
+        let seq = self.send(out, ToController::Resync { from });
         self.link.resync.outstanding = Some(seq);
         self.link.resync.note_sent(seq);
         self.link.resync.age = 0;
@@ -1039,7 +1047,7 @@ impl Engine {
                 self.hello(out)
             }
             Some("not-subscribed") => {
-                self.send(out, "SUBSCRIBE", &[]);
+                self.send(out, ToController::Subscribe);
                 self.link.subscribed();
                 self.request_resync(out);
             }
@@ -1129,7 +1137,7 @@ impl Engine {
         self.link.rig_id = m.rig.clone().or(self.link.rig_id.take());
         self.link.subscribed();
         self.link.resync.outstanding = None;
-        self.send(out, "SUBSCRIBE", &[]);
+        self.send(out, ToController::Subscribe);
         self.request_resync(out);
     }
 
