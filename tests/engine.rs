@@ -5,7 +5,7 @@ use goniowatch::checks::Outcome;
 use goniowatch::config::Config;
 use goniowatch::engine::{Engine, Input, Output};
 use goniowatch::fixtures::{self, Controller};
-use goniowatch::measure::alarm::{Affects, Alarm, Handling};
+use goniowatch::measure::alarm::{Affects, Alarm, AlarmCode, Handling};
 use goniowatch::protocol::{parse, ToController};
 
 /// The command a line from the engine carries, with its sequence number.
@@ -50,7 +50,7 @@ fn sent(out: &[Output]) -> Vec<String> {
 fn alarms(out: &[Output]) -> Vec<String> {
     out.iter()
         .filter_map(|o| match o {
-            Output::Alarm(a) => Some(a.code.clone()),
+            Output::Alarm(a) => Some(a.code.to_string()),
             _ => None,
         })
         .collect()
@@ -60,7 +60,7 @@ fn alarms(out: &[Output]) -> Vec<String> {
 fn alarms_with_code(out: &[Output], code: &str) -> Vec<Alarm> {
     out.iter()
         .filter_map(|o| match o {
-            Output::Alarm(a) if a.code == code => Some(a.clone()),
+            Output::Alarm(a) if a.code.as_str() == code => Some(a.clone()),
             _ => None,
         })
         .collect()
@@ -308,7 +308,10 @@ fn disconnect_and_restart_are_link_events() {
         reason: "EIO".into(),
     });
     assert_eq!(alarms(&out), ["port-lost"]);
-    assert!(e.active_conditions().iter().any(|a| a.code == "port-lost"));
+    assert!(e
+        .active_conditions()
+        .iter()
+        .any(|a| a.code == AlarmCode::PortLost));
     let out = e.handle(&Input::Connected);
     assert_eq!(alarms(&out), ["port-back"]);
     let out = e.handle(&Input::Restart);
@@ -901,7 +904,7 @@ fn alarm_storms_are_aggregated_and_every_occurrence_is_counted() {
     let emitted: Vec<&goniowatch::measure::alarm::Alarm> = out
         .iter()
         .filter_map(|o| match o {
-            Output::Alarm(a) if a.code == "bad-line" => Some(a),
+            Output::Alarm(a) if a.code == AlarmCode::BadLine => Some(a),
             _ => None,
         })
         .collect();

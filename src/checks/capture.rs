@@ -5,7 +5,7 @@
 
 use super::records::{CaptureInput, CaptureRecord, CaptureStatus, Outcome};
 use super::{Checked, Ctx};
-use crate::measure::alarm::{Affects, Alarm, AlarmKind, Handling, Severity};
+use crate::measure::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::measure::colour::xyz_to_lab;
 use crate::measure::geometry::{angle_between, Spherical};
 use crate::measure::kinematics::{Incidence, Pose};
@@ -82,8 +82,8 @@ fn encoder_action(axis: &str) -> String {
 
 /// What the output does about a pose episode's captures: off the plan they are wrong and
 /// retaken; with only an encoder disagreeing the images may be right.
-fn episode_handling(code: &str) -> Handling {
-    if code == "pose-off-plan" {
+fn episode_handling(code: AlarmCode) -> Handling {
+    if code == AlarmCode::PoseOffPlan {
         Handling::Retake
     } else {
         Handling::Inspect
@@ -151,7 +151,7 @@ impl Episode {
     /// with an info alarm `<code>-cleared` that sums it up.
     fn clear(
         slot: &mut Option<Episode>,
-        code: &str,
+        code: AlarmCode,
         what: &str,
         idx: u64,
         t: f64,
@@ -161,7 +161,7 @@ impl Episode {
             Alarm::new(
                 AlarmKind::Positioning,
                 Severity::Info,
-                &format!("{code}-cleared"),
+                code.cleared().unwrap_or(code),
                 format!(
                     "{what} ({}) held for {} capture(s), {} to {}, at most {:.4}°{}; capture {idx} is within tolerance again",
                     e.axis, e.captures, e.first_idx, e.last_idx, e.worst_deg, e.by_command_note()
@@ -203,12 +203,12 @@ impl CaptureStage {
         let off_plan = self
             .off_plan_episode
             .iter()
-            .map(|e| ("pose-off-plan", "the pose off the plan", e));
+            .map(|e| (AlarmCode::PoseOffPlan, "the pose off the plan", e));
         let encoder = self
             .encoder_episodes
             .iter()
             .flatten()
-            .map(|e| ("encoder-mismatch", "the encoder mismatch", e));
+            .map(|e| (AlarmCode::EncoderMismatch, "the encoder mismatch", e));
         off_plan
             .chain(encoder)
             .map(|(code, what, e)| {
@@ -230,7 +230,7 @@ impl CaptureStage {
                     "by_command": e.by_command,
                 }))
                 .advise(
-                    &if code == "pose-off-plan" {
+                    &if code == AlarmCode::PoseOffPlan {
                         POSE_OFF_PLAN_ACTION.to_string()
                     } else {
                         encoder_action(e.axis)
@@ -254,7 +254,7 @@ impl CaptureStage {
                 Alarm::new(
                     AlarmKind::CaptureQuality,
                     Severity::Warning,
-                    "bad-entry",
+                    AlarmCode::BadEntry,
                     format!(
                         "capture {} names plan entry {}, which is not in the {}-capture plan",
                         input.idx,
@@ -365,9 +365,9 @@ impl CaptureStage {
                 Severity::Warning
             },
             if missing {
-                "missing-capture"
+                AlarmCode::MissingCapture
             } else {
-                "capture-failed"
+                AlarmCode::CaptureFailed
             },
             format!(
                 "capture {} ({}) {}: {error}{}",
@@ -442,7 +442,7 @@ impl CaptureStage {
                     Alarm::new(
                         AlarmKind::Positioning,
                         Severity::Warning,
-                        "bad-pose",
+                        AlarmCode::BadPose,
                         format!(
                             "capture {}: encoder pose {:?} unusable ({e}); the plan's pose is assumed",
                             input.idx, input.enc
@@ -507,7 +507,7 @@ impl CaptureStage {
                 Alarm::new(
                     AlarmKind::Positioning,
                     Severity::Warning,
-                    "pose-off-plan",
+                    AlarmCode::PoseOffPlan,
                     format!(
                         "capture {}: the {what} put the lamp/camera {:.3}° from plan entry {} (tolerance {}°); further captures off the plan are counted until it clears",
                         input.idx, judged_err, input.entry, ctx.spec.pose_tolerance_deg
@@ -523,7 +523,7 @@ impl CaptureStage {
         } else {
             alarms.extend(Episode::clear(
                 &mut self.off_plan_episode,
-                "pose-off-plan",
+                AlarmCode::PoseOffPlan,
                 "the pose off the plan",
                 input.idx,
                 input.t,
@@ -548,7 +548,7 @@ impl CaptureStage {
                     Alarm::new(
                         AlarmKind::Positioning,
                         Severity::Warning,
-                        "encoder-mismatch",
+                        AlarmCode::EncoderMismatch,
                         format!(
                             "capture {}: {name} encoder reads {:.4}° but {:.4}° was commanded (|Δ| {:.4}° > {tol}°); further mismatching captures are counted until it clears",
                             input.idx, input.enc[k], input.cmd[k], offset.abs()
@@ -579,7 +579,7 @@ impl CaptureStage {
             } else {
                 alarms.extend(Episode::clear(
                     slot,
-                    "encoder-mismatch",
+                    AlarmCode::EncoderMismatch,
                     "the encoder mismatch",
                     input.idx,
                     input.t,
@@ -624,7 +624,7 @@ fn quality(
             Alarm::new(
                 AlarmKind::CaptureQuality,
                 Severity::Warning,
-                "non-finite-pixels",
+                AlarmCode::NonFinitePixels,
                 format!(
                     "capture {}: {} of {} pixels are NaN or infinite (allowed {}); they are left out of the mean",
                     input.idx, stats.nonfinite, stats.pixels, ctx.spec.nonfinite_max
@@ -640,7 +640,7 @@ fn quality(
             Alarm::new(
                 AlarmKind::CaptureQuality,
                 Severity::Warning,
-                "clipped-pixels",
+                AlarmCode::ClippedPixels,
                 format!(
                     "capture {}: {:.2} % of the pixels are clipped (allowed {:.2} %)",
                     input.idx,
@@ -657,7 +657,7 @@ fn quality(
             Alarm::new(
                 AlarmKind::CaptureQuality,
                 Severity::Warning,
-                "dark-capture",
+                AlarmCode::DarkCapture,
                 format!(
                     "capture {}: mean Y = {:.4} is at or below the dark level {} (lamp off or shutter closed?)",
                     input.idx, y, ctx.spec.dark_y

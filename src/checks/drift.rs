@@ -14,7 +14,7 @@
 use super::pairs::PendingPartner;
 use super::records::{PairRecord, PairStatus};
 use super::{Ctx, GeometryKey, Ledger};
-use crate::measure::alarm::{action, Affects, Alarm, AlarmKind, Handling, Severity};
+use crate::measure::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::measure::colour::{White, Xyz};
 use crate::measure::drift::{
     mount_coordinates, DriftDetector, DriftEstimate, DriftEvent, DriftSpec, GainPath, MountPattern,
@@ -214,7 +214,7 @@ impl ColourStage {
                 Alarm::new(
                     AlarmKind::Drift,
                     Severity::Info,
-                    "colour-drift-cleared",
+                    AlarmCode::ColourDriftCleared,
                     format!(
                         "the lamp's colour drift estimate is back within the tolerance: {:+.1} ± {:.1} K/h ({})",
                         e.k_per_h, e.se_k_per_h, e.source
@@ -243,7 +243,7 @@ fn colour_alarm(e: &ColourDriftEstimate, at: (Option<u64>, Option<f64>)) -> Alar
     Alarm::new(
         AlarmKind::Drift,
         Severity::Warning,
-        "colour-drift",
+        AlarmCode::ColourDrift,
         format!(
             "the lamp's colour drifts by {:+.1} K/h (± {:.1} K/h standard error, from {} {}; ΔE00 {:.2}/h on a white): {}; beyond the tolerance. Every later capture's chromaticity moves with the lamp",
             e.k_per_h,
@@ -495,7 +495,7 @@ pub(super) fn drift_alarm(
         DriftEvent::RateSignificant(e) => Alarm::new(
             AlarmKind::Drift,
             Severity::Warning,
-            "gain-drift",
+            AlarmCode::GainDrift,
             format!(
                 "the gain drifts by {:+.2} %/h (± {:.2} %/h standard error, from {} {source}); beyond the tolerance",
                 e.rate_pct_per_h, e.se_pct_per_h, e.pairs
@@ -508,7 +508,7 @@ pub(super) fn drift_alarm(
         DriftEvent::RateCleared(e) => Alarm::new(
             AlarmKind::Drift,
             Severity::Info,
-            "gain-drift-cleared",
+            AlarmCode::GainDriftCleared,
             format!(
                 "the gain drift estimate is back within the tolerance: {:+.2} ± {:.2} %/h ({source})",
                 e.rate_pct_per_h, e.se_pct_per_h
@@ -518,7 +518,7 @@ pub(super) fn drift_alarm(
         DriftEvent::Unstable { scatter, design, probes, from_idx } => Alarm::new(
             AlarmKind::Drift,
             Severity::Warning,
-            "lamp-unstable",
+            AlarmCode::LampUnstable,
             format!(
                 "the lamp is unstable: the {source} scatter by {:.2} % (robust SD of {probes} probes about their trend) against the {:.2} % the probe cadence was designed for ([probes] design_scatter_pct; lamp-unstable above {UNSTABLE_FACTOR} ×); steps smaller than 5 × the scatter go unseen meanwhile",
                 100.0 * scatter,
@@ -534,7 +534,7 @@ pub(super) fn drift_alarm(
         DriftEvent::UnstableCleared { scatter, design, probes } => Alarm::new(
             AlarmKind::Drift,
             Severity::Info,
-            "lamp-unstable-cleared",
+            AlarmCode::LampUnstableCleared,
             format!(
                 "the lamp is steady again: the {source} scatter by {:.2} % over {probes} probes (design {:.2} %)",
                 100.0 * scatter,
@@ -547,7 +547,7 @@ pub(super) fn drift_alarm(
         DriftEvent::Step { direction, statistic, threshold, pairs_since_reset } => Alarm::new(
             AlarmKind::Drift,
             Severity::Warning,
-            "gain-step",
+            AlarmCode::GainStep,
             format!(
                 "the gain stepped {}: the latest of the {source} departs from the trend of the previous {pairs_since_reset} by {statistic:.1} standard deviations (threshold {threshold})",
                 if direction > 0 { "up" } else { "down" }
@@ -569,7 +569,7 @@ fn mount_alarm(m: &MountPattern, source: &str, at: (Option<u64>, Option<f64>)) -
     Alarm::new(
         AlarmKind::Isotropy,
         Severity::Warning,
-        "sample-off-centre",
+        AlarmCode::SampleOffCentre,
         format!(
             "the luminance follows the camera's azimuth by {cam:.2} ± {cam_se:.2} % per unit tan θo (brightest towards φ = {cam_az:.0}°) in every light sweep, {}: the sample sits off the arm's rotation centre, or is not isotropic. The {source} drift model and the light sweeps carry this pattern from now on, which makes their drift estimates less precise",
             if m.light_separated() {

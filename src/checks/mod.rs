@@ -30,7 +30,7 @@ pub use records::{
     IsotropyRecord, Outcome, PairRecord, PairStatus, ProbeGainCurve, Table2,
 };
 
-use crate::measure::alarm::{Affects, Alarm, AlarmKind, Handling, Severity};
+use crate::measure::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::measure::colour::{RgbToXyz, White, Xyz};
 use crate::measure::drift::{mount_coordinates, DriftEstimate, MountPattern, StepEffect};
 use crate::measure::geometry::{azimuth_difference_deg, Vec3};
@@ -494,7 +494,7 @@ impl Checker {
                 Alarm::new(
                     AlarmKind::Positioning,
                     Severity::Warning,
-                    "joint-offset-suspected",
+                    AlarmCode::JointOffsetSuspected,
                     format!(
                         "joint 3 looks turned by about {:+.2}° (the sample's rotation about its normal; a tilt or a shift of the sample in its holder moves it too): the sentinel probe (entry {}, θo {:.0}°, {:+.2} %/° of joint 3) moved {:+.2} % against the lamp probe, {:.1} standard deviations of its earlier readings (threshold {}), while the encoders agree with the commands",
                         slip.offset_deg,
@@ -676,7 +676,7 @@ impl Checker {
                 Alarm::new(
                     crate::measure::alarm::AlarmKind::CaptureQuality,
                     crate::measure::alarm::Severity::Info,
-                    "entry-repeated",
+                    AlarmCode::EntryRepeated,
                     format!(
                         "capture {} repeats plan entry {}; the first capture of it is kept for the checks",
                         input.idx, input.entry

@@ -7,7 +7,7 @@
 
 use super::records::{Interpolation, PairRecord, PairStatus, Table2};
 use super::{Checked, Ctx, Ledger};
-use crate::measure::alarm::{Affects, Alarm, AlarmKind, Handling, Severity};
+use crate::measure::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::measure::colour::{ciede2000, colour_difference, xyz_to_lab, Xyz};
 use crate::measure::drift::{mount_coordinates, MountPattern};
 use crate::measure::geometry::{angle_between, Spherical};
@@ -175,7 +175,7 @@ impl PairStage {
                 Alarm::new(
                     AlarmKind::ReciprocityOutlier,
                     Severity::Warning,
-                    "reciprocity-outlier",
+                    AlarmCode::ReciprocityOutlier,
                     format!(
                         "pair of captures {} and {} (entries {} ↔ {}) differs by ΔE00 = {:.2}, above the limit {:.2} (median {:.2} + {}·MAD over {} pairs at θ {}°/{}°)",
                         pair.a,

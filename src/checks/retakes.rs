@@ -10,7 +10,7 @@
 //! outside every listed episode, is not listed.
 
 use super::records::{CaptureRecord, CaptureStatus};
-use crate::measure::alarm::{Affects, Alarm};
+use crate::measure::alarm::{Affects, Alarm, AlarmCode};
 use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -70,9 +70,9 @@ pub fn retakes(
     for a in alarms {
         let ev = &a.evidence;
         let range = |from: Option<u64>, to: Option<u64>| from.zip(to).map(|(f, t)| f..=t);
-        match a.code.as_str() {
-            "pose-off-plan" if open_pose.is_none() => open_pose = a.idx,
-            "pose-off-plan-cleared" => {
+        match a.code {
+            AlarmCode::PoseOffPlan if open_pose.is_none() => open_pose = a.idx,
+            AlarmCode::PoseOffPlanCleared => {
                 let r = range(
                     ev.get("first_idx").and_then(|v| v.as_u64()),
                     ev.get("last_idx").and_then(|v| v.as_u64()),
@@ -82,7 +82,7 @@ pub fn retakes(
                 }
                 open_pose = None;
             }
-            "joint-offset-suspected" => {
+            AlarmCode::JointOffsetSuspected => {
                 let joint = ev.get("joint").and_then(|v| v.as_u64()).unwrap_or(0);
                 let offset = ev
                     .get("offset_deg")
@@ -175,7 +175,7 @@ pub fn session_retakes(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::measure::alarm::{AlarmKind, Severity};
+    use crate::measure::alarm::{AlarmCode, AlarmKind, Severity};
     use serde_json::json;
 
     fn cap(idx: u64, entry: usize, status: CaptureStatus) -> CaptureRecord {
@@ -216,7 +216,7 @@ mod tests {
         assert_eq!(r.len(), 371);
     }
 
-    fn alarm(code: &str, idx: u64, evidence: serde_json::Value) -> Alarm {
+    fn alarm(code: AlarmCode, idx: u64, evidence: serde_json::Value) -> Alarm {
         Alarm::new(
             AlarmKind::Positioning,
             Severity::Warning,
@@ -240,14 +240,14 @@ mod tests {
         // capture 7 is dark by its record (its alarm may have been held back in a storm)
         caps[7].xyz = Some([0.0, 0.0, 0.0]);
         let alarms = vec![
-            alarm("pose-off-plan", 20, json!({})),
+            alarm(AlarmCode::PoseOffPlan, 20, json!({})),
             alarm(
-                "pose-off-plan-cleared",
+                AlarmCode::PoseOffPlanCleared,
                 23,
                 json!({"first_idx": 20, "last_idx": 22}),
             ),
             alarm(
-                "joint-offset-suspected",
+                AlarmCode::JointOffsetSuspected,
                 95,
                 json!({"joint": 2, "offset_deg": 1.1, "since_idx": 90}),
             ),
@@ -265,7 +265,7 @@ mod tests {
         assert!(r[6].why.contains("joint 2") && r[6].why.contains("+1.10°"));
         // an alarm that says which captures a slip affects is taken at its word
         let slip = alarm(
-            "joint-offset-suspected",
+            AlarmCode::JointOffsetSuspected,
             95,
             json!({"joint": 2, "offset_deg": 1.1, "since_idx": 90}),
         )
@@ -292,12 +292,16 @@ mod tests {
             .map(|i| cap(i, i as usize, CaptureStatus::Ok))
             .collect();
         assert!(retakes(&caps, &[], &spec()).is_empty());
-        let r = retakes(&caps, &[alarm("pose-off-plan", 7, json!({}))], &spec());
+        let r = retakes(
+            &caps,
+            &[alarm(AlarmCode::PoseOffPlan, 7, json!({}))],
+            &spec(),
+        );
         assert_eq!(
             r.iter().map(|x| x.idx.unwrap()).collect::<Vec<_>>(),
             vec![7, 8, 9]
         );
-        assert!(retakes(&[], &[alarm("pose-off-plan", 7, json!({}))], &spec()).is_empty());
+        assert!(retakes(&[], &[alarm(AlarmCode::PoseOffPlan, 7, json!({}))], &spec()).is_empty());
     }
 
     /// A finished session lists the plan entries no capture stands for after its captures;

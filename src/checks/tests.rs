@@ -1,7 +1,7 @@
 //! The checker on synthetic sessions: a reciprocal, smooth BRDF captured on the UBO plan.
 
 use super::*;
-use crate::measure::alarm::{Affects, AlarmKind, Handling};
+use crate::measure::alarm::{Affects, AlarmCode, AlarmKind, Handling};
 use crate::measure::kinematics::RigSpec;
 use crate::measure::plan::SamplingPlan;
 
@@ -130,7 +130,11 @@ fn isotropy_classes_give_the_drift_rate_and_the_corrected_colour() {
     let mut last = None;
     for input in ubo_session(3000, |t| (-0.01 * t).exp()) {
         let out = ch.check(&input);
-        alarms.extend(out.alarms.into_iter().filter(|a| a.code == "gain-drift"));
+        alarms.extend(
+            out.alarms
+                .into_iter()
+                .filter(|a| a.code == AlarmCode::GainDrift),
+        );
         last = out.capture;
     }
     let e = ch.isotropy_drift().unwrap();
@@ -223,7 +227,11 @@ fn a_step_found_by_the_sweeps_enters_the_gain_correction() {
     let mut last = None;
     for input in ubo_session(2600, |t_h| if t_h * 3600.0 >= t_step { 0.97 } else { 1.0 }) {
         let out = ch.check(&input);
-        steps.extend(out.alarms.into_iter().filter(|a| a.code == "gain-step"));
+        steps.extend(
+            out.alarms
+                .into_iter()
+                .filter(|a| a.code == AlarmCode::GainStep),
+        );
         last = out.capture;
     }
     assert_eq!(steps.len(), 1, "{steps:?}");
@@ -261,9 +269,9 @@ fn assert_advised(alarms: &[Alarm]) {
             AlarmKind::Drift | AlarmKind::Positioning | AlarmKind::ReciprocityOutlier
         )
     }) {
-        if a.code.ends_with("-cleared") {
+        if a.code.as_str().ends_with("-cleared") {
             assert!(a.action.is_none(), "{a:?}");
-            if a.code.contains("pose") || a.code.contains("encoder") {
+            if a.code.as_str().contains("pose") || a.code.as_str().contains("encoder") {
                 assert!(matches!(a.affects, Some(Affects::Between { .. })), "{a:?}");
             }
         } else {
@@ -278,7 +286,7 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
     let codes = |out: &CheckOutput| -> Vec<String> {
         out.alarms
             .iter()
-            .filter(|a| a.code.contains("encoder") || a.code.contains("pose"))
+            .filter(|a| a.code.as_str().contains("encoder") || a.code.as_str().contains("pose"))
             .map(|a| format!("{}@{}", a.code, a.idx.unwrap_or(u64::MAX)))
             .collect()
     };
@@ -346,7 +354,7 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
     );
     let retaken: Vec<Option<Affects>> = all
         .iter()
-        .filter(|a| a.code == "pose-off-plan-cleared")
+        .filter(|a| a.code == AlarmCode::PoseOffPlanCleared)
         .map(|a| a.affects.clone())
         .collect();
     assert_eq!(
@@ -366,7 +374,7 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
     );
     let cleared = all
         .iter()
-        .find(|a| a.code == "encoder-mismatch-cleared")
+        .find(|a| a.code == AlarmCode::EncoderMismatchCleared)
         .unwrap();
     assert_eq!(
         cleared.affects,
@@ -384,7 +392,7 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
     );
     assert!(all
         .iter()
-        .find(|a| a.code == "encoder-mismatch")
+        .find(|a| a.code == AlarmCode::EncoderMismatch)
         .and_then(|a| a.action.as_deref())
         .is_some_and(|s| s.contains("wagon encoder")
             && s.contains("commanded pose")
@@ -392,7 +400,7 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
     // the wagon's episode is still open at the end: a status evaluated now says so
     let open = ch.open_conditions();
     assert_eq!(open.len(), 1, "{open:?}");
-    assert!(open.iter().any(|a| a.code == "encoder-mismatch"
+    assert!(open.iter().any(|a| a.code == AlarmCode::EncoderMismatch
         && a.evidence["axis"] == "wagon"
         && a.evidence["first_idx"] == 60
         && a.evidence["by_command"] == 319));
@@ -463,7 +471,7 @@ fn a_nan_encoder_reading_is_a_mismatch_never_a_steady_offset() {
         codes.extend(
             out.alarms
                 .iter()
-                .filter(|a| a.code.starts_with("encoder-mismatch"))
+                .filter(|a| a.code.as_str().starts_with("encoder-mismatch"))
                 .map(|a| format!("{}@{}", a.code, a.idx.unwrap_or(u64::MAX))),
         );
     }
@@ -494,7 +502,7 @@ fn encoder_episodes_are_kept_per_axis() {
         seen.extend(
             out.alarms
                 .iter()
-                .filter(|a| a.code.starts_with("encoder-mismatch"))
+                .filter(|a| a.code.as_str().starts_with("encoder-mismatch"))
                 .map(|a| {
                     format!(
                         "{}@{}:{}",
@@ -521,7 +529,7 @@ fn encoder_episodes_are_kept_per_axis() {
     let open: Vec<String> = ch
         .open_conditions()
         .iter()
-        .filter(|a| a.code == "encoder-mismatch")
+        .filter(|a| a.code == AlarmCode::EncoderMismatch)
         .map(|a| a.evidence["axis"].to_string())
         .collect();
     assert_eq!(open, ["\"joint 2\"", "\"wagon\""]);
@@ -546,9 +554,9 @@ fn isotropy_classes_give_the_lamp_colour_drift_in_kelvin_per_hour_and_the_correc
     for input in colour_drift_session(3000, -20.0) {
         let out = ch.check(&input);
         for a in out.alarms {
-            match a.code.as_str() {
-                "colour-drift" => colour.push(a),
-                "gain-drift" | "gain-step" => gain += 1,
+            match a.code {
+                AlarmCode::ColourDrift => colour.push(a),
+                AlarmCode::GainDrift | AlarmCode::GainStep => gain += 1,
                 _ => {}
             }
         }
@@ -608,7 +616,7 @@ fn count_alarms(ch: &mut Checker, inputs: Vec<CaptureInput>, prefix: &str) -> us
             ch.check(i)
                 .alarms
                 .iter()
-                .filter(|a| a.code.starts_with(prefix))
+                .filter(|a| a.code.as_str().starts_with(prefix))
                 .count()
         })
         .sum()
@@ -651,7 +659,10 @@ fn probes_give_the_lamp_colour_drift_on_an_anisotropic_sample() {
     let e = ch.colour_drift().unwrap();
     assert_eq!(e.source, "probes");
     assert!((e.k_per_h + 40.0).abs() < 4.0, "{e:?}");
-    let colour: Vec<_> = alarms.iter().filter(|a| a.code == "colour-drift").collect();
+    let colour: Vec<_> = alarms
+        .iter()
+        .filter(|a| a.code == AlarmCode::ColourDrift)
+        .collect();
     assert_eq!(colour.len(), 1, "{colour:?}");
     assert!(colour[0].message.contains("probes"));
     assert_eq!(
@@ -734,7 +745,7 @@ fn a_flickering_lamp_at_the_probes_is_lamp_unstable_with_its_scatter() {
         });
         let unstable: Vec<&Alarm> = alarms
             .iter()
-            .filter(|a| a.code == "lamp-unstable")
+            .filter(|a| a.code == AlarmCode::LampUnstable)
             .collect();
         assert_eq!(unstable.len(), want, "{flicker}: {unstable:?}");
         if let Some(a) = unstable.first() {
@@ -754,7 +765,10 @@ fn a_flickering_lamp_at_the_probes_is_lamp_unstable_with_its_scatter() {
         }
         assert_advised(&alarms);
         // flicker is not a drift
-        assert!(!alarms.iter().any(|a| a.code == "gain-drift"), "{alarms:?}");
+        assert!(
+            !alarms.iter().any(|a| a.code == AlarmCode::GainDrift),
+            "{alarms:?}"
+        );
     }
 }
 
@@ -798,9 +812,11 @@ fn a_sample_off_the_rotation_centre_is_named_and_its_pattern_is_not_taken_for_dr
         let mut drift = Vec::new();
         for input in off_centre_session(2500, light, camera, |t| (rate / 100.0 * t).exp()) {
             for al in ch.check(&input).alarms {
-                match al.code.as_str() {
-                    "sample-off-centre" => named.push(al),
-                    "gain-drift" | "gain-step" | "reciprocity-outlier" => drift.push(al),
+                match al.code {
+                    AlarmCode::SampleOffCentre => named.push(al),
+                    AlarmCode::GainDrift | AlarmCode::GainStep | AlarmCode::ReciprocityOutlier => {
+                        drift.push(al)
+                    }
                     _ => {}
                 }
             }
@@ -827,7 +843,7 @@ fn a_sample_off_the_rotation_centre_is_named_and_its_pattern_is_not_taken_for_dr
         // only the real drift is alarmed
         let want = if rate == 0.0 { 0 } else { 1 };
         assert_eq!(drift.len(), want, "{rate}: {drift:?}");
-        assert!(drift.iter().all(|a| a.code == "gain-drift"));
+        assert!(drift.iter().all(|a| a.code == AlarmCode::GainDrift));
     }
     // a centred sample: nothing named
     let mut centred = checker();

@@ -7,7 +7,7 @@ use super::compare::CompareReport;
 use crate::checks::{CaptureRecord, PairRecord, Table2};
 use crate::config::Config;
 use crate::engine::Summary;
-use crate::measure::alarm::{Affects, Alarm, Severity};
+use crate::measure::alarm::{Affects, Alarm, AlarmCode, Severity};
 use crate::measure::plan::SamplingPlan;
 use crate::measure::sweeps::SweepRecord;
 use anyhow::{Context, Result};
@@ -798,8 +798,8 @@ fn files_section(inp: &ReportInputs) -> String {
     const SHOWN: usize = 200;
     let mut rows: Vec<(String, String)> = Vec::new();
     for a in inp.alarms.iter() {
-        match a.code.as_str() {
-            "duplicate-files" => {
+        match a.code {
+            AlarmCode::DuplicateFiles => {
                 for g in a.evidence["groups"].as_array().into_iter().flatten() {
                     let kept = g["kept"].as_str().unwrap_or("?");
                     let entry = &g["entry"];
@@ -811,7 +811,7 @@ fn files_section(inp: &ReportInputs) -> String {
                     }
                 }
             }
-            "skipped-files" => {
+            AlarmCode::SkippedFiles => {
                 for f in a.evidence["files"].as_array().into_iter().flatten() {
                     rows.push((
                         f["file"].as_str().unwrap_or("?").to_string(),
@@ -1013,7 +1013,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
                 a.idx.map(|i| i.to_string()).unwrap_or_default(),
                 a.t.map(|t| format!("{:.2}", t / 3600.0))
                     .unwrap_or_default(),
-                esc(&a.code),
+                esc(a.code.as_str()),
                 esc(&a.message),
                 esc(a.action.as_deref().unwrap_or("")),
                 esc(&a.affects.as_ref().map(Affects::describe).unwrap_or_default())
@@ -1193,7 +1193,7 @@ impl CsvRow for Alarm {
             opt(a.t),
             sev,
             kind,
-            csv_field(&a.code),
+            csv_field(a.code.as_str()),
             csv_field(&a.message),
             csv_field(a.action.as_deref().unwrap_or("")),
             csv_field(

@@ -552,7 +552,7 @@ pub fn metrics(s: &Snapshot) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::measure::alarm::Severity;
+    use crate::measure::alarm::{AlarmCode, Severity};
 
     fn capture(idx: u64, entry: usize, light: usize, probe: bool, y: f64) -> CaptureRecord {
         CaptureRecord {
@@ -602,7 +602,7 @@ mod tests {
             Alarm::new(
                 AlarmKind::CaptureQuality,
                 Severity::Warning,
-                "dark-capture",
+                AlarmCode::DarkCapture,
                 "capture 7 is dark".to_string(),
             )
             .at(Some(7), Some(49.0)),

@@ -3,7 +3,7 @@
 //! engine inputs; the rest are counted and reported as one alarm when the window ends. Windows
 //! are counted in inputs, not wall time, so a replay aggregates exactly as the live run did.
 
-use crate::measure::alarm::{Affects, Alarm, Severity};
+use crate::measure::alarm::{Affects, Alarm, AlarmCode, Severity};
 use serde_json::json;
 use std::collections::BTreeMap;
 
@@ -36,17 +36,13 @@ pub(super) struct AlarmBook {
     counts: BTreeMap<String, u64>,
     /// Critical occurrences, emitted in full or held back.
     criticals: u64,
-    storms: BTreeMap<String, Storm>,
+    storms: BTreeMap<AlarmCode, Storm>,
 }
 
 impl AlarmBook {
     /// Count an occurrence under its kind.
     pub(super) fn count(&mut self, a: &Alarm) {
-        let key = serde_json::to_value(a.kind)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_string))
-            .unwrap_or_default();
-        *self.counts.entry(key).or_default() += 1;
+        *self.counts.entry(a.kind.as_str().to_string()).or_default() += 1;
         if a.severity == Severity::Critical {
             self.criticals += 1;
         }
@@ -57,7 +53,7 @@ impl AlarmBook {
     /// the window (a warning that turns critical is never held back). `inputs` is the engine's
     /// input count.
     pub(super) fn admit(&mut self, a: Alarm, inputs: u64) -> Option<Alarm> {
-        let storm = self.storms.entry(a.code.clone()).or_insert_with(|| Storm {
+        let storm = self.storms.entry(a.code).or_insert_with(|| Storm {
             window_start: inputs,
             ..Storm::default()
         });
@@ -123,7 +119,7 @@ impl AlarmBook {
 }
 
 /// The one alarm that reports a window's held-back alarms of `code`.
-fn aggregate(code: &str, storm: &Storm, latest: Alarm, now: u64) -> Alarm {
+fn aggregate(code: &AlarmCode, storm: &Storm, latest: Alarm, now: u64) -> Alarm {
     let first = storm.window_start;
     let captures = if storm.captures.is_empty() {
         String::new()
@@ -146,7 +142,7 @@ fn aggregate(code: &str, storm: &Storm, latest: Alarm, now: u64) -> Alarm {
     let mut a = Alarm::new(
         latest.kind,
         storm.held_worst.unwrap_or(latest.severity).max(latest.severity),
-        code,
+        *code,
         format!(
             "{} more '{code}' alarm(s) were held back (more than {ALARM_BURST} in {ALARM_WINDOW} inputs){captures}; the latest: {}",
             storm.held, latest.message
@@ -175,7 +171,7 @@ mod tests {
         Alarm::new(
             AlarmKind::CaptureQuality,
             severity,
-            "capture-failed",
+            AlarmCode::CaptureFailed,
             "x".into(),
         )
         .at(Some(idx), None)
@@ -237,7 +233,7 @@ mod tests {
             let a = Alarm::new(
                 AlarmKind::ReciprocityOutlier,
                 Severity::Warning,
-                "reciprocity-outlier",
+                AlarmCode::ReciprocityOutlier,
                 "x".into(),
             )
             .at(Some(100 + i), None)

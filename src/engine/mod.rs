@@ -18,7 +18,7 @@ mod ledger;
 mod link;
 
 use crate::config::{AlarmSpec, Config, ConfigError};
-use crate::measure::alarm::{Alarm, AlarmKind, Severity};
+use crate::measure::alarm::{Alarm, AlarmCode, AlarmKind, Severity};
 use crate::protocol::{
     self, Ack, Announcement, FromController, Ident, LineError, Nak, Status, ToController,
     PROTO_VERSION,
@@ -179,7 +179,7 @@ pub struct Engine {
     /// Plan entries a files source placed more than one file on.
     duplicate_entries: BTreeSet<usize>,
     alarm_book: alarms::AlarmBook,
-    paused_for: BTreeSet<String>,
+    paused_for: BTreeSet<AlarmCode>,
     captures_planned: u64,
     /// Ask for a probe of `probe_entry` every this many regular captures announced (0: never).
     probe_every: u64,
@@ -249,7 +249,7 @@ fn skipped_alarm(
         Alarm::new(
             AlarmKind::CaptureQuality,
             severity,
-            "skipped-files",
+            AlarmCode::SkippedFiles,
             format!("{total} file(s) under the capture folder were not placed as captures ({by_kind}): {first}"),
         )
         .with(json!({
@@ -299,7 +299,7 @@ fn duplicate_alarm(groups: &[crate::archive::listing::DuplicateGroup]) -> Option
         Alarm::new(
             AlarmKind::CaptureQuality,
             Severity::Warning,
-            "duplicate-files",
+            AlarmCode::DuplicateFiles,
             format!(
                 "plan entry {} has {} files: {} is checked, {others}{more} left out{prefers}{rest}; the rule: {DUPLICATE_RULE}",
                 g.entry,
@@ -478,7 +478,7 @@ impl Engine {
             v.push(Alarm::new(
                 AlarmKind::Link,
                 Severity::Warning,
-                "port-lost",
+                AlarmCode::PortLost,
                 "the serial link is down; reconnecting".into(),
             ));
         }
@@ -486,7 +486,7 @@ impl Engine {
             v.push(Alarm::new(
                 AlarmKind::Link,
                 Severity::Critical,
-                "unsupported-version",
+                AlarmCode::UnsupportedVersion,
                 format!("the controller does not speak protocol version {PROTO_VERSION}"),
             ));
         }
@@ -494,7 +494,7 @@ impl Engine {
             v.push(Alarm::new(
                 AlarmKind::Link,
                 Severity::Warning,
-                "crc-errors",
+                AlarmCode::CrcErrors,
                 "many lines are failing their CRC".into(),
             ));
         }
@@ -503,7 +503,7 @@ impl Engine {
             v.push(Alarm::new(
                 AlarmKind::CaptureQuality,
                 Severity::Info,
-                "captures-pending",
+                AlarmCode::CapturesPending,
                 format!("{waiting} announced captures are waiting to be checked"),
             ));
         }
@@ -582,7 +582,7 @@ impl Engine {
         if a.severity == Severity::Critical
             && self.spec.pause_on_critical
             && self.link.is_connected()
-            && self.paused_for.insert(a.code.clone())
+            && self.paused_for.insert(a.code)
         {
             self.send(out, ToController::Pause);
         }
@@ -660,7 +660,7 @@ impl Engine {
                 Alarm::new(
                     AlarmKind::Link,
                     Severity::Warning,
-                    "bad-announcement",
+                    AlarmCode::BadAnnouncement,
                     format!("a CAPTURE line was malformed and names no readable capture index ({why}); asking {} again", self.source_name()),
                 ),
             );
@@ -678,7 +678,7 @@ impl Engine {
                 Alarm::new(
                     AlarmKind::Link,
                     Severity::Warning,
-                    "bad-announcement",
+                    AlarmCode::BadAnnouncement,
                     format!("the CAPTURE line for capture {i} was malformed ({why}); asking {} to send it again", self.source_name()),
                 )
                 .at(Some(i), None),
@@ -690,7 +690,7 @@ impl Engine {
                 Alarm::new(
                     AlarmKind::CaptureQuality,
                     Severity::Warning,
-                    "announcement-refused",
+                    AlarmCode::AnnouncementRefused,
                     format!("{} sent the same malformed CAPTURE line for capture {i} again ({why}); capture {i} is skipped and checking goes on", self.source_name()),
                 )
                 .at(Some(i), None)
@@ -715,7 +715,7 @@ impl Engine {
                         Alarm::new(
                             AlarmKind::Link,
                             Severity::Info,
-                            "port-back",
+                            AlarmCode::PortBack,
                             format!("serial port open again (connection {n})"),
                         ),
                     );
@@ -730,7 +730,7 @@ impl Engine {
                         Alarm::new(
                             AlarmKind::Link,
                             Severity::Warning,
-                            "port-lost",
+                            AlarmCode::PortLost,
                             format!("serial port lost ({reason}); reconnecting, then resyncing from capture {}", self.lowest_unseen()),
                         ),
                     );
@@ -747,7 +747,7 @@ impl Engine {
                     Alarm::new(
                         AlarmKind::Link,
                         Severity::Info,
-                        "daemon-restart",
+                        AlarmCode::DaemonRestart,
                         format!(
                             "goniowatch restarted on this session; {} captures already checked",
                             self.ledger.next_check
@@ -801,7 +801,7 @@ impl Engine {
                         Alarm::new(
                             AlarmKind::CaptureQuality,
                             Severity::Warning,
-                            "unannounced-files",
+                            AlarmCode::UnannouncedFiles,
                             format!(
                                 "{} file(s) in the capture folder {}: {}",
                                 files.len(),
@@ -829,7 +829,7 @@ impl Engine {
                 Alarm::new(
                     AlarmKind::Link,
                     Severity::Warning,
-                    "crc-errors",
+                    AlarmCode::CrcErrors,
                     format!(
                         "{n_bad} of the last {seen} lines from the controller were corrupt (threshold {threshold}); latest: {what}"
                     ),
@@ -912,7 +912,7 @@ impl Engine {
                     Alarm::new(
                         AlarmKind::Link,
                         Severity::Warning,
-                        "bad-line",
+                        AlarmCode::BadLine,
                         format!("a {verb} line from the controller was intact but malformed ({error}); it is ignored"),
                     ),
                 );
@@ -993,7 +993,7 @@ impl Engine {
                 Alarm::new(
                     AlarmKind::CaptureQuality,
                     Severity::Warning,
-                    "announcement-refused",
+                    AlarmCode::AnnouncementRefused,
                     format!("{} did not send a readable CAPTURE line for capture {i} when asked again; capture {i} is skipped and checking goes on", self.source_name()),
                 )
                 .at(Some(i), None)
@@ -1008,7 +1008,7 @@ impl Engine {
                     Alarm::new(
                         AlarmKind::CaptureQuality,
                         Severity::Warning,
-                        "capture-never-announced",
+                        AlarmCode::CaptureNeverAnnounced,
                         format!(
                             "capture {i} is not in {}'s capture log (resync reports next = {next})",
                             self.source_name()
@@ -1024,7 +1024,7 @@ impl Engine {
                 Alarm::new(
                     AlarmKind::CaptureQuality,
                     Severity::Critical,
-                    "capture-never-announced",
+                    AlarmCode::CaptureNeverAnnounced,
                     format!("{} captures between {first} and {last} are not in {}'s capture log (resync reports next = {next})", lost.len(), self.source_name()),
                 )
                 .with(json!({"count": lost.len(), "first": first, "last": last})),
@@ -1075,7 +1075,7 @@ impl Engine {
                     Alarm::new(
                         AlarmKind::Link,
                         Severity::Critical,
-                        "controller-fault",
+                        AlarmCode::ControllerFault,
                         format!("the controller reports a fault: {reason}"),
                     )
                     .at(None, s.t),
@@ -1111,7 +1111,7 @@ impl Engine {
                     Alarm::new(
                         AlarmKind::Link,
                         Severity::Warning,
-                        "controller-reboot",
+                        AlarmCode::ControllerReboot,
                         format!("the controller restarted (boot {old} → {new}); re-subscribing and resyncing from capture {}", self.lowest_unseen()),
                     ),
                 );
@@ -1126,7 +1126,7 @@ impl Engine {
                     Alarm::new(
                         AlarmKind::Link,
                         Severity::Critical,
-                        "session-changed",
+                        AlarmCode::SessionChanged,
                         format!("the controller now reports session '{b}', but this goniowatch session belongs to '{a}'"),
                     ),
                 );
@@ -1148,7 +1148,7 @@ impl Engine {
             Alarm::new(
                 AlarmKind::Link,
                 Severity::Critical,
-                "unsupported-version",
+                AlarmCode::UnsupportedVersion,
                 format!("the controller speaks protocol version {theirs}, goniowatch speaks {PROTO_VERSION}; goniowatch keeps listening but cannot check this run"),
             ),
         );
@@ -1167,7 +1167,7 @@ impl Engine {
                     Alarm::new(
                         AlarmKind::CaptureQuality,
                         Severity::Warning,
-                        "duplicate-index",
+                        AlarmCode::DuplicateIndex,
                         msg,
                     )
                     .at(Some(idx), Some(a.t))
@@ -1232,7 +1232,7 @@ impl Engine {
         Alarm::new(
             AlarmKind::Link,
             Severity::Warning,
-            "time-stepped-back",
+            AlarmCode::TimeSteppedBack,
             format!(
                 "{whose} went back by {:.1} s at capture {} ({:.3} s after {:.3} s): a clock was set back or the times were changed; from this capture on, times go on from the capture before it in capture order (the step is removed), so drift rates do not see the same time twice",
                 step.step_s, input.idx, step.announced_s, step.previous_s
@@ -1332,7 +1332,7 @@ impl Engine {
                                 let a = Alarm::new(
                                     AlarmKind::Drift,
                                     Severity::Warning,
-                                    "probe-pose-unavailable",
+                                    AlarmCode::ProbePoseUnavailable,
                                     "no checked capture qualifies as the drift probes' pose (off grazing, off the mirror direction, not dark, with neighbours); no probe is asked for until one does: set [probes] entry to choose one".into(),
                                 )
                                 .at(Some(input.idx), Some(input.t))
@@ -1362,7 +1362,7 @@ impl Engine {
                                     let a = Alarm::new(
                                         AlarmKind::Positioning,
                                         Severity::Info,
-                                        "joint3-sentinel-unavailable",
+                                        AlarmCode::Joint3SentinelUnavailable,
                                         "no capture of the pole light's sweep is sensitive enough to arm joint 3 to serve as its sentinel (off grazing, on a flank of the sample's anisotropy, at least 0.5 %/°); joint 3 stays unwatched until one is: the sample may be too close to isotropic for it to matter".into(),
                                     )
                                     .at(Some(input.idx), Some(input.t))

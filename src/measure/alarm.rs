@@ -14,6 +14,20 @@ pub enum AlarmKind {
     Positioning,
 }
 
+impl AlarmKind {
+    /// The name in the result files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            AlarmKind::Link => "link",
+            AlarmKind::CaptureQuality => "capture-quality",
+            AlarmKind::ReciprocityOutlier => "reciprocity-outlier",
+            AlarmKind::Isotropy => "isotropy",
+            AlarmKind::Drift => "drift",
+            AlarmKind::Positioning => "positioning",
+        }
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Severity {
@@ -22,12 +36,316 @@ pub enum Severity {
     Critical,
 }
 
+/// The stable short name of an alarm's condition: what the result files hold in `code`, the
+/// storm book counts and the retake list matches. Serialised as its kebab-case name, and
+/// ordered by it (so maps keyed by code keep the order they had as strings).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum AlarmCode {
+    /// A CAPTURE line stayed unreadable after it was asked for again; that capture is skipped.
+    AnnouncementRefused,
+    /// A CAPTURE line was malformed; it is asked for again.
+    BadAnnouncement,
+    /// A capture names a plan entry the plan does not have.
+    BadEntry,
+    /// A line from the controller failed its framing or CRC.
+    BadLine,
+    /// A capture's commanded or encoder pose is not a pose of the rig.
+    BadPose,
+    /// A capture's file could not be decoded or averaged.
+    CaptureFailed,
+    /// A capture's file never appeared.
+    MissingCapture,
+    /// A capture index is not in the controller's capture log.
+    CaptureNeverAnnounced,
+    /// Announced captures are waiting to be checked.
+    CapturesPending,
+    /// Too many pixels of the region at the sensor's maximum.
+    ClippedPixels,
+    /// The lamp's colour temperature drifts.
+    ColourDrift,
+    /// A colour drift no longer holds.
+    ColourDriftCleared,
+    /// The controller reported a fault state.
+    ControllerFault,
+    /// The controller restarted (its boot counter moved).
+    ControllerReboot,
+    /// Lines fail their CRC more often than the configured share.
+    CrcErrors,
+    /// Goniowatch restarted on the session.
+    DaemonRestart,
+    /// A capture at or below the dark level.
+    DarkCapture,
+    /// More than one file placed on one plan entry.
+    DuplicateFiles,
+    /// Two different CAPTURE lines for one capture index.
+    DuplicateIndex,
+    /// The encoders disagree with the commanded pose.
+    EncoderMismatch,
+    /// An encoder mismatch episode ended.
+    EncoderMismatchCleared,
+    /// A plan entry was captured again.
+    EntryRepeated,
+    /// The lamp's gain drifts beyond the configured rate.
+    GainDrift,
+    /// A gain drift no longer holds.
+    GainDriftCleared,
+    /// The lamp's gain stepped.
+    GainStep,
+    /// A gain step was later explained otherwise.
+    GainStepWithdrawn,
+    /// The images show an arm joint or the wagon off its commanded angle.
+    JointOffsetSuspected,
+    /// No pose of the sample can watch arm joint 3.
+    Joint3SentinelUnavailable,
+    /// The probes scatter more than the noise floor allows.
+    LampUnstable,
+    /// A lamp instability no longer holds.
+    LampUnstableCleared,
+    /// The level after a named joint slip, for the drift fits.
+    LevelAfterSlip,
+    /// A capture holds NaN or infinite pixels.
+    NonFinitePixels,
+    /// The serial port is open again.
+    PortBack,
+    /// The serial port was lost.
+    PortLost,
+    /// Captures are placed off the plan's pose.
+    PoseOffPlan,
+    /// A pose-off-plan episode ended.
+    PoseOffPlanCleared,
+    /// No pose could be chosen for the drift probes.
+    ProbePoseUnavailable,
+    /// A reciprocal pair departs beyond the configured limit.
+    ReciprocityOutlier,
+    /// The sample's surface sits off the arm's rotation centre.
+    SampleOffCentre,
+    /// The controller announced another session.
+    SessionChanged,
+    /// Files in the capture folder not placed as captures.
+    SkippedFiles,
+    /// Capture times went back.
+    TimeSteppedBack,
+    /// Files in the capture folder no CAPTURE line named.
+    UnannouncedFiles,
+    /// The controller does not speak this protocol version.
+    UnsupportedVersion,
+}
+
+impl AlarmCode {
+    /// Every code.
+    pub const ALL: [AlarmCode; 44] = [
+        AlarmCode::AnnouncementRefused,
+        AlarmCode::BadAnnouncement,
+        AlarmCode::BadEntry,
+        AlarmCode::BadLine,
+        AlarmCode::BadPose,
+        AlarmCode::CaptureFailed,
+        AlarmCode::MissingCapture,
+        AlarmCode::CaptureNeverAnnounced,
+        AlarmCode::CapturesPending,
+        AlarmCode::ClippedPixels,
+        AlarmCode::ColourDrift,
+        AlarmCode::ColourDriftCleared,
+        AlarmCode::ControllerFault,
+        AlarmCode::ControllerReboot,
+        AlarmCode::CrcErrors,
+        AlarmCode::DaemonRestart,
+        AlarmCode::DarkCapture,
+        AlarmCode::DuplicateFiles,
+        AlarmCode::DuplicateIndex,
+        AlarmCode::EncoderMismatch,
+        AlarmCode::EncoderMismatchCleared,
+        AlarmCode::EntryRepeated,
+        AlarmCode::GainDrift,
+        AlarmCode::GainDriftCleared,
+        AlarmCode::GainStep,
+        AlarmCode::GainStepWithdrawn,
+        AlarmCode::JointOffsetSuspected,
+        AlarmCode::Joint3SentinelUnavailable,
+        AlarmCode::LampUnstable,
+        AlarmCode::LampUnstableCleared,
+        AlarmCode::LevelAfterSlip,
+        AlarmCode::NonFinitePixels,
+        AlarmCode::PortBack,
+        AlarmCode::PortLost,
+        AlarmCode::PoseOffPlan,
+        AlarmCode::PoseOffPlanCleared,
+        AlarmCode::ProbePoseUnavailable,
+        AlarmCode::ReciprocityOutlier,
+        AlarmCode::SampleOffCentre,
+        AlarmCode::SessionChanged,
+        AlarmCode::SkippedFiles,
+        AlarmCode::TimeSteppedBack,
+        AlarmCode::UnannouncedFiles,
+        AlarmCode::UnsupportedVersion,
+    ];
+
+    /// The name in the result files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            AlarmCode::AnnouncementRefused => "announcement-refused",
+            AlarmCode::BadAnnouncement => "bad-announcement",
+            AlarmCode::BadEntry => "bad-entry",
+            AlarmCode::BadLine => "bad-line",
+            AlarmCode::BadPose => "bad-pose",
+            AlarmCode::CaptureFailed => "capture-failed",
+            AlarmCode::MissingCapture => "missing-capture",
+            AlarmCode::CaptureNeverAnnounced => "capture-never-announced",
+            AlarmCode::CapturesPending => "captures-pending",
+            AlarmCode::ClippedPixels => "clipped-pixels",
+            AlarmCode::ColourDrift => "colour-drift",
+            AlarmCode::ColourDriftCleared => "colour-drift-cleared",
+            AlarmCode::ControllerFault => "controller-fault",
+            AlarmCode::ControllerReboot => "controller-reboot",
+            AlarmCode::CrcErrors => "crc-errors",
+            AlarmCode::DaemonRestart => "daemon-restart",
+            AlarmCode::DarkCapture => "dark-capture",
+            AlarmCode::DuplicateFiles => "duplicate-files",
+            AlarmCode::DuplicateIndex => "duplicate-index",
+            AlarmCode::EncoderMismatch => "encoder-mismatch",
+            AlarmCode::EncoderMismatchCleared => "encoder-mismatch-cleared",
+            AlarmCode::EntryRepeated => "entry-repeated",
+            AlarmCode::GainDrift => "gain-drift",
+            AlarmCode::GainDriftCleared => "gain-drift-cleared",
+            AlarmCode::GainStep => "gain-step",
+            AlarmCode::GainStepWithdrawn => "gain-step-withdrawn",
+            AlarmCode::JointOffsetSuspected => "joint-offset-suspected",
+            AlarmCode::Joint3SentinelUnavailable => "joint3-sentinel-unavailable",
+            AlarmCode::LampUnstable => "lamp-unstable",
+            AlarmCode::LampUnstableCleared => "lamp-unstable-cleared",
+            AlarmCode::LevelAfterSlip => "level-after-slip",
+            AlarmCode::NonFinitePixels => "non-finite-pixels",
+            AlarmCode::PortBack => "port-back",
+            AlarmCode::PortLost => "port-lost",
+            AlarmCode::PoseOffPlan => "pose-off-plan",
+            AlarmCode::PoseOffPlanCleared => "pose-off-plan-cleared",
+            AlarmCode::ProbePoseUnavailable => "probe-pose-unavailable",
+            AlarmCode::ReciprocityOutlier => "reciprocity-outlier",
+            AlarmCode::SampleOffCentre => "sample-off-centre",
+            AlarmCode::SessionChanged => "session-changed",
+            AlarmCode::SkippedFiles => "skipped-files",
+            AlarmCode::TimeSteppedBack => "time-stepped-back",
+            AlarmCode::UnannouncedFiles => "unannounced-files",
+            AlarmCode::UnsupportedVersion => "unsupported-version",
+        }
+    }
+
+    /// What the condition is, in a few words (for the docs and the status page).
+    pub fn meaning(self) -> &'static str {
+        match self {
+            AlarmCode::AnnouncementRefused => "a CAPTURE line stayed unreadable after it was asked for again; that capture is skipped",
+            AlarmCode::BadAnnouncement => "a CAPTURE line was malformed; it is asked for again",
+            AlarmCode::BadEntry => "a capture names a plan entry the plan does not have",
+            AlarmCode::BadLine => "a line from the controller failed its framing or CRC",
+            AlarmCode::BadPose => "a capture's commanded or encoder pose is not a pose of the rig",
+            AlarmCode::CaptureFailed => "a capture's file could not be decoded or averaged",
+            AlarmCode::MissingCapture => "a capture's file never appeared",
+            AlarmCode::CaptureNeverAnnounced => "a capture index is not in the controller's capture log",
+            AlarmCode::CapturesPending => "announced captures are waiting to be checked",
+            AlarmCode::ClippedPixels => "too many pixels of the region at the sensor's maximum",
+            AlarmCode::ColourDrift => "the lamp's colour temperature drifts",
+            AlarmCode::ColourDriftCleared => "a colour drift no longer holds",
+            AlarmCode::ControllerFault => "the controller reported a fault state",
+            AlarmCode::ControllerReboot => "the controller restarted (its boot counter moved)",
+            AlarmCode::CrcErrors => "lines fail their CRC more often than the configured share",
+            AlarmCode::DaemonRestart => "goniowatch restarted on the session",
+            AlarmCode::DarkCapture => "a capture at or below the dark level",
+            AlarmCode::DuplicateFiles => "more than one file placed on one plan entry",
+            AlarmCode::DuplicateIndex => "two different CAPTURE lines for one capture index",
+            AlarmCode::EncoderMismatch => "the encoders disagree with the commanded pose",
+            AlarmCode::EncoderMismatchCleared => "an encoder mismatch episode ended",
+            AlarmCode::EntryRepeated => "a plan entry was captured again",
+            AlarmCode::GainDrift => "the lamp's gain drifts beyond the configured rate",
+            AlarmCode::GainDriftCleared => "a gain drift no longer holds",
+            AlarmCode::GainStep => "the lamp's gain stepped",
+            AlarmCode::GainStepWithdrawn => "a gain step was later explained otherwise",
+            AlarmCode::JointOffsetSuspected => "the images show an arm joint or the wagon off its commanded angle",
+            AlarmCode::Joint3SentinelUnavailable => "no pose of the sample can watch arm joint 3",
+            AlarmCode::LampUnstable => "the probes scatter more than the noise floor allows",
+            AlarmCode::LampUnstableCleared => "a lamp instability no longer holds",
+            AlarmCode::LevelAfterSlip => "the level after a named joint slip, for the drift fits",
+            AlarmCode::NonFinitePixels => "a capture holds NaN or infinite pixels",
+            AlarmCode::PortBack => "the serial port is open again",
+            AlarmCode::PortLost => "the serial port was lost",
+            AlarmCode::PoseOffPlan => "captures are placed off the plan's pose",
+            AlarmCode::PoseOffPlanCleared => "a pose-off-plan episode ended",
+            AlarmCode::ProbePoseUnavailable => "no pose could be chosen for the drift probes",
+            AlarmCode::ReciprocityOutlier => "a reciprocal pair departs beyond the configured limit",
+            AlarmCode::SampleOffCentre => "the sample's surface sits off the arm's rotation centre",
+            AlarmCode::SessionChanged => "the controller announced another session",
+            AlarmCode::SkippedFiles => "files in the capture folder not placed as captures",
+            AlarmCode::TimeSteppedBack => "capture times went back",
+            AlarmCode::UnannouncedFiles => "files in the capture folder no CAPTURE line named",
+            AlarmCode::UnsupportedVersion => "the controller does not speak this protocol version",
+        }
+    }
+
+    /// The code that ends an episode of this one (`pose-off-plan` → `pose-off-plan-cleared`).
+    pub fn cleared(self) -> Option<AlarmCode> {
+        match self {
+            AlarmCode::PoseOffPlan => Some(AlarmCode::PoseOffPlanCleared),
+            AlarmCode::EncoderMismatch => Some(AlarmCode::EncoderMismatchCleared),
+            AlarmCode::GainDrift => Some(AlarmCode::GainDriftCleared),
+            AlarmCode::ColourDrift => Some(AlarmCode::ColourDriftCleared),
+            AlarmCode::LampUnstable => Some(AlarmCode::LampUnstableCleared),
+            _ => None,
+        }
+    }
+}
+
+impl PartialOrd for AlarmCode {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for AlarmCode {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.as_str().cmp(other.as_str())
+    }
+}
+
+impl std::fmt::Display for AlarmCode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// A name that is no alarm code.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown alarm code {0:?}")]
+pub struct UnknownAlarmCode(pub String);
+
+impl std::str::FromStr for AlarmCode {
+    type Err = UnknownAlarmCode;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        AlarmCode::ALL
+            .iter()
+            .copied()
+            .find(|c| c.as_str() == s)
+            .ok_or_else(|| UnknownAlarmCode(s.to_string()))
+    }
+}
+
+impl Serialize for AlarmCode {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+impl<'de> Deserialize<'de> for AlarmCode {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = std::borrow::Cow::<'de, str>::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Alarm {
     pub kind: AlarmKind,
     pub severity: Severity,
-    /// A stable short name for the condition, e.g. `missing-file`, `crc-errors`.
-    pub code: String,
+    /// The condition's stable short name.
+    pub code: AlarmCode,
     /// The capture the alarm is about, when there is one.
     pub idx: Option<u64>,
     /// Controller time (s) of the evidence, when known.
@@ -172,11 +490,11 @@ impl Affects {
 }
 
 impl Alarm {
-    pub fn new(kind: AlarmKind, severity: Severity, code: &str, message: String) -> Self {
+    pub fn new(kind: AlarmKind, severity: Severity, code: AlarmCode, message: String) -> Self {
         Alarm {
             kind,
             severity,
-            code: code.to_string(),
+            code,
             idx: None,
             t: None,
             message,
@@ -204,5 +522,60 @@ impl Alarm {
     pub fn affecting(mut self, affects: Affects) -> Self {
         self.affects = Some(affects);
         self
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_alarm_code_is_written_as_its_name_and_read_back() {
+        let mut names = std::collections::BTreeSet::new();
+        for c in AlarmCode::ALL {
+            let json = serde_json::to_string(&c).unwrap();
+            assert_eq!(json, format!("\"{}\"", c.as_str()));
+            assert_eq!(serde_json::from_str::<AlarmCode>(&json).unwrap(), c);
+            assert_eq!(c.as_str().parse::<AlarmCode>().unwrap(), c);
+            assert!(names.insert(c.as_str()), "{c} twice");
+            assert!(!c.meaning().is_empty());
+            // kebab-case, as the files have always held
+            assert!(c
+                .as_str()
+                .bytes()
+                .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-'));
+        }
+        // ordered as the names are, so maps keyed by code keep their order
+        let mut by_enum = AlarmCode::ALL.to_vec();
+        by_enum.sort();
+        let by_name: Vec<&str> = names.into_iter().collect();
+        assert_eq!(
+            by_enum.iter().map(|c| c.as_str()).collect::<Vec<_>>(),
+            by_name
+        );
+        let e = serde_json::from_str::<AlarmCode>("\"lamp-on-fire\"").unwrap_err();
+        assert!(e.to_string().contains("lamp-on-fire"), "{e}");
+        for c in AlarmCode::ALL {
+            if let Some(k) = c.cleared() {
+                assert_eq!(k.as_str(), format!("{c}-cleared"));
+            }
+        }
+    }
+
+    #[test]
+    fn every_alarm_kind_is_written_as_its_name() {
+        for k in [
+            AlarmKind::Link,
+            AlarmKind::CaptureQuality,
+            AlarmKind::ReciprocityOutlier,
+            AlarmKind::Isotropy,
+            AlarmKind::Drift,
+            AlarmKind::Positioning,
+        ] {
+            assert_eq!(
+                serde_json::to_string(&k).unwrap(),
+                format!("\"{}\"", k.as_str())
+            );
+        }
     }
 }

@@ -29,7 +29,7 @@
 //! the estimate beyond a tolerance (an offset in degrees, a level in %) and is raised once per
 //! θi layer, kind and sign.
 
-use super::alarm::{action, Affects, Alarm, AlarmKind, Handling, Severity};
+use super::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use super::drift::{GainPath, MountPattern};
 use super::geometry::Vec3;
 use super::kinematics::{Pose, Rig};
@@ -1268,7 +1268,7 @@ impl SweepMonitor {
                             Alarm::new(
                                 AlarmKind::Positioning,
                                 Severity::Info,
-                                "level-after-slip",
+                                AlarmCode::LevelAfterSlip,
                                 format!(
                                     "light sweep {} (captures up to {}) and the {} before it sit {:+.2} % off the earlier sweeps of θi = {}°, beginning after joint {joint} was named (captures from {slip_idx}): read as the tilt's, not as a lamp step, and not taken into the drift model",
                                     sweep.light,
@@ -1306,7 +1306,7 @@ impl SweepMonitor {
                         Alarm::new(
                             AlarmKind::Drift,
                             Severity::Warning,
-                            "gain-step",
+                            AlarmCode::GainStep,
                             format!(
                                 "the gain level stepped {}: light sweep {} (captures up to {}) and the {} before it sit {:+.2} % off the earlier sweeps of θi = {}° beyond the modelled drift (CUSUM {stat:.1} > {:.1}; from isotropy classes, no probes); the step's size is fitted from the isotropy classes from now on",
                                 if sign > 0 { "up" } else { "down" },
@@ -1480,7 +1480,7 @@ impl SweepMonitor {
                 Alarm::new(
                     AlarmKind::Positioning,
                     Severity::Info,
-                    "gain-step-withdrawn",
+                    AlarmCode::GainStepWithdrawn,
                     format!(
                         "the gain step raised at capture {idx} ({level:+.2} %) came after joint {} began to slip (captures from {slip_idx}): it is read as the tilt's, not the lamp's, and leaves the drift model",
                         x.joint + 1
@@ -1719,7 +1719,7 @@ impl SweepMonitor {
         Alarm::new(
             AlarmKind::Positioning,
             Severity::Warning,
-            "joint-offset-suspected",
+            AlarmCode::JointOffsetSuspected,
             match x.attributed_level {
                 Some(level) => format!(
                     "{size}: light sweep {} and the {} before it sit {:+.2} % off the earlier sweeps of θi = {}°, and that joint's pattern across their cameras departs from the earlier sweeps' by {:.1} standard deviations (threshold {ATTRIBUTION_Z}) in the direction that explains the level, while the encoders agree with the commands: read as the tilt's, not as a lamp step, and not taken into the drift model; a slipped joint or a moved sample is likely",
@@ -2260,7 +2260,7 @@ mod session_tests {
             let (_, alarms) = run(Fault::Joint(joint, deg), onset, LAST, 1, true);
             let first = alarms
                 .iter()
-                .find(|a| a.code == "joint-offset-suspected")
+                .find(|a| a.code == AlarmCode::JointOffsetSuspected)
                 .unwrap_or_else(|| {
                     panic!(
                         "joint {} {deg}° from {onset}: no positioning alarm in {alarms:?}",
@@ -2301,10 +2301,10 @@ mod session_tests {
             // after the slip began but before the joint was named is withdrawn when it is
             let withdrawn: Vec<u64> = alarms
                 .iter()
-                .filter(|a| a.code == "gain-step-withdrawn")
+                .filter(|a| a.code == AlarmCode::GainStepWithdrawn)
                 .filter_map(|a| a.evidence["step_idx"].as_u64())
                 .collect();
-            for a in alarms.iter().filter(|a| a.code == "gain-step") {
+            for a in alarms.iter().filter(|a| a.code == AlarmCode::GainStep) {
                 let idx = a.idx.unwrap();
                 assert!(idx < first.idx.unwrap(), "{alarms:?}");
                 assert_eq!(idx >= from_idx, withdrawn.contains(&idx), "{alarms:?}");
@@ -2317,11 +2317,16 @@ mod session_tests {
                     "{first:?}"
                 );
                 assert!(
-                    !alarms.iter().any(|a| a.code.starts_with("gain-step")),
+                    !alarms
+                        .iter()
+                        .any(|a| a.code.as_str().starts_with("gain-step")),
                     "{alarms:?}"
                 );
             }
-            for a in alarms.iter().filter(|a| a.code == "level-after-slip") {
+            for a in alarms
+                .iter()
+                .filter(|a| a.code == AlarmCode::LevelAfterSlip)
+            {
                 assert_eq!(a.severity, Severity::Info);
                 assert!(a.idx > first.idx, "{a:?}");
                 assert!(matches!(
@@ -2404,7 +2409,10 @@ mod session_tests {
     fn a_square_samples_footprint_at_grazing_light_is_the_layers_pattern_not_a_step() {
         // the last layer (θi = 75°, lights 57–80) swings by ±2.5 % with the light's azimuth
         let (records, alarms) = run_outlined(Fault::None, usize::MAX, 80, 1, true, (0.0013, 0.4));
-        assert!(alarms.iter().all(|a| a.code != "gain-step"), "{alarms:?}");
+        assert!(
+            alarms.iter().all(|a| a.code != AlarmCode::GainStep),
+            "{alarms:?}"
+        );
         let late: Vec<&SweepRecord> = records.iter().filter(|r| r.light >= 70).collect();
         assert!(
             late.iter().any(|r| r.level_expected_pct.abs() > 1.0),
@@ -2422,7 +2430,7 @@ mod session_tests {
         let (_, alarms) = run_outlined(Fault::Step(0.97), onset, 76, 1, true, (0.0013, 0.4));
         let step = alarms
             .iter()
-            .find(|a| a.code == "gain-step")
+            .find(|a| a.code == AlarmCode::GainStep)
             .unwrap_or_else(|| panic!("no gain step in {alarms:?}"));
         assert!(step.idx.unwrap() <= (74 * 81) as u64, "{step:?}");
     }
@@ -2440,7 +2448,7 @@ mod session_tests {
             assert!(
                 alarms
                     .iter()
-                    .all(|a| a.code != "gain-step" || a.idx < Some(57 * 81)),
+                    .all(|a| a.code != AlarmCode::GainStep || a.idx < Some(57 * 81)),
                 "seed {seed}: {alarms:?}"
             );
             // from the layer's 7th light to its 10th (its own 2nd harmonic), the prediction
@@ -2462,7 +2470,7 @@ mod session_tests {
         let onset = 70 * 81 + 40;
         let (_, alarms) = run_outlined(Fault::Step(0.97), onset, 76, 1, true, (0.003, 1.0));
         assert!(
-            alarms.iter().any(|a| a.code == "gain-step"
+            alarms.iter().any(|a| a.code == AlarmCode::GainStep
                 && a.idx
                     .is_some_and(|i| i as usize >= onset && (i as usize) < onset + 5 * 81)
                 && a.evidence["level_pct"].as_f64().is_some_and(|v| v < 0.0)),
@@ -2482,7 +2490,7 @@ mod session_tests {
             let (records, alarms) = run(Fault::Step(gain), onset, 26, 1, true);
             let step = alarms
                 .iter()
-                .find(|a| a.code == "gain-step")
+                .find(|a| a.code == AlarmCode::GainStep)
                 .unwrap_or_else(|| panic!("{gain}: no gain step in {alarms:?}"));
             let at = step.idx.unwrap_or(u64::MAX);
             assert!(at <= (onset + 300) as u64, "{gain}: at {at}");
@@ -2498,7 +2506,7 @@ mod session_tests {
         let (_, alarms) = run(Fault::Step(0.97), ONSET, LAST, 1, true);
         let step = alarms
             .iter()
-            .find(|a| a.code == "gain-step")
+            .find(|a| a.code == AlarmCode::GainStep)
             .unwrap_or_else(|| panic!("no gain step in {alarms:?}"));
         // the level against the layer's pattern: the pattern, refitted on the sweeps after the
         // step, takes up part of it (the drift model fits the size from the pairs)
@@ -2506,12 +2514,17 @@ mod session_tests {
         assert!((-4.0..-1.0).contains(&pct), "{pct}");
         assert_eq!(step.evidence["source"], json!("light sweeps"));
         assert!(
-            alarms.iter().all(|a| a.code != "joint-offset-suspected"),
+            alarms
+                .iter()
+                .all(|a| a.code != AlarmCode::JointOffsetSuspected),
             "{alarms:?}"
         );
         // with probes the level test is left out: the same run raises no gain step
         let (records, alarms) = run(Fault::Step(0.97), ONSET, LAST, 1, false);
-        assert!(alarms.iter().all(|a| a.code != "gain-step"), "{alarms:?}");
+        assert!(
+            alarms.iter().all(|a| a.code != AlarmCode::GainStep),
+            "{alarms:?}"
+        );
         assert!(records.iter().all(|r| r.level_z.is_none()));
     }
 }
