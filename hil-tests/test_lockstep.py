@@ -14,6 +14,7 @@ A .chk file names a run of benches/matrix.py and what it must show:
   alarm anywhere.
 """
 
+import functools
 import glob
 import json
 import math
@@ -97,6 +98,13 @@ def test_a_paused_lockstep_run_ends_instead_of_waiting_forever(tmp_path):
 CHECKS = sorted(glob.glob(os.path.join(REPO, "hil-tests", "regression", "*.chk")))
 
 
+@functools.cache
+def catalogue():
+    """`goniowatch alarms --json`, by code."""
+    out = subprocess.run([binary(), "alarms", "--json"], capture_output=True, text=True, check=True).stdout
+    return {e["code"]: e for e in map(json.loads, out.splitlines())}
+
+
 @pytest.mark.parametrize("chk", CHECKS, ids=[os.path.basename(p)[:-4] for p in CHECKS])
 def test_regression_session(chk, tmp_path):
     needs_simulator()
@@ -110,6 +118,10 @@ def test_regression_session(chk, tmp_path):
     session = lockstep(tmp_path, "reg", run.scenario_toml(str(tmp_path / "cap")), config)
     rec = D.score(run, str(session))
     assert rec["captures"] == M.CAPTURES, rec
+    # every alarm raised is in the catalogue, with its kind and one of its severities
+    for a in read_jsonl(session / "alarms.jsonl"):
+        e = catalogue()[a["code"]]
+        assert a["kind"] == e["kind"] and a["severity"] in e["severities"], (a["code"], a["kind"], a["severity"], e)
     t = run.row.truth
     expect = want["expect"]
     if expect == "quiet":

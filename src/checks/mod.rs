@@ -16,6 +16,7 @@
 //! function of the sequence of `CaptureInput`s it is given.
 
 mod capture;
+pub mod catalogue;
 mod drift;
 mod isotropy;
 pub mod observability;

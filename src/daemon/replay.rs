@@ -111,16 +111,8 @@ pub fn replay(session_dir: &Path, options: &ReplayOptions) -> Result<ReplayRepor
             out_dir.display()
         );
     }
-    // `..` is resolved by the names (a `..` after a folder that does not exist yet cannot be
-    // resolved by the file system, and create_dir_all would walk through it)
-    let inside_captures = std::path::absolute(&out_dir)
-        .ok()
-        .map(|p| lexically_normal(&p))
-        .zip(session.info.capture_root.canonicalize().ok())
-        .is_some_and(|(o, root)| {
-            o.ancestors()
-                .any(|a| a.canonicalize().is_ok_and(|a| a == root))
-        });
+    let inside_captures =
+        crate::session::folder::inside_capture_folder(&out_dir, &session.info.capture_root);
     if inside_captures {
         bail!(
             "--out {} is inside the capture folder {}; goniowatch never writes there. Give a folder elsewhere",
@@ -318,20 +310,4 @@ fn capture_jobs(all: &[(u64, Input)]) -> Vec<(usize, String)> {
             _ => None,
         })
         .collect()
-}
-
-/// `path` with `.` dropped and each `..` taking away the name before it (by the names only).
-fn lexically_normal(path: &Path) -> PathBuf {
-    use std::path::Component;
-    let mut out = PathBuf::new();
-    for c in path.components() {
-        match c {
-            Component::CurDir => {}
-            Component::ParentDir => {
-                out.pop();
-            }
-            other => out.push(other),
-        }
-    }
-    out
 }

@@ -10,8 +10,8 @@
 //! (idempotent). Outcomes are handed to the checker in capture-index order.
 
 use crate::checks::{
-    CaptureInput, CaptureRecord, CheckCounts, Checker, IsotropyRecord, Outcome, PairRecord,
-    SentinelChoice, Table2,
+    CaptureInput, CaptureRecord, CaptureStatus, CheckCounts, Checker, IsotropyRecord, Outcome,
+    PairRecord, SentinelChoice, Table2,
 };
 mod alarms;
 mod ledger;
@@ -72,7 +72,7 @@ pub enum Input {
 pub struct ManifestRecord {
     pub idx: u64,
     pub file: String,
-    pub status: String,
+    pub status: crate::checks::CaptureStatus,
     pub size: Option<u64>,
     pub sha256: Option<String>,
     pub error: Option<String>,
@@ -1276,15 +1276,19 @@ impl Engine {
                 }
                 let (status, size, sha, error) = match &outcome {
                     Outcome::Ok { size, sha256, .. } => {
-                        ("ok", Some(*size), Some(sha256.clone()), None)
+                        (CaptureStatus::Ok, Some(*size), Some(sha256.clone()), None)
                     }
-                    Outcome::Failed { error } => ("failed", None, None, Some(error.clone())),
-                    Outcome::Missing { reason } => ("missing", None, None, Some(reason.clone())),
+                    Outcome::Failed { error } => {
+                        (CaptureStatus::Failed, None, None, Some(error.clone()))
+                    }
+                    Outcome::Missing { reason } => {
+                        (CaptureStatus::Missing, None, None, Some(reason.clone()))
+                    }
                 };
                 out.push(Output::Manifest(ManifestRecord {
                     idx: i,
                     file: a.file.clone(),
-                    status: status.into(),
+                    status,
                     size,
                     sha256: sha,
                     error,

@@ -10,7 +10,7 @@
 //!   this order; only non-linear gain changes (steps, curvature) are identifiable from them.
 //!   The θ-bucket model below also leaves azimuth-dependent effects in the residuals, which are
 //!   strongly correlated between consecutive pairs, so a rate and a CUSUM on them are biased and
-//!   overconfident (ARCHITECTURE.md, "Drift and positioning detection design").
+//!   overconfident (docs/detectors.md).
 //! - What breaks the confounding: isotropy classes (same geometry, different directions and
 //!   times), drift probes (re-captures of one pose), or an acquisition order whose times are not
 //!   a function of the direction indices alone. The estimators are built on those.

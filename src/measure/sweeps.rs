@@ -6,7 +6,7 @@
 //! where F is the isotropic BRDF, L a per-light effect (lamp footprint on a square sample), C a
 //! per-camera effect (border bleed, the texture under the view) and g the lamp gain. L and C are
 //! a large part of the isotropy-class residuals, and consecutive captures share their light, so
-//! capture-level tests are overconfident (ARCHITECTURE.md, "Drift and positioning detection design"). A light sweep
+//! capture-level tests are overconfident (docs/detectors.md). A light sweep
 //! is the natural unit: within one sweep L and g are constant, so
 //! - the sweep's *level* (its mean residual against F and C fitted on the earlier sweeps) moves
 //!   with the gain: a lamp step shows in the sweep it happens in and in every later one;

@@ -200,6 +200,39 @@ impl Results {
     }
 }
 
+/// `path` made absolute, with `.` dropped and `..` taken by the names (a `..` after a folder
+/// that does not exist yet cannot be resolved by the file system).
+pub fn normal_absolute(path: &Path) -> Result<PathBuf> {
+    use std::path::Component;
+    let abs = std::path::absolute(path).with_context(|| format!("{}", path.display()))?;
+    let mut out = PathBuf::new();
+    for c in abs.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    Ok(out)
+}
+
+/// Whether `folder` (which need not exist yet) is the capture folder or lies inside it, by its
+/// names or through a link on its way: goniowatch never writes there.
+pub fn inside_capture_folder(folder: &Path, capture_root: &Path) -> bool {
+    let Ok(folder) = normal_absolute(folder) else {
+        return false;
+    };
+    let by_name = normal_absolute(capture_root).is_ok_and(|root| folder.starts_with(root));
+    let by_link = capture_root.canonicalize().is_ok_and(|root| {
+        folder
+            .ancestors()
+            .any(|a| a.canonicalize().is_ok_and(|a| a == root))
+    });
+    by_name || by_link
+}
+
 /// Write a file under a temporary name, fsync, rename into place.
 pub(crate) fn write_atomic(path: &Path, data: &[u8]) -> Result<()> {
     let tmp = path.with_extension("tmp");

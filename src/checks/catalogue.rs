@@ -1,0 +1,175 @@
+//! The alarm catalogue: for every [`AlarmCode`], its kind, the severities it is raised at, what
+//! it means, the evidence it carries and what the operator should do. `goniowatch alarms`
+//! prints it, docs/alarms.md is generated from it, and the recorded sessions' alarms are tested
+//! against it, so a new code cannot ship undocumented.
+
+use crate::measure::alarm::{AlarmCode, AlarmKind, Severity};
+use serde::Serialize;
+
+/// One code's entry.
+#[derive(Debug, Clone, Serialize)]
+pub struct CodeEntry {
+    pub code: AlarmCode,
+    pub kind: AlarmKind,
+    /// Every severity it is raised at (a storm's aggregate keeps the worst of those held).
+    pub severities: &'static [Severity],
+    pub meaning: &'static str,
+    /// The fields of its `evidence`, when it has any.
+    pub evidence: &'static [&'static str],
+    /// What to do.
+    pub action: &'static str,
+}
+
+impl CodeEntry {
+    /// Whether it can be critical: a critical alarm makes the run exit 4 and, with
+    /// `[alarms] pause_on_critical`, asks the rig to PAUSE.
+    pub fn can_be_critical(&self) -> bool {
+        self.severities.contains(&Severity::Critical)
+    }
+}
+
+const INFO: &[Severity] = &[Severity::Info];
+const WARNING: &[Severity] = &[Severity::Warning];
+const CRITICAL: &[Severity] = &[Severity::Critical];
+const WARNING_OR_CRITICAL: &[Severity] = &[Severity::Warning, Severity::Critical];
+const INFO_OR_WARNING: &[Severity] = &[Severity::Info, Severity::Warning];
+
+/// The entry of `code`.
+pub fn entry(code: AlarmCode) -> CodeEntry {
+    use AlarmCode as C;
+    use AlarmKind as K;
+    let (kind, severities, evidence, action): (_, _, &'static [&'static str], _) = match code {
+        C::AnnouncementRefused => (K::CaptureQuality, WARNING, &["idx", "reason"], "Check the controller's CAPTURE line for that index (the reason says which field); the capture is left out of the checks and counted."),
+        C::BadAnnouncement => (K::Link, WARNING, &[], "Nothing, if it is rare: the line is asked for again. If it repeats, check the controller's output for that capture."),
+        C::BadEntry => (K::CaptureQuality, WARNING, &[], "Check the controller's plan and the config's [plan]: they must describe the same acquisition."),
+        C::BadLine => (K::Link, WARNING, &[], "Nothing, if it is rare. If it repeats, check the serial cable, its shielding and the baud rate."),
+        C::BadPose => (K::Positioning, WARNING, &[], "Check the controller's pose fields (four finite angles) and the rig model in [rig]."),
+        C::CaptureFailed => (K::CaptureQuality, WARNING_OR_CRITICAL, &[], "Look at the file (camera, disk, transfer); the capture is on the retake list. Critical after `failures_critical` in a row: stop and fix the camera or the disk."),
+        C::MissingCapture => (K::CaptureQuality, WARNING_OR_CRITICAL, &["file", "consecutive_failures"], "Check where the camera writes and that the capture root is the right folder; the capture is on the retake list. Critical after `failures_critical` in a row."),
+        C::CaptureNeverAnnounced => (K::CaptureQuality, WARNING_OR_CRITICAL, &["count", "first", "last"], "The controller's capture log lacks these indices: check the controller's log; the captures are on the retake list."),
+        C::CapturesPending => (K::CaptureQuality, INFO, &[], "Nothing: announced captures wait to be decoded (a slow disk or a burst)."),
+        C::ClippedPixels => (K::CaptureQuality, WARNING, &["clipped", "pixels", "max_value"], "Shorten the exposure or add an exposure to the bracket; the capture is on the retake list."),
+        C::ColourDrift => (K::Drift, WARNING, &["k_per_h", "se_k_per_h", "de00_per_h", "lamp_cct_k", "x_rate_pct_per_h", "z_rate_pct_per_h", "n", "source"], "Let the lamp settle or check its supply voltage; the corrected colours divide the drift out."),
+        C::ColourDriftCleared => (K::Drift, INFO, &[], "Nothing: the colour drift no longer holds."),
+        C::ControllerFault => (K::Link, CRITICAL, &[], "Go to the rig: the controller reported a fault; the run is stopped until it is cleared."),
+        C::ControllerReboot => (K::Link, WARNING, &[], "Check why the controller restarted (power, watchdog); goniowatch asks it where it stands and goes on."),
+        C::CrcErrors => (K::Link, WARNING, &["bad_lines", "window"], "Check the serial cable, its shielding and grounding, and the baud rate."),
+        C::DaemonRestart => (K::Link, INFO, &[], "Nothing: goniowatch resumed the session from its journal."),
+        C::DarkCapture => (K::CaptureQuality, WARNING, &["y"], "Check the lamp, the shutter and the lens cap; if every capture is dark, the files are on another scale than [colour] rgb_scale. The capture is on the retake list."),
+        C::DuplicateFiles => (K::CaptureQuality, WARNING, &["groups"], "Move copies and rejected files out of the capture folder so that each plan entry has one file; the evidence names the file checked for each entry."),
+        C::DuplicateIndex => (K::CaptureQuality, WARNING, &["kept", "ignored"], "Check the controller's capture numbering: two different captures carry one index; the first is kept."),
+        C::EncoderMismatch => (K::Positioning, WARNING, &["axis", "enc", "cmd"], "Check the axis's encoder, motor and coupling; the alarm's own advice says whether the captures must be retaken."),
+        C::EncoderMismatchCleared => (K::Positioning, INFO, &["axis", "captures", "first_idx", "last_idx", "worst_deg", "by_command"], "Nothing more: the episode ended; its captures are judged as the opening alarm said."),
+        C::EntryRepeated => (K::CaptureQuality, INFO, &[], "Nothing: a plan entry was taken again; the first usable capture of it is used."),
+        C::GainDrift => (K::Drift, WARNING, &["rate_pct_per_h", "se_pct_per_h", "n", "source"], "Let the lamp warm up and settle, or check its supply; the corrected colours divide the drift out, so no capture needs taking again."),
+        C::GainDriftCleared => (K::Drift, INFO, &[], "Nothing: the drift rate is back within the tolerance."),
+        C::GainStep => (K::Drift, WARNING, &["source", "level_pct", "sweeps", "since_idx", "since_t", "statistic", "threshold", "direction"], "Check the lamp, its supply and anything that may shade or reflect onto the sample; the step is divided out of the corrected colours. Recurring steps mean an unstable lamp."),
+        C::GainStepWithdrawn => (K::Positioning, INFO, &["source", "joint", "step_idx", "level_pct", "slip_from_idx"], "Nothing: a step was explained by a named joint slip instead."),
+        C::JointOffsetSuspected => (K::Positioning, WARNING, &["joint", "offset_deg", "source", "since_idx", "statistic", "threshold", "entry", "sensitivity_pct_per_deg"], "Check the named joint (or the wagon): re-home it or re-seat the sample; the captures since the slip are on the retake list."),
+        C::Joint3SentinelUnavailable => (K::Positioning, INFO, &[], "Nothing to do now: no pose of this sample moves enough with arm joint 3 to watch it; its slips go unseen."),
+        C::LampUnstable => (K::Drift, WARNING, &["scatter_pct", "design_scatter_pct", "probes", "source"], "Check the lamp's supply and connections; a flickering lamp makes every capture noisier, and the correction cannot divide flicker out."),
+        C::LampUnstableCleared => (K::Drift, INFO, &["scatter_pct", "design_scatter_pct", "probes", "source"], "Nothing: the probes scatter within the design again."),
+        C::LevelAfterSlip => (K::Positioning, INFO, &["source", "joint", "level_pct", "sweeps", "since_idx", "slip_from_idx", "statistic", "threshold"], "Nothing: the level change after a named slip is recorded for the drift fits."),
+        C::NonFinitePixels => (K::CaptureQuality, WARNING, &["nonfinite", "pixels"], "Check the HDR merge that wrote the file; the non-finite pixels are left out of the average."),
+        C::PortBack => (K::Link, INFO, &[], "Nothing: the serial port is open again and the session goes on."),
+        C::PortLost => (K::Link, WARNING, &[], "Check the USB-serial adapter and its cable; goniowatch reopens the port with backoff and asks for what it missed."),
+        C::PoseOffPlan => (K::Positioning, WARNING, &["pose_error_deg", "enc", "cmd"], "Check the rig's positioning; captures placed off the plan are on the retake list."),
+        C::PoseOffPlanCleared => (K::Positioning, INFO, &["axis", "captures", "first_idx", "last_idx", "worst_deg", "by_command"], "Nothing more: the episode ended; its captures are on the retake list."),
+        C::ProbePoseUnavailable => (K::Drift, WARNING, &[], "Configure [probes] entry with a pose the rig can take, or leave probes off; the lamp is then watched without probes."),
+        C::ReciprocityOutlier => (K::ReciprocityOutlier, WARNING, &["de2000", "limit", "median", "mad", "pairs", "a", "b", "theta_pair_deg"], "Look at the two captures (a reflection, a shadow, dust); both are on the retake list."),
+        C::SampleOffCentre => (K::Isotropy, WARNING, &["camera_pct", "camera_azimuth_deg", "camera_se_pct", "light_pct", "light_azimuth_deg", "light_se_pct", "rate_inflation", "source"], "Re-centre the sample in its holder at the next chance; the drift checks model the pattern from now on."),
+        C::SessionChanged => (K::Link, CRITICAL, &[], "The controller started another session: start goniowatch on a new session folder for it."),
+        C::SkippedFiles => (K::CaptureQuality, INFO_OR_WARNING, &["counts", "files"], "Give captures among them names the pattern places (or sidecar rows); other files can stay. Info when they are only files of other types."),
+        C::TimeSteppedBack => (K::Link, WARNING, &["step_s", "announced_t", "previous_t", "shift_s"], "Check the clock of the rig's computer and keep it from stepping during a run; the step is removed from the times."),
+        C::UnannouncedFiles => (K::CaptureQuality, WARNING, &["files"], "Check the controller's capture log against the folder: files the controller never announced are not checked."),
+        C::UnsupportedVersion => (K::Link, CRITICAL, &[], "Update the controller's firmware or goniowatch so that both speak the same protocol version."),
+    };
+    CodeEntry {
+        code,
+        kind,
+        severities,
+        meaning: code.meaning(),
+        evidence,
+        action,
+    }
+}
+
+/// Every code's entry, by name.
+pub fn catalogue() -> Vec<CodeEntry> {
+    let mut v: Vec<CodeEntry> = AlarmCode::ALL.iter().map(|c| entry(*c)).collect();
+    v.sort_by_key(|e| e.code);
+    v
+}
+
+/// The catalogue as a Markdown table (docs/alarms.md holds it between markers).
+pub fn markdown() -> String {
+    let mut s = String::from(
+        "| code | kind | severity | meaning | evidence | what to do |\n|---|---|---|---|---|---|\n",
+    );
+    for e in catalogue() {
+        let sev: Vec<&str> = e
+            .severities
+            .iter()
+            .map(|s| match s {
+                Severity::Info => "info",
+                Severity::Warning => "warning",
+                Severity::Critical => "**critical**",
+            })
+            .collect();
+        let ev = if e.evidence.is_empty() {
+            "–".to_string()
+        } else {
+            e.evidence
+                .iter()
+                .map(|f| format!("`{f}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        s.push_str(&format!(
+            "| `{}` | {} | {} | {} | {} | {} |\n",
+            e.code,
+            e.kind.as_str(),
+            sev.join(", "),
+            e.meaning,
+            ev,
+            e.action
+        ));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_code_has_an_entry_with_words() {
+        let all = catalogue();
+        assert_eq!(all.len(), AlarmCode::ALL.len());
+        for e in &all {
+            assert!(
+                !e.severities.is_empty() && !e.action.is_empty(),
+                "{}",
+                e.code
+            );
+            assert!(!e.action.contains('|') && !e.meaning.contains('|'));
+        }
+        // the ones a run can end on with exit 4
+        let critical: Vec<String> = all
+            .iter()
+            .filter(|e| e.can_be_critical())
+            .map(|e| e.code.to_string())
+            .collect();
+        assert_eq!(
+            critical,
+            [
+                "capture-failed",
+                "capture-never-announced",
+                "controller-fault",
+                "missing-capture",
+                "session-changed",
+                "unsupported-version"
+            ]
+        );
+    }
+}
