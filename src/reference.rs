@@ -77,6 +77,78 @@ fn number(line: usize, col: usize, t: &str, what: &str) -> Result<f64, Reference
         .ok_or_else(|| err(line, col, format!("{what} '{t}' is not a finite number")))
 }
 
+/// One data line (`line`, its text without the comment `content`): four angles and the values
+/// of `kind`, turned into XYZ.
+fn data_line(
+    line: usize,
+    content: &str,
+    k: ValueKind,
+    bands: &[f64],
+    converter: Option<&SpectralToXyz>,
+    rgb: &RgbToXyz,
+) -> Result<ReferenceSample, ReferenceError> {
+    let expected = match k {
+        ValueKind::Spectral => {
+            if bands.is_empty() {
+                return Err(err(line, 1, "spectral data need a 'bands = …' header"));
+            }
+            bands.len()
+        }
+        ValueKind::Rgb | ValueKind::Xyz => 3,
+    };
+    let toks = tokens(content);
+    if toks.len() != 4 + expected {
+        let col = toks
+            .get(4 + expected)
+            .map(|t| t.0)
+            .unwrap_or(content.chars().count() + 1);
+        return Err(err(
+            line,
+            col,
+            format!(
+                "expected 4 angles and {expected} values, found {} fields",
+                toks.len()
+            ),
+        ));
+    }
+    let mut a = [0.0; 4];
+    for i in 0..4 {
+        let (c, t) = toks[i];
+        a[i] = number(line, c, t, ["theta_i", "phi_i", "theta_o", "phi_o"][i])?;
+        if (i == 0 || i == 2) && !(0.0..=90.0).contains(&a[i]) {
+            return Err(err(
+                line,
+                c,
+                format!(
+                    "{} = {} is not in [0, 90]°",
+                    ["theta_i", "", "theta_o"][i],
+                    a[i]
+                ),
+            ));
+        }
+    }
+    let mut vals = Vec::with_capacity(expected);
+    for &(c, t) in &toks[4..] {
+        vals.push(number(line, c, t, "value")?);
+    }
+    let xyz = match k {
+        ValueKind::Spectral => converter
+            .as_ref()
+            .ok_or_else(|| err(line, 1, "no band set"))?
+            .convert(&vals)
+            .map_err(|e| err(line, 1, e.to_string()))?,
+        ValueKind::Rgb => rgb.convert([vals[0], vals[1], vals[2]]),
+        ValueKind::Xyz => [vals[0], vals[1], vals[2]],
+    };
+    Ok(ReferenceSample {
+        line,
+        omega_i: Spherical::from_deg(a[0], a[1]).to_vector(),
+        omega_o: Spherical::from_deg(a[2], a[3]).to_vector(),
+        angles_deg: a,
+        xyz,
+    })
+}
+
 pub fn parse(text: &str) -> Result<Reference, ReferenceError> {
     let mut kind: Option<ValueKind> = None;
     let mut bands: Vec<f64> = Vec::new();
@@ -163,66 +235,14 @@ pub fn parse(text: &str) -> Result<Reference, ReferenceError> {
         let Some(k) = kind else {
             return Err(err(line, 1, "data before the 'format = …' header"));
         };
-        let expected = match k {
-            ValueKind::Spectral => {
-                if bands.is_empty() {
-                    return Err(err(line, 1, "spectral data need a 'bands = …' header"));
-                }
-                bands.len()
-            }
-            ValueKind::Rgb | ValueKind::Xyz => 3,
-        };
-        let toks = tokens(content);
-        if toks.len() != 4 + expected {
-            let col = toks
-                .get(4 + expected)
-                .map(|t| t.0)
-                .unwrap_or(content.chars().count() + 1);
-            return Err(err(
-                line,
-                col,
-                format!(
-                    "expected 4 angles and {expected} values, found {} fields",
-                    toks.len()
-                ),
-            ));
-        }
-        let mut a = [0.0; 4];
-        for i in 0..4 {
-            let (c, t) = toks[i];
-            a[i] = number(line, c, t, ["theta_i", "phi_i", "theta_o", "phi_o"][i])?;
-            if (i == 0 || i == 2) && !(0.0..=90.0).contains(&a[i]) {
-                return Err(err(
-                    line,
-                    c,
-                    format!(
-                        "{} = {} is not in [0, 90]°",
-                        ["theta_i", "", "theta_o"][i],
-                        a[i]
-                    ),
-                ));
-            }
-        }
-        let mut vals = Vec::with_capacity(expected);
-        for &(c, t) in &toks[4..] {
-            vals.push(number(line, c, t, "value")?);
-        }
-        let xyz = match k {
-            ValueKind::Spectral => converter
-                .as_ref()
-                .ok_or_else(|| err(line, 1, "no band set"))?
-                .convert(&vals)
-                .map_err(|e| err(line, 1, e.to_string()))?,
-            ValueKind::Rgb => rgb.convert([vals[0], vals[1], vals[2]]),
-            ValueKind::Xyz => [vals[0], vals[1], vals[2]],
-        };
-        samples.push(ReferenceSample {
+        samples.push(data_line(
             line,
-            omega_i: Spherical::from_deg(a[0], a[1]).to_vector(),
-            omega_o: Spherical::from_deg(a[2], a[3]).to_vector(),
-            angles_deg: a,
-            xyz,
-        });
+            content,
+            k,
+            &bands,
+            converter.as_ref(),
+            &rgb,
+        )?);
     }
     if !seen_version {
         return Err(err(1, 1, "empty file"));

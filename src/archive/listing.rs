@@ -315,16 +315,21 @@ fn direction_of(plan: &SamplingPlan, theta: f64, phi: f64, tol_deg: f64) -> Opti
         .map(|(i, _)| i)
 }
 
-/// Place `files` (and the sidecar's rows, when given) on `plan`.
-pub fn build(
+/// A file placed by its name (the pattern) or its sidecar row, before the plan is consulted.
+type Named = (String, Placement);
+/// A placed file and its plan entry.
+type Placed = (String, Placement, usize);
+type Skipped = Vec<(String, SkipReason)>;
+
+/// What each file says of its capture: by the sidecar's rows when there is one, else by the
+/// pattern; the files that say nothing are skipped with why.
+fn placements(
     files: &[FileFact],
     sidecar: Option<&[SidecarRow]>,
     spec: &SourceSpec,
-    plan: &SamplingPlan,
-    rig: &Rig,
-) -> Result<Listing, ListingError> {
-    let mut skipped: Vec<(String, SkipReason)> = Vec::new();
-    let mut placed: Vec<(String, Placement)> = Vec::new();
+) -> Result<(Vec<Named>, Skipped), ListingError> {
+    let mut skipped: Skipped = Vec::new();
+    let mut placed: Vec<Named> = Vec::new();
     let mtimes: BTreeMap<&str, Option<f64>> =
         files.iter().map(|f| (f.name.as_str(), f.mtime_s)).collect();
     let sidecar_name = spec
@@ -395,101 +400,83 @@ pub fn build(
             }
         }
     }
-    // the plan entry of each placed file
-    let tol = spec.angle_tolerance_deg;
-    let mut entries: Vec<(String, Placement, usize)> = Vec::new();
-    for (name, p) in placed {
-        let entry = match (p.entry, p.angles) {
-            (Some(e), _) if e < plan.capture_count() => Ok(e),
-            (Some(e), _) => Err(format!("entry {e} (the plan has {})", plan.capture_count())),
-            (None, Some([tl, pl, tv, pv]))
-                if !angles_in_range(tl, pl) || !angles_in_range(tv, pv) =>
-            {
-                // a θ below 0 or beyond 90° or a φ outside [0°, 360°] would wrap onto another
-                // direction (θ = −15° is θ = 15° turned by 180°): a wrong name, never a placement
-                Err(format!(
-                    "light ({tl}°, {pl}°) or camera ({tv}°, {pv}°) is outside θ ∈ [0°, 90°], φ ∈ [0°, 360°]"
-                ))
-            }
-            (None, Some([tl, pl, tv, pv])) => {
-                let finite = [tl, pl, tv, pv].iter().all(|v| v.is_finite());
-                match (
-                    finite.then(|| direction_of(plan, tl, pl, tol)).flatten(),
-                    finite.then(|| direction_of(plan, tv, pv, tol)).flatten(),
-                ) {
-                    (Some(l), Some(c)) => plan
-                        .index_of(l, c)
-                        .ok_or_else(|| "no such entry".to_string()),
-                    _ => Err(format!(
-                        "light ({tl}°, {pl}°) or camera ({tv}°, {pv}°) is more than {tol}° from every plan direction"
-                    )),
-                }
-            }
-            (None, None) => Err("no angles and no entry".into()),
-        };
-        match entry {
-            Ok(e) => entries.push((name, p, e)),
-            Err(why) => skipped.push((name, SkipReason::NotInPlan(why))),
+    Ok((placed, skipped))
+}
+
+/// The plan entry a placement names: its entry, or the plan directions within `tol` degrees of
+/// its angles; why not, when it names none.
+fn entry_of(p: &Placement, plan: &SamplingPlan, tol: f64) -> Result<usize, String> {
+    match (p.entry, p.angles) {
+        (Some(e), _) if e < plan.capture_count() => Ok(e),
+        (Some(e), _) => Err(format!("entry {e} (the plan has {})", plan.capture_count())),
+        (None, Some([tl, pl, tv, pv])) if !angles_in_range(tl, pl) || !angles_in_range(tv, pv) => {
+            // a θ below 0 or beyond 90° or a φ outside [0°, 360°] would wrap onto another
+            // direction (θ = −15° is θ = 15° turned by 180°): a wrong name, never a placement
+            Err(format!(
+                "light ({tl}°, {pl}°) or camera ({tv}°, {pv}°) is outside θ ∈ [0°, 90°], φ ∈ [0°, 360°]"
+            ))
         }
-    }
-    // the order
-    let has_idx = !entries.is_empty() && entries.iter().all(|(_, p, _)| p.idx.is_some());
-    let has_t = !entries.is_empty() && entries.iter().all(|(_, p, _)| p.t.is_some());
-    let order = match spec.order {
-        OrderRule::Auto if has_idx => OrderRule::Index,
-        OrderRule::Auto if has_t => OrderRule::Time,
-        OrderRule::Auto => OrderRule::Plan,
-        OrderRule::Index if !has_idx && !entries.is_empty() => return Err(ListingError::NoIndex),
-        OrderRule::Time if !has_t && !entries.is_empty() => return Err(ListingError::NoTimes),
-        o => o,
-    };
-    if order == OrderRule::Mtime {
-        let (with, without): (Vec<_>, Vec<_>) =
-            entries.into_iter().partition(|(_, p, _)| p.mtime.is_some());
-        for (name, _, _) in without {
-            skipped.push((
-                name,
-                SkipReason::Unordered("no modification time (the file is absent)".into()),
-            ));
-        }
-        // a modification time far from the set's median (a file from 1970, a copy that reset
-        // its time) would put every other capture beyond the longest run a controller time may
-        // span, and the whole set would be refused: that file is left out instead
-        let mut times: Vec<f64> = with.iter().filter_map(|(_, p, _)| p.mtime).collect();
-        times.sort_by(f64::total_cmp);
-        let median = times.get(times.len() / 2).copied().unwrap_or(0.0);
-        let (kept, far): (Vec<_>, Vec<_>) = with.into_iter().partition(|(_, p, _)| {
-            p.mtime
-                .is_some_and(|m| (m - median).abs() <= MAX_MTIME_SPREAD_S)
-        });
-        for (name, p, _) in far {
-            skipped.push((
-                name,
-                SkipReason::Unordered(format!(
-                    "its modification time is {:.0} days from the set's median ({:.0} s since 1970 against {median:.0}): a clock or a copy changed it, so it cannot be ordered by time; set source.order = \"plan\" (or a sidecar with times) to place it",
-                    (p.mtime.unwrap_or(0.0) - median).abs() / 86_400.0,
-                    p.mtime.unwrap_or(0.0)
+        (None, Some([tl, pl, tv, pv])) => {
+            let finite = [tl, pl, tv, pv].iter().all(|v| v.is_finite());
+            match (
+                finite.then(|| direction_of(plan, tl, pl, tol)).flatten(),
+                finite.then(|| direction_of(plan, tv, pv, tol)).flatten(),
+            ) {
+                (Some(l), Some(c)) => plan
+                    .index_of(l, c)
+                    .ok_or_else(|| "no such entry".to_string()),
+                _ => Err(format!(
+                    "light ({tl}°, {pl}°) or camera ({tv}°, {pv}°) is more than {tol}° from every plan direction"
                 )),
-            ));
+            }
         }
-        entries = kept;
+        (None, None) => Err("no angles and no entry".into()),
     }
-    let key = |p: &Placement, e: usize| -> (f64, usize) {
-        match order {
-            OrderRule::Index => (p.idx.unwrap_or(u64::MAX) as f64, e),
-            OrderRule::Time => (p.t.unwrap_or(f64::INFINITY), e),
-            OrderRule::Mtime => (p.mtime.unwrap_or(f64::INFINITY), e),
-            _ => (e as f64, e),
-        }
-    };
-    let order_of = |a: &(String, Placement, usize), b: &(String, Placement, usize)| {
-        let (ka, kb) = (key(&a.1, a.2), key(&b.1, b.2));
-        ka.0.total_cmp(&kb.0)
-            .then(ka.1.cmp(&kb.1))
-            .then(a.0.cmp(&b.0))
-    };
-    // one file per plan entry, by DUPLICATE_RULE; the others are skipped and grouped
-    let mut by_entry: BTreeMap<usize, Vec<(String, Placement, usize)>> = BTreeMap::new();
+}
+
+/// Under `order = "mtime"`: the placed files that have a modification time near the set's
+/// median, in order; the others are skipped with why.
+fn with_usable_mtimes(entries: Vec<Placed>, skipped: &mut Skipped) -> Vec<Placed> {
+    let (with, without): (Vec<_>, Vec<_>) =
+        entries.into_iter().partition(|(_, p, _)| p.mtime.is_some());
+    for (name, _, _) in without {
+        skipped.push((
+            name,
+            SkipReason::Unordered("no modification time (the file is absent)".into()),
+        ));
+    }
+    // a modification time far from the set's median (a file from 1970, a copy that reset
+    // its time) would put every other capture beyond the longest run a controller time may
+    // span, and the whole set would be refused: that file is left out instead
+    let mut times: Vec<f64> = with.iter().filter_map(|(_, p, _)| p.mtime).collect();
+    times.sort_by(f64::total_cmp);
+    let median = times.get(times.len() / 2).copied().unwrap_or(0.0);
+    let (kept, far): (Vec<_>, Vec<_>) = with.into_iter().partition(|(_, p, _)| {
+        p.mtime
+            .is_some_and(|m| (m - median).abs() <= MAX_MTIME_SPREAD_S)
+    });
+    for (name, p, _) in far {
+        skipped.push((
+            name,
+            SkipReason::Unordered(format!(
+                "its modification time is {:.0} days from the set's median ({:.0} s since 1970 against {median:.0}): a clock or a copy changed it, so it cannot be ordered by time; set source.order = \"plan\" (or a sidecar with times) to place it",
+                (p.mtime.unwrap_or(0.0) - median).abs() / 86_400.0,
+                p.mtime.unwrap_or(0.0)
+            )),
+        ));
+    }
+    kept
+}
+
+/// One file per plan entry, by [`DUPLICATE_RULE`] (`order_of`: the capture order); the others
+/// are skipped and grouped.
+fn one_per_entry(
+    entries: Vec<Placed>,
+    spec: &SourceSpec,
+    order_of: &dyn Fn(&Placed, &Placed) -> std::cmp::Ordering,
+    skipped: &mut Skipped,
+) -> (Vec<Placed>, Vec<DuplicateGroup>) {
+    let mut by_entry: BTreeMap<usize, Vec<Placed>> = BTreeMap::new();
     for e in entries {
         by_entry.entry(e.2).or_default().push(e);
     }
@@ -523,6 +510,95 @@ pub fn build(
         }
         entries.push(kept);
     }
+    (entries, duplicates)
+}
+
+/// The capture of a placed file at time `t` (seconds from the first): the plan's pose by the
+/// rig model; why not, when the entry, the pose, the time or the exposure cannot be used.
+fn capture_of(
+    name: &str,
+    p: &Placement,
+    entry: usize,
+    t: Option<f64>,
+    plan: &SamplingPlan,
+    rig: &Rig,
+) -> Result<ArchiveCapture, SkipReason> {
+    let pe = plan
+        .entry(entry)
+        .map_err(|e| SkipReason::NotInPlan(e.to_string()))?;
+    let dirs = plan.directions();
+    let planned = rig
+        .plan_pose(dirs[pe.light].spherical(), dirs[pe.camera].spherical())
+        .map_err(|_| {
+            SkipReason::NotInPlan(format!("the rig model cannot take plan entry {entry}"))
+        })?;
+    let t = t
+        .filter(|t| t.is_finite() && *t >= 0.0)
+        .ok_or_else(|| SkipReason::Unordered("no usable time".into()))?;
+    if let Some(e) = p.exposure.filter(|e| !(e.is_finite() && *e > 0.0)) {
+        return Err(SkipReason::NotInPlan(format!(
+            "exposure {e} is not a positive number"
+        )));
+    }
+    let j = planned.pose.joints_deg;
+    Ok(ArchiveCapture {
+        file: name.to_string(),
+        entry,
+        t,
+        pose: [j[0], j[1], j[2], planned.pose.wagon_deg],
+        sub: planned.substitute.map(|(_, used)| used),
+        exposure: p.exposure,
+    })
+}
+
+/// Place `files` (and the sidecar's rows, when given) on `plan`.
+pub fn build(
+    files: &[FileFact],
+    sidecar: Option<&[SidecarRow]>,
+    spec: &SourceSpec,
+    plan: &SamplingPlan,
+    rig: &Rig,
+) -> Result<Listing, ListingError> {
+    let (placed, mut skipped) = placements(files, sidecar, spec)?;
+    // the plan entry of each placed file
+    let tol = spec.angle_tolerance_deg;
+    let mut entries: Vec<Placed> = Vec::new();
+    for (name, p) in placed {
+        let entry = entry_of(&p, plan, tol);
+        match entry {
+            Ok(e) => entries.push((name, p, e)),
+            Err(why) => skipped.push((name, SkipReason::NotInPlan(why))),
+        }
+    }
+    // the order
+    let has_idx = !entries.is_empty() && entries.iter().all(|(_, p, _)| p.idx.is_some());
+    let has_t = !entries.is_empty() && entries.iter().all(|(_, p, _)| p.t.is_some());
+    let order = match spec.order {
+        OrderRule::Auto if has_idx => OrderRule::Index,
+        OrderRule::Auto if has_t => OrderRule::Time,
+        OrderRule::Auto => OrderRule::Plan,
+        OrderRule::Index if !has_idx && !entries.is_empty() => return Err(ListingError::NoIndex),
+        OrderRule::Time if !has_t && !entries.is_empty() => return Err(ListingError::NoTimes),
+        o => o,
+    };
+    if order == OrderRule::Mtime {
+        entries = with_usable_mtimes(entries, &mut skipped);
+    }
+    let key = |p: &Placement, e: usize| -> (f64, usize) {
+        match order {
+            OrderRule::Index => (p.idx.unwrap_or(u64::MAX) as f64, e),
+            OrderRule::Time => (p.t.unwrap_or(f64::INFINITY), e),
+            OrderRule::Mtime => (p.mtime.unwrap_or(f64::INFINITY), e),
+            _ => (e as f64, e),
+        }
+    };
+    let order_of = |a: &Placed, b: &Placed| {
+        let (ka, kb) = (key(&a.1, a.2), key(&b.1, b.2));
+        ka.0.total_cmp(&kb.0)
+            .then(ka.1.cmp(&kb.1))
+            .then(a.0.cmp(&b.0))
+    };
+    let (mut entries, duplicates) = one_per_entry(entries, spec, &order_of, &mut skipped);
     entries.sort_by(order_of);
     // times, relative to the first capture
     let times = match order {
@@ -547,22 +623,6 @@ pub fn build(
     let mut seen: BTreeMap<usize, String> = BTreeMap::new();
     let mut captures = Vec::new();
     for (name, p, entry) in entries {
-        let pe = match plan.entry(entry) {
-            Ok(pe) => pe,
-            Err(e) => {
-                skipped.push((name, SkipReason::NotInPlan(e.to_string())));
-                continue;
-            }
-        };
-        let dirs = plan.directions();
-        let planned = rig.plan_pose(dirs[pe.light].spherical(), dirs[pe.camera].spherical());
-        let Ok(planned) = planned else {
-            skipped.push((
-                name,
-                SkipReason::NotInPlan(format!("the rig model cannot take plan entry {entry}")),
-            ));
-            continue;
-        };
         let t = match times {
             TimeSource::Sidecar => p.t.map(|t| t - t0),
             TimeSource::Mtime => p.mtime.map(|t| t - t0),
@@ -570,27 +630,13 @@ pub fn build(
                 seconds_per_capture,
             } => Some(captures.len() as f64 * seconds_per_capture),
         };
-        let Some(t) = t.filter(|t| t.is_finite() && *t >= 0.0) else {
-            skipped.push((name, SkipReason::Unordered("no usable time".into())));
-            continue;
-        };
-        if let Some(e) = p.exposure.filter(|e| !(e.is_finite() && *e > 0.0)) {
-            skipped.push((
-                name,
-                SkipReason::NotInPlan(format!("exposure {e} is not a positive number")),
-            ));
-            continue;
+        match capture_of(&name, &p, entry, t, plan, rig) {
+            Ok(c) => {
+                seen.insert(entry, name);
+                captures.push(c);
+            }
+            Err(why) => skipped.push((name, why)),
         }
-        seen.insert(entry, name.clone());
-        let j = planned.pose.joints_deg;
-        captures.push(ArchiveCapture {
-            file: name,
-            entry,
-            t,
-            pose: [j[0], j[1], j[2], planned.pose.wagon_deg],
-            sub: planned.substitute.map(|(_, used)| used),
-            exposure: p.exposure,
-        });
     }
     skipped.sort_by(|a, b| a.0.cmp(&b.0));
     let unfilled = (0..plan.capture_count())

@@ -30,6 +30,14 @@ pub fn meaningless(s: &Summary) -> Option<String> {
 
 /// Print the end-of-run summary in the paper's Table 2 form.
 pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Result<()> {
+    print_counts(s, out)?;
+    print_tables(s, out)?;
+    print_lamp_and_pose(s, out)?;
+    print_alarms_and_link(s, out)
+}
+
+/// What was captured, checked, left out and paired.
+fn print_counts(s: &Summary, out: &mut impl std::io::Write) -> std::io::Result<()> {
     writeln!(
         out,
         "session {}  rig {}",
@@ -89,6 +97,11 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
             s.checked.pose_off_plan, s.checked.encoder_mismatch, s.checked.placed_by_command
         )?;
     }
+    Ok(())
+}
+
+/// Table 2 and its subsets.
+fn print_tables(s: &Summary, out: &mut impl std::io::Write) -> std::io::Result<()> {
     writeln!(out, "Table 2 (means over exact reciprocal pairs):")?;
     writeln!(
         out,
@@ -119,6 +132,11 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
     if s.isotropy.pairs > 0 {
         subset_line(out, "isotropy (capture vs class mean)", &s.isotropy, "")?;
     }
+    Ok(())
+}
+
+/// The lamp's drift and colour, the light sweeps, the probes, the sentinel and what cannot be observed.
+fn print_lamp_and_pose(s: &Summary, out: &mut impl std::io::Write) -> std::io::Result<()> {
     if let Some(d) = &s.isotropy_drift {
         writeln!(
             out,
@@ -206,6 +224,11 @@ pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Res
             j.pose.entry, j.pose.theta_o_deg, j.pose.phi_o_deg, j.pose.sensitivity_pct_per_deg, j.readings, j.offset_deg
         )?;
     }
+    Ok(())
+}
+
+/// The alarm counts and the link's counters.
+fn print_alarms_and_link(s: &Summary, out: &mut impl std::io::Write) -> std::io::Result<()> {
     let alarms: Vec<String> = s.alarms.iter().map(|(k, v)| format!("{k} {v}")).collect();
     writeln!(
         out,

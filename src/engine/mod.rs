@@ -315,6 +315,25 @@ fn duplicate_alarm(groups: &[crate::archive::listing::DuplicateGroup]) -> Option
     )
 }
 
+/// The manifest's record of a checked capture.
+fn manifest_record(idx: u64, file: &str, outcome: &Outcome) -> ManifestRecord {
+    let (status, size, sha256, error) = match outcome {
+        Outcome::Ok { size, sha256, .. } => {
+            (CaptureStatus::Ok, Some(*size), Some(sha256.clone()), None)
+        }
+        Outcome::Failed { error } => (CaptureStatus::Failed, None, None, Some(error.clone())),
+        Outcome::Missing { reason } => (CaptureStatus::Missing, None, None, Some(reason.clone())),
+    };
+    ManifestRecord {
+        idx,
+        file: file.to_string(),
+        status,
+        size,
+        sha256,
+        error,
+    }
+}
+
 /// An outstanding RESYNC whose ACK has not come after this many received lines is sent again.
 const RESYNC_LINES: u32 = 64;
 
@@ -1251,6 +1270,78 @@ impl Engine {
         )
     }
 
+    /// After a regular capture is checked: the probes' pose and the joint-3 sentinel are
+    /// chosen once a light sweep's worth of captures is checked (tried again after each further
+    /// one while none qualifies), and a probe round that fell due is asked for.
+    fn after_regular_capture(&mut self, out: &mut Vec<Output>, idx: u64, t: f64) {
+        self.regular_checked += 1;
+        // The pose is chosen once a light sweep's worth of captures is checked, and
+        // tried again after each further one while none qualifies. The choice
+        // depends on the captures checked only (not on the link), so a replay or a
+        // resume makes the same one.
+        let sweep = self.checker.plan().direction_count().max(1) as u64;
+        if self.probe_every > 0
+            && self.probe_entry.is_none()
+            && self.regular_checked.is_multiple_of(sweep)
+        {
+            match self.checker.choose_probe_pose() {
+                Some(pose) => {
+                    self.probe_entry = Some(pose.entry);
+                    self.probe_pose = Some(pose);
+                    out.push(Output::ProbePose(pose));
+                }
+                None if self.regular_checked == sweep => {
+                    let a = Alarm::new(
+                        AlarmKind::Drift,
+                        Severity::Warning,
+                        AlarmCode::ProbePoseUnavailable,
+                        "no checked capture qualifies as the drift probes' pose (off grazing, off the mirror direction, not dark, with neighbours); no probe is asked for until one does: set [probes] entry to choose one".into(),
+                    )
+                    .at(Some(idx), Some(t))
+                    .advise(
+                        "Set [probes] entry to a bright plan entry off grazing and off the mirror direction and restart the daemon (the session resumes); until then nothing watches the lamp through probes.",
+                        None,
+                    );
+                    self.alarm(out, a);
+                }
+                None => {}
+            }
+        }
+        // The joint-3 sentinel is chosen at the same points, once the lamp probe's
+        // pose is known (it is not offered as the sentinel).
+        if let (Some(lamp), None) = (self.probe_entry, self.checker.sentinel()) {
+            if self.probe_every > 0
+                && self.checker.wants_sentinel()
+                && self.regular_checked.is_multiple_of(sweep)
+            {
+                match self.checker.choose_sentinel(lamp) {
+                    SentinelChoice::Chosen(pose) => {
+                        out.push(Output::SentinelPose(pose));
+                    }
+                    SentinelChoice::NotYet => {}
+                    SentinelChoice::Unavailable if !self.sentinel_tried => {
+                        self.sentinel_tried = true;
+                        let a = Alarm::new(
+                            AlarmKind::Positioning,
+                            Severity::Info,
+                            AlarmCode::Joint3SentinelUnavailable,
+                            "no capture of the pole light's sweep is sensitive enough to arm joint 3 to serve as its sentinel (off grazing, on a flank of the sample's anisotropy, at least 0.5 %/°); joint 3 stays unwatched until one is: the sample may be too close to isotropic for it to matter".into(),
+                        )
+                        .at(Some(idx), Some(t))
+                        .advise(
+                            "Nothing to do if the sample is nearly isotropic; otherwise check the sample's mount by eye when convenient.",
+                            None,
+                        );
+                        self.alarm(out, a);
+                    }
+                    SentinelChoice::Unavailable => {}
+                }
+            }
+        }
+        // a round that fell due before the pose was chosen
+        self.ask_probes_if_due(out);
+    }
+
     fn drain(&mut self, out: &mut Vec<Output>) {
         loop {
             let i = self.ledger.next_check;
@@ -1274,25 +1365,7 @@ impl Engine {
                 if !matches!(outcome, Outcome::Ok { .. }) {
                     self.ledger.unusable.insert(i);
                 }
-                let (status, size, sha, error) = match &outcome {
-                    Outcome::Ok { size, sha256, .. } => {
-                        (CaptureStatus::Ok, Some(*size), Some(sha256.clone()), None)
-                    }
-                    Outcome::Failed { error } => {
-                        (CaptureStatus::Failed, None, None, Some(error.clone()))
-                    }
-                    Outcome::Missing { reason } => {
-                        (CaptureStatus::Missing, None, None, Some(reason.clone()))
-                    }
-                };
-                out.push(Output::Manifest(ManifestRecord {
-                    idx: i,
-                    file: a.file.clone(),
-                    status,
-                    size,
-                    sha256: sha,
-                    error,
-                }));
+                out.push(Output::Manifest(manifest_record(i, &a.file, &outcome)));
                 if let Some(step) = step_back {
                     let a = self.step_back_alarm(&input, step);
                     self.alarm(out, a);
@@ -1316,72 +1389,7 @@ impl Engine {
                 }
                 self.ledger.next_check += 1;
                 if !input.probe {
-                    self.regular_checked += 1;
-                    // The pose is chosen once a light sweep's worth of captures is checked, and
-                    // tried again after each further one while none qualifies. The choice
-                    // depends on the captures checked only (not on the link), so a replay or a
-                    // resume makes the same one.
-                    let sweep = self.checker.plan().direction_count().max(1) as u64;
-                    if self.probe_every > 0
-                        && self.probe_entry.is_none()
-                        && self.regular_checked.is_multiple_of(sweep)
-                    {
-                        match self.checker.choose_probe_pose() {
-                            Some(pose) => {
-                                self.probe_entry = Some(pose.entry);
-                                self.probe_pose = Some(pose);
-                                out.push(Output::ProbePose(pose));
-                            }
-                            None if self.regular_checked == sweep => {
-                                let a = Alarm::new(
-                                    AlarmKind::Drift,
-                                    Severity::Warning,
-                                    AlarmCode::ProbePoseUnavailable,
-                                    "no checked capture qualifies as the drift probes' pose (off grazing, off the mirror direction, not dark, with neighbours); no probe is asked for until one does: set [probes] entry to choose one".into(),
-                                )
-                                .at(Some(input.idx), Some(input.t))
-                                .advise(
-                                    "Set [probes] entry to a bright plan entry off grazing and off the mirror direction and restart the daemon (the session resumes); until then nothing watches the lamp through probes.",
-                                    None,
-                                );
-                                self.alarm(out, a);
-                            }
-                            None => {}
-                        }
-                    }
-                    // The joint-3 sentinel is chosen at the same points, once the lamp probe's
-                    // pose is known (it is not offered as the sentinel).
-                    if let (Some(lamp), None) = (self.probe_entry, self.checker.sentinel()) {
-                        if self.probe_every > 0
-                            && self.checker.wants_sentinel()
-                            && self.regular_checked.is_multiple_of(sweep)
-                        {
-                            match self.checker.choose_sentinel(lamp) {
-                                SentinelChoice::Chosen(pose) => {
-                                    out.push(Output::SentinelPose(pose));
-                                }
-                                SentinelChoice::NotYet => {}
-                                SentinelChoice::Unavailable if !self.sentinel_tried => {
-                                    self.sentinel_tried = true;
-                                    let a = Alarm::new(
-                                        AlarmKind::Positioning,
-                                        Severity::Info,
-                                        AlarmCode::Joint3SentinelUnavailable,
-                                        "no capture of the pole light's sweep is sensitive enough to arm joint 3 to serve as its sentinel (off grazing, on a flank of the sample's anisotropy, at least 0.5 %/°); joint 3 stays unwatched until one is: the sample may be too close to isotropic for it to matter".into(),
-                                    )
-                                    .at(Some(input.idx), Some(input.t))
-                                    .advise(
-                                        "Nothing to do if the sample is nearly isotropic; otherwise check the sample's mount by eye when convenient.",
-                                        None,
-                                    );
-                                    self.alarm(out, a);
-                                }
-                                SentinelChoice::Unavailable => {}
-                            }
-                        }
-                    }
-                    // a round that fell due before the pose was chosen
-                    self.ask_probes_if_due(out);
+                    self.after_regular_capture(out, input.idx, input.t);
                 }
             } else if self.ledger.missing.contains(&i) {
                 self.ledger.next_check += 1;

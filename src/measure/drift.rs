@@ -773,12 +773,10 @@ impl DriftDetector {
     /// s_k) and, with `mount`, the four mount columns: the centred weighted design solved by
     /// normal equations and their pseudo-inverse, which is also the covariance. Deterministic: fixed passes,
     /// buckets in BTreeMap order. Pure: the caller decides whether to keep the result.
-    fn fit_design(&self, mount: bool) -> Option<DesignFit> {
-        let n = self.obs.len();
-        let k = self.step_times.len();
-        let p = 1 + k + if mount { 4 } else { 0 };
-        // the design, flat: row i is rows[i * p..(i + 1) * p]
-        let mut rows: Vec<f64> = Vec::with_capacity(n * p);
+    /// The design, flat: row i is `rows[i * p..(i + 1) * p]`: the time between the pair's
+    /// captures, a 1 for each step between them, and the mount columns.
+    fn design_rows(&self, mount: bool, p: usize) -> Vec<f64> {
+        let mut rows: Vec<f64> = Vec::with_capacity(self.obs.len() * p);
         for o in &self.obs {
             rows.push(o.t_b_h - o.t_a_h);
             for &tau in &self.step_times {
@@ -792,6 +790,14 @@ impl DriftDetector {
                 rows.extend_from_slice(&o.mount);
             }
         }
+        rows
+    }
+
+    fn fit_design(&self, mount: bool) -> Option<DesignFit> {
+        let n = self.obs.len();
+        let k = self.step_times.len();
+        let p = 1 + k + if mount { 4 } else { 0 };
+        let rows = self.design_rows(mount, p);
         let mut w: Vec<f64> = self.obs.iter().map(|o| prior_weight(0.0, o)).collect();
         let buckets = self.index.buckets();
         let nk = buckets.keys.len();
@@ -801,86 +807,11 @@ impl DriftDetector {
         let mut scale = 0.0;
         let mut res: Vec<f64> = Vec::new();
         let mut inflation = 1.0;
-        // per bucket: the sum of weights, the weighted sums of each column (flat, p a bucket)
-        // and of d, the count
-        let mut acc_w = vec![0.0; nk];
-        let mut acc_x = vec![0.0; nk * p];
-        let mut acc_y = vec![0.0; nk];
-        let mut acc_n = vec![0usize; nk];
+        let mut sums = BucketSums::new(nk, p);
         for _ in 0..5 {
-            // weighted bucket means of every column and of d
-            acc_w.fill(0.0);
-            acc_x.fill(0.0);
-            acc_y.fill(0.0);
-            acc_n.fill(0);
-            for (((o, x), wi), &b) in self
-                .obs
-                .iter()
-                .zip(rows.chunks_exact(p))
-                .zip(&w)
-                .zip(&buckets.of)
-            {
-                acc_w[b] += wi;
-                let sx = &mut acc_x[b * p..(b + 1) * p];
-                for j in 0..p {
-                    sx[j] += wi * x[j];
-                }
-                acc_y[b] += wi * o.d;
-                acc_n[b] += 1;
-            }
-            // the normal equations of the centred, weighted design, accumulated row by row:
-            // p is at most a few columns, so this costs O(n·p²) without an n × p matrix
-            let mut ata_flat = vec![0.0; p * p];
-            let mut atb_flat = vec![0.0; p];
-            let mut xc = vec![0.0; p];
-            // the bucket means of every column and of d (a bucket whose every observation has
-            // zero weight adds nothing)
-            let live: Vec<bool> = acc_w.iter().map(|&sw| sw > 0.0).collect();
-            let mean_x: Vec<f64> = (0..nk * p).map(|i| acc_x[i] / acc_w[i / p]).collect();
-            let mean_y: Vec<f64> = (0..nk).map(|b| acc_y[b] / acc_w[b]).collect();
-            for (((o, x), wi), &b) in self
-                .obs
-                .iter()
-                .zip(rows.chunks_exact(p))
-                .zip(&w)
-                .zip(&buckets.of)
-            {
-                if !live[b] {
-                    continue;
-                }
-                let mx = &mean_x[b * p..(b + 1) * p];
-                for j in 0..p {
-                    xc[j] = x[j] - mx[j];
-                }
-                let yc = o.d - mean_y[b];
-                for j in 0..p {
-                    // (wi·xc_j)·… is how `wi * xc[j] * x` groups: the same products as before
-                    let wx = wi * xc[j];
-                    atb_flat[j] += wx * yc;
-                    let row = &mut ata_flat[j * p..j * p + j + 1];
-                    for (a, x) in row.iter_mut().zip(&xc[..=j]) {
-                        *a += wx * x;
-                    }
-                }
-            }
-            let mut ata =
-                DMatrix::<f64>::from_fn(
-                    p,
-                    p,
-                    |j, l| {
-                        if l <= j {
-                            ata_flat[j * p + l]
-                        } else {
-                            0.0
-                        }
-                    },
-                );
-            let atb = DVector::<f64>::from_column_slice(&atb_flat);
-            for j in 0..p {
-                for l in 0..j {
-                    ata[(l, j)] = ata[(j, l)];
-                }
-            }
+            sums.accumulate(&self.obs, &rows, &w, &buckets.of);
+            let (acc_w, acc_x, acc_y, acc_n) = (&sums.w, &sums.x, &sums.y, &sums.n);
+            let (ata, atb) = sums.normal_equations(&self.obs, &rows, &w, &buckets.of);
             // a step no pair spans yet has a zero column: the pseudo-inverse leaves its
             // coefficient at zero and its variance out
             let pinv = ata.clone().pseudo_inverse(1e-12).ok()?;
@@ -968,6 +899,96 @@ struct DesignFit {
     bucket_scale: BTreeMap<(i64, i64), f64>,
     step_effects: Vec<StepEffect>,
     mount: Option<MountPattern>,
+}
+
+/// Per bucket: the sum of weights, the weighted sums of each design column (flat, `p` a
+/// bucket) and of d, and the count.
+struct BucketSums {
+    p: usize,
+    w: Vec<f64>,
+    x: Vec<f64>,
+    y: Vec<f64>,
+    n: Vec<usize>,
+}
+
+impl BucketSums {
+    fn new(nk: usize, p: usize) -> Self {
+        BucketSums {
+            p,
+            w: vec![0.0; nk],
+            x: vec![0.0; nk * p],
+            y: vec![0.0; nk],
+            n: vec![0; nk],
+        }
+    }
+
+    /// The weighted bucket sums of every column and of d, anew.
+    fn accumulate(&mut self, obs: &[PairObservation], rows: &[f64], w: &[f64], of: &[usize]) {
+        let p = self.p;
+        self.w.fill(0.0);
+        self.x.fill(0.0);
+        self.y.fill(0.0);
+        self.n.fill(0);
+        for (((o, x), wi), &b) in obs.iter().zip(rows.chunks_exact(p)).zip(w).zip(of) {
+            self.w[b] += wi;
+            let sx = &mut self.x[b * p..(b + 1) * p];
+            for j in 0..p {
+                sx[j] += wi * x[j];
+            }
+            self.y[b] += wi * o.d;
+            self.n[b] += 1;
+        }
+    }
+
+    /// The normal equations of the design centred on its bucket means, weighted.
+    fn normal_equations(
+        &self,
+        obs: &[PairObservation],
+        rows: &[f64],
+        w: &[f64],
+        of: &[usize],
+    ) -> (DMatrix<f64>, DVector<f64>) {
+        let (p, nk) = (self.p, self.w.len());
+        let (acc_w, acc_x, acc_y) = (&self.w, &self.x, &self.y);
+        // the normal equations of the centred, weighted design, accumulated row by row:
+        // p is at most a few columns, so this costs O(n·p²) without an n × p matrix
+        let mut ata_flat = vec![0.0; p * p];
+        let mut atb_flat = vec![0.0; p];
+        let mut xc = vec![0.0; p];
+        // the bucket means of every column and of d (a bucket whose every observation has
+        // zero weight adds nothing)
+        let live: Vec<bool> = acc_w.iter().map(|&sw| sw > 0.0).collect();
+        let mean_x: Vec<f64> = (0..nk * p).map(|i| acc_x[i] / acc_w[i / p]).collect();
+        let mean_y: Vec<f64> = (0..nk).map(|b| acc_y[b] / acc_w[b]).collect();
+        for (((o, x), wi), &b) in obs.iter().zip(rows.chunks_exact(p)).zip(w).zip(of) {
+            if !live[b] {
+                continue;
+            }
+            let mx = &mean_x[b * p..(b + 1) * p];
+            for j in 0..p {
+                xc[j] = x[j] - mx[j];
+            }
+            let yc = o.d - mean_y[b];
+            for j in 0..p {
+                // (wi·xc_j)·… is how `wi * xc[j] * x` groups: the same products as before
+                let wx = wi * xc[j];
+                atb_flat[j] += wx * yc;
+                let row = &mut ata_flat[j * p..j * p + j + 1];
+                for (a, x) in row.iter_mut().zip(&xc[..=j]) {
+                    *a += wx * x;
+                }
+            }
+        }
+        let mut ata =
+            DMatrix::<f64>::from_fn(p, p, |j, l| if l <= j { ata_flat[j * p + l] } else { 0.0 });
+        let atb = DVector::<f64>::from_column_slice(&atb_flat);
+        for j in 0..p {
+            for l in 0..j {
+                ata[(l, j)] = ata[(j, l)];
+            }
+        }
+        (ata, atb)
+    }
 }
 
 #[cfg(test)]
