@@ -130,11 +130,11 @@ fn ident_at(s: &str) -> String {
         .collect()
 }
 
-/// The entries of the `{…}` group that starts just after `at` (`{` excluded): each entry's
-/// first segment, and where the group ends.
-fn group_heads(s: &str) -> (Vec<String>, usize) {
+/// The entries of the `{…}` group whose text starts at `s` (after its `{`): each entry's first
+/// segment.
+fn group_heads(s: &str) -> Vec<String> {
     let (mut depth, mut entry, mut heads) = (1usize, String::new(), Vec::new());
-    for (k, c) in s.char_indices() {
+    for c in s.chars() {
         match c {
             '{' => {
                 depth += 1;
@@ -144,7 +144,7 @@ fn group_heads(s: &str) -> (Vec<String>, usize) {
                 depth -= 1;
                 if depth == 0 {
                     heads.push(ident_at(&entry));
-                    return (heads, k + 1);
+                    return heads;
                 }
                 entry.push(c);
             }
@@ -152,7 +152,7 @@ fn group_heads(s: &str) -> (Vec<String>, usize) {
             _ => entry.push(c),
         }
     }
-    (heads, s.len())
+    heads
 }
 
 /// The top-level modules that the code of the file at module path `module` (`["engine",
@@ -172,7 +172,7 @@ fn uses(text: &str, module: &[String]) -> BTreeSet<String> {
         }
         let rest = &code[from..];
         match rest.trim_start().strip_prefix('{') {
-            Some(group) => out.extend(group_heads(group).0),
+            Some(group) => out.extend(group_heads(group)),
             None => {
                 out.insert(ident_at(rest));
             }
@@ -197,7 +197,7 @@ fn uses(text: &str, module: &[String]) -> BTreeSet<String> {
         }
         let rest = &code[k..];
         match rest.trim_start().strip_prefix('{') {
-            Some(group) => out.extend(group_heads(group).0),
+            Some(group) => out.extend(group_heads(group)),
             None => {
                 out.insert(ident_at(rest));
             }

@@ -88,7 +88,9 @@ impl Follower {
     }
 
     /// A capture announced before a restart, in index order (its `t` on the session's time
-    /// line); `usable` is what the session knows of it. Returns false, and takes nothing more,
+    /// line); `usable` is what the session knows of it. The journal does not hold the first
+    /// capture's absolute time: the origin is taken from the first listing, as for a new
+    /// session (the same while the earliest file is the same). Returns false, and takes nothing more,
     /// once the indices are not consecutive from 0.
     pub fn handle_prior(
         &mut self,
@@ -111,8 +113,8 @@ impl Follower {
         true
     }
 
-    /// The time origin of a resumed session (the first capture's absolute time is not known
-    /// to the journal): taken from the first listing, as for a new session.
+    /// Remember that `c`'s file was announced as capture `idx` (a file announced again keeps
+    /// its count of rechecks; its entry keeps its first file).
     fn follow(&mut self, idx: u64, c: &ArchiveCapture, seen: Seen, verdict: Verdict) {
         let rechecks = self.files.get(&c.file).map_or(0, |f| f.rechecks);
         self.files.insert(
