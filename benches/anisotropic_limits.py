@@ -4,7 +4,7 @@ daemon's design rests on.
 1. Can reciprocal pairs alone see a lamp step (no probes)?
 
 In a light-outer order a pair's difference is the gain change between its two captures plus a
-per-direction non-reciprocity W(light) − W(camera) (`measure::drift`, `measure::identifiability`).
+per-direction non-reciprocity W(light) − W(camera) (`detect::drift`, `detect::identifiability`).
 A step at capture τ is identifiable, but only through the pairs of the one light direction whose
 sweep τ falls in; every other straddling pair is absorbed by the W's. This script fits that model
 to the exact reciprocal pairs of kept sessions (weighted least squares on the 81-node graph, the
@@ -23,7 +23,7 @@ weights from a robust scale per (θ, θ') class, two Huber passes) and reports:
 normal)? A turn by δ moves both azimuths in the sample frame by δ, so the sensitivity is
 ∂ln Y/∂φi + ∂ln Y/∂φo, each a central difference over the ring neighbours of the plan (the
 light's in the neighbouring sweeps, the camera's in the same sweep). The joint-3 sentinel needs
-a pose where a 1° turn clears its own threshold (5 × √2 × 0.3 % = 2.1 %/°, `measure::sentinel`);
+a pose where a 1° turn clears its own threshold (5 × √2 × 0.3 % = 2.1 %/°, `detect::sentinel`);
 this is the largest |sensitivity| over every pose, off grazing (θo ≤ 60°) and at θo = 75°.
 
 It reads the sessions `benches/probe_plan.py --keep DIR` records (probes are left out; they do not

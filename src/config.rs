@@ -192,7 +192,7 @@ pub struct Config {
     #[serde(default)]
     pub checks: CheckSpec,
     #[serde(default)]
-    pub probes: crate::measure::probes::ProbeSpec,
+    pub probes: crate::detect::probes::ProbeSpec,
     #[serde(default)]
     pub alarms: AlarmSpec,
     #[serde(default)]

@@ -5,13 +5,13 @@
 //! release build.
 
 use crate::checks::{CaptureInput, CheckSpec, Checker, ColourSettings, Outcome};
+use crate::detect::probes::ProbeSpec;
 use crate::engine::Input;
 use crate::measure::averaging::CaptureStats;
 use crate::measure::colour::{RgbPrimaries, RgbToXyz, White};
 use crate::measure::geometry::Vec3;
 use crate::measure::kinematics::{Rig, RigSpec};
 use crate::measure::plan::SamplingPlan;
-use crate::measure::probes::ProbeSpec;
 
 /// SplitMix64 (the core's generator), so tests need no RNG crate and every run draws the same
 /// numbers.

@@ -2,12 +2,15 @@
 //!
 //! Layers, lowest first (see ARCHITECTURE.md); each imports only from those above it here:
 //! - [`measure`]: the sans-IO measurement core (colour, geometry, kinematics, plan, averaging,
-//!   reciprocity, resampling, drift statistics). Pure and deterministic.
+//!   reciprocity, resampling, robust statistics). Pure and deterministic.
+//! - [`detect`]: the detectors (gain drift and steps, probes, the joint-3 sentinel, the lamp's
+//!   colour, the light sweeps, the probe plan): typed findings with their numbers, never alarms.
 //! - [`reference`]: the reference-BRDF file format (pure parsing).
 //! - [`protocol`]: the line framing of docs/protocol.md and its typed messages (pure).
 //! - [`archive`]: captures known only by their files: names or a sidecar → plan entries, and
 //!   the controller's side of the protocol that announces them (pure).
-//! - [`checks`]: the checker: a router over one stage per concern, and the result records (pure).
+//! - [`checks`]: the checker: a router over one stage per concern, the alarms (the words,
+//!   severity and advice for every finding) and the result records (pure).
 //! - [`config`]: the TOML configuration as plain data (parsing and validation; the
 //!   checks' and core's spec types are its sections).
 //! - [`engine`]: the deterministic session engine: inputs (serial lines, link events, capture
@@ -32,6 +35,7 @@ pub mod cli;
 pub mod config;
 pub mod daemon;
 pub mod decode;
+pub mod detect;
 pub mod engine;
 #[cfg(any(test, feature = "fixtures"))]
 pub mod fixtures;

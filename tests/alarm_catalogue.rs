@@ -2,8 +2,8 @@
 //! holds exactly the generated table, and every alarm of the session corpus and of the lab's
 //! regression sessions has the kind and a severity its entry names.
 
+use goniowatch::checks::alarm::Alarm;
 use goniowatch::checks::catalogue::{entry, markdown};
-use goniowatch::measure::alarm::Alarm;
 use std::path::{Path, PathBuf};
 
 fn repo() -> PathBuf {

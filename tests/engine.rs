@@ -1,11 +1,11 @@
 //! The session engine on scripted traffic: negotiation, gaps, reboots, garbled and malformed
 //! lines, lost replies, duplicates, and the ordering of outcomes.
 
+use goniowatch::checks::alarm::{Affects, Alarm, AlarmCode, Handling};
 use goniowatch::checks::Outcome;
 use goniowatch::config::Config;
 use goniowatch::engine::{Engine, Input, Output};
 use goniowatch::fixtures::{self, Controller};
-use goniowatch::measure::alarm::{Affects, Alarm, AlarmCode, Handling};
 use goniowatch::protocol::{parse, ToController};
 
 /// The command a line from the engine carries, with its sequence number.
@@ -901,7 +901,7 @@ fn alarm_storms_are_aggregated_and_every_occurrence_is_counted() {
             line: format!("{p}*{:04X}", goniowatch::protocol::crc16(p.as_bytes())),
         }));
     }
-    let emitted: Vec<&goniowatch::measure::alarm::Alarm> = out
+    let emitted: Vec<&goniowatch::checks::alarm::Alarm> = out
         .iter()
         .filter_map(|o| match o {
             Output::Alarm(a) if a.code == AlarmCode::BadLine => Some(a),

@@ -5,7 +5,7 @@
 
 use super::records::{CaptureInput, CaptureRecord, CaptureStatus, Outcome};
 use super::{Checked, Ctx};
-use crate::measure::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
+use crate::checks::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::measure::colour::xyz_to_lab;
 use crate::measure::geometry::{angle_between, Spherical};
 use crate::measure::kinematics::{Incidence, Pose};

@@ -3,7 +3,7 @@
 //! prints it, docs/alarms.md is generated from it, and the recorded sessions' alarms are tested
 //! against it, so a new code cannot ship undocumented.
 
-use crate::measure::alarm::{AlarmCode, AlarmKind, Severity};
+use crate::checks::alarm::{AlarmCode, AlarmKind, Severity};
 use serde::Serialize;
 
 /// One code's entry.

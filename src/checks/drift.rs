@@ -3,25 +3,25 @@
 //! same (θi, θo, |Δφ|), the same geometry at another time, so ln(Y/Y₀) is the gain change; the
 //! occlusion substitutes' interpolated pairs join in buckets of their own, weighted by their
 //! spread; gain steps found by the light sweeps enter as step terms. Rate alarms only: see
-//! `measure::drift` for why steps are left to the sweeps and the probes.
+//! `detect::drift` for why steps are left to the sweeps and the probes.
 //!
 //! The same comparisons give the lamp's colour: ln(X/Y) and ln(Z/Y) against the first capture
 //! of the geometry move with the lamp's colour temperature and not with its luminance. Each has
 //! a rate fit of its own (the same model as the gain's, geometry buckets as fixed effects); the
-//! two rates become one colour-temperature rate through `measure::lamp`, alarmed as
+//! two rates become one colour-temperature rate through `detect::lamp`, alarmed as
 //! `colour-drift` in K/h and in ΔE00/h of a white.
 
 use super::pairs::PendingPartner;
 use super::records::{PairRecord, PairStatus};
 use super::{Ctx, GeometryKey, Ledger};
-use crate::measure::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
-use crate::measure::colour::{White, Xyz};
-use crate::measure::drift::{
+use crate::checks::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
+use crate::detect::drift::{
     mount_coordinates, DriftDetector, DriftEstimate, DriftEvent, DriftSpec, GainPath, MountPattern,
     PairObservation, StepEffect,
 };
-use crate::measure::lamp::LampColour;
-use crate::measure::probes::{colour_fit_spec, UNSTABLE_FACTOR};
+use crate::detect::lamp::LampColour;
+use crate::detect::probes::{colour_fit_spec, UNSTABLE_FACTOR};
+use crate::measure::colour::{White, Xyz};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::collections::HashMap;

@@ -7,14 +7,15 @@
 //!   occlusion substitutes' interpolated partners;
 //! - `isotropy`: the capture against its isotropy class (isotropic samples);
 //! - `drift`: the lamp's gain from repeated geometry (isotropic samples);
-//! - the light sweeps (`measure::sweeps`, isotropic samples in a light-outer order) and the
-//!   drift probes (`measure::probes`), which are stages of their own in the core.
+//! - the light sweeps (`detect::sweeps`, isotropic samples in a light-outer order) and the
+//!   drift probes (`detect::probes`), which are stages of their own in the core.
 //!
 //! The router owns the ledger (the first usable capture of each plan entry, and which light
 //! directions are complete), fills in the gain correction, relays a sweep's step to the drift
 //! stage, and counts alarms, once, for everything. Pure: a `Checker` is a deterministic
 //! function of the sequence of `CaptureInput`s it is given.
 
+pub mod alarm;
 mod capture;
 pub mod catalogue;
 mod drift;
@@ -23,6 +24,7 @@ pub mod observability;
 mod pairs;
 pub mod records;
 pub mod retakes;
+mod sweeps;
 #[cfg(test)]
 mod tests;
 
@@ -31,17 +33,17 @@ pub use records::{
     IsotropyRecord, Outcome, PairRecord, PairStatus, ProbeGainCurve, Table2,
 };
 
-use crate::measure::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
+use crate::checks::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
+use crate::detect::drift::{mount_coordinates, DriftEstimate, MountPattern, StepEffect};
+use crate::detect::probes::{choose_probe_pose, PoseSample, ProbeDrift, ProbePose, ProbeSpec};
+use crate::detect::sentinel::{
+    choose_sentinel, Joint3Sentinel, RingSample, SentinelPose, SentinelSummary,
+};
+use crate::detect::sweeps::{SweepCapture, SweepMonitor, SweepRecord, SweepSpec, SweepSummary};
 use crate::measure::colour::{RgbToXyz, White, Xyz};
-use crate::measure::drift::{mount_coordinates, DriftEstimate, MountPattern, StepEffect};
 use crate::measure::geometry::{azimuth_difference_deg, Vec3};
 use crate::measure::kinematics::{Incidence, Rig};
 use crate::measure::plan::{AcquisitionOrder, SamplingPlan};
-use crate::measure::probes::{choose_probe_pose, PoseSample, ProbeDrift, ProbePose, ProbeSpec};
-use crate::measure::sentinel::{
-    choose_sentinel, Joint3Sentinel, RingSample, SentinelPose, SentinelSummary,
-};
-use crate::measure::sweeps::{SweepCapture, SweepMonitor, SweepRecord, SweepSpec, SweepSummary};
 use capture::{CaptureStage, Measured, Verdict};
 use drift::{drift_alarm, DriftStage};
 pub use drift::{ColourDriftEstimate, ColourDriftSpec};
@@ -467,7 +469,7 @@ impl Checker {
     }
 
     /// A sentinel probe: its luminance ratio against the lamp probe of its round is joint 3's
-    /// turn (`measure::sentinel`). The round's lamp probe is the last probe before it, at most
+    /// turn (`detect::sentinel`). The round's lamp probe is the last probe before it, at most
     /// `SENTINEL_ROUND_CAPTURES` captures earlier: the round is two PROBE commands, and a
     /// controller may read the second one a capture or two after taking the first, while the
     /// lamp's gain does not move measurably in those seconds. Left out without such a lamp
@@ -517,7 +519,7 @@ impl Checker {
         }
     }
 
-    /// Chooses the joint-3 sentinel's pose (`measure::sentinel`) from the pole light's checked
+    /// Chooses the joint-3 sentinel's pose (`detect::sentinel`) from the pole light's checked
     /// captures, once, for an anisotropic sample with probes and the sentinel on; `lamp_entry`
     /// (the lamp probe's pose) is not offered. `NotYet` while the pole light's sweep is
     /// incomplete, `Unavailable` when it is complete and no capture qualifies (or the session
@@ -675,8 +677,8 @@ impl Checker {
         if !self.ledger.keep(input.entry, m.checked) {
             out.alarms.push(
                 Alarm::new(
-                    crate::measure::alarm::AlarmKind::CaptureQuality,
-                    crate::measure::alarm::Severity::Info,
+                    crate::checks::alarm::AlarmKind::CaptureQuality,
+                    crate::checks::alarm::Severity::Info,
                     AlarmCode::EntryRepeated,
                     format!(
                         "capture {} repeats plan entry {}; the first capture of it is kept for the checks",
@@ -717,7 +719,7 @@ impl Checker {
                 }
             }
             out.sweeps.extend(o.record);
-            out.alarms.extend(o.alarms);
+            out.alarms.extend(o.findings.iter().map(sweeps::alarm));
         }
     }
 
@@ -743,7 +745,7 @@ impl Checker {
         }
     }
 
-    /// The probe pose chosen from the captures checked so far (`measure::probes`): usable
+    /// The probe pose chosen from the captures checked so far (`detect::probes`): usable
     /// captures at their exact pose, neither dark nor occlusion substitutes.
     pub(crate) fn choose_probe_pose(&self) -> Option<ProbePose> {
         let samples: Vec<PoseSample> = (0..self.plan.capture_count())

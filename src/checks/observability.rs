@@ -82,7 +82,7 @@ pub fn observability(
         ));
     }
     if !isotropic {
-        let why = "the sample is declared anisotropic ([sample] isotropic = false): it has no isotropy classes, and in a light-outer order a linear drift is confounded with the per-direction non-reciprocity of reciprocal pairs (measure::drift)";
+        let why = "the sample is declared anisotropic ([sample] isotropic = false): it has no isotropy classes, and in a light-outer order a linear drift is confounded with the per-direction non-reciprocity of reciprocal pairs (detect::drift)";
         if !probes {
             o.blind.push(blind(
                 "the lamp's gain drift (rate and steps)",

@@ -7,9 +7,9 @@
 
 use super::records::{Interpolation, PairRecord, PairStatus, Table2};
 use super::{Checked, Ctx, Ledger};
-use crate::measure::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
+use crate::checks::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
+use crate::detect::drift::{mount_coordinates, MountPattern};
 use crate::measure::colour::{ciede2000, colour_difference, xyz_to_lab, Xyz};
-use crate::measure::drift::{mount_coordinates, MountPattern};
 use crate::measure::geometry::{angle_between, Spherical};
 use crate::measure::reciprocity::{pair_residual, PairError};
 use crate::measure::resample::{ResampleSpec, Resampler, Sample};

@@ -109,7 +109,7 @@ pub struct CaptureRecord {
     pub light: usize,
     pub camera: usize,
     pub probe: bool,
-    /// A probe of the joint-3 sentinel's pose (`measure::sentinel`), not of the lamp's: it is
+    /// A probe of the joint-3 sentinel's pose (`detect::sentinel`), not of the lamp's: it is
     /// no point of the lamp's gain curve.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub sentinel: bool,

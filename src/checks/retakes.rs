@@ -10,7 +10,7 @@
 //! outside every listed episode, is not listed.
 
 use super::records::{CaptureRecord, CaptureStatus};
-use crate::measure::alarm::{Affects, Alarm, AlarmCode};
+use crate::checks::alarm::{Affects, Alarm, AlarmCode};
 use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -175,7 +175,7 @@ pub fn session_retakes(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::measure::alarm::{AlarmCode, AlarmKind, Severity};
+    use crate::checks::alarm::{AlarmCode, AlarmKind, Severity};
     use serde_json::json;
 
     fn cap(idx: u64, entry: usize, status: CaptureStatus) -> CaptureRecord {
@@ -273,7 +273,7 @@ mod tests {
             "check joint 2",
             Some(Affects::Since {
                 from_idx: 85,
-                handling: crate::measure::alarm::Handling::Retake,
+                handling: crate::checks::alarm::Handling::Retake,
             }),
         );
         let r = retakes(&caps[..], &[slip], &spec());

@@ -1,7 +1,7 @@
 //! The checker on synthetic sessions: a reciprocal, smooth BRDF captured on the UBO plan.
 
 use super::*;
-use crate::measure::alarm::{Affects, AlarmCode, AlarmKind, Handling};
+use crate::checks::alarm::{Affects, AlarmCode, AlarmKind, Handling};
 use crate::measure::kinematics::RigSpec;
 use crate::measure::plan::SamplingPlan;
 
@@ -597,7 +597,7 @@ fn ubo_checker_xyz(input: &CaptureInput) -> [f64; 3] {
 }
 
 /// The UBO checker of an anisotropic sample (no isotropy classes) with these probes.
-fn anisotropic_checker(probes: crate::measure::probes::ProbeSpec) -> Checker {
+fn anisotropic_checker(probes: crate::detect::probes::ProbeSpec) -> Checker {
     Checker::new(
         SamplingPlan::ubo(),
         Rig::new(RigSpec::default()).unwrap(),
@@ -636,7 +636,7 @@ fn a_steady_lamp_or_a_luminance_decay_raises_no_colour_drift() {
         assert!(e.k_per_h.abs() < 0.5, "{gain}: {e:?}");
     }
     // an anisotropic sample has no isotropy classes: no colour estimate
-    let mut ch = anisotropic_checker(crate::measure::probes::ProbeSpec::default());
+    let mut ch = anisotropic_checker(crate::detect::probes::ProbeSpec::default());
     for input in colour_drift_session(1000, -50.0) {
         ch.check(&input);
     }
@@ -647,7 +647,7 @@ fn a_steady_lamp_or_a_luminance_decay_raises_no_colour_drift() {
 fn probes_give_the_lamp_colour_drift_on_an_anisotropic_sample() {
     // an anisotropic sample (no isotropy classes) with a probe of entry 50 after every 100
     // captures, the lamp cooling by 40 K/h
-    let mut ch = anisotropic_checker(crate::measure::probes::ProbeSpec {
+    let mut ch = anisotropic_checker(crate::detect::probes::ProbeSpec {
         every: 100,
         ..Default::default()
     });
@@ -712,7 +712,7 @@ fn with_probes(
 fn recolour(input: &CaptureInput, t_s: f64, k_per_h: f64) -> Outcome {
     use crate::measure::colour::{RgbPrimaries, RgbToXyz};
     use nalgebra::{Matrix3, Vector3};
-    let model = crate::measure::lamp::LampColour::new(3000.0).unwrap();
+    let model = crate::detect::lamp::LampColour::new(3000.0).unwrap();
     let m = Matrix3::from_row_slice(&RgbToXyz::new(RgbPrimaries::default()).matrix().concat());
     let [du, dv] = model.log_chromaticity(3000.0 + k_per_h * t_s / 3600.0);
     let d = Matrix3::from_diagonal(&Vector3::new(du.exp(), 1.0, dv.exp()));
@@ -730,7 +730,7 @@ fn a_flickering_lamp_at_the_probes_is_lamp_unstable_with_its_scatter() {
     // an anisotropic sample with a probe of entry 50 after every 100 captures; the lamp's
     // gain at the probes scatters by 1.5 % (five times the design's 0.3 %) or by 0.1 %
     for (flicker, want) in [(0.015, 1usize), (0.001, 0)] {
-        let mut ch = anisotropic_checker(crate::measure::probes::ProbeSpec {
+        let mut ch = anisotropic_checker(crate::detect::probes::ProbeSpec {
             every: 100,
             ..Default::default()
         });
@@ -781,7 +781,7 @@ fn off_centre_session(
     camera: [f64; 2],
     gain: impl Fn(f64) -> f64,
 ) -> Vec<CaptureInput> {
-    use crate::measure::drift::mount_coordinates;
+    use crate::detect::drift::mount_coordinates;
     let plan = SamplingPlan::ubo();
     let d = plan.directions();
     let mut v = ubo_session(upto, gain);

@@ -4,8 +4,8 @@ use super::args::{AlarmsArgs, AverageArgs, CompareArgs, PlanArgs, ReportArgs};
 use super::commands::{average_file, plan_summary, AverageOutcome, ProbePlanSummary, ProbeScatter};
 use super::exit::{self, UsageError};
 use crate::config::Config;
+use crate::detect::probe_plan::{CadenceFigures, DetectionTarget, ProbePlan};
 use crate::measure::averaging::Roi;
-use crate::measure::probe_plan::{CadenceFigures, DetectionTarget, ProbePlan};
 use anyhow::{Context, Result};
 use std::io::Write;
 use std::path::Path;
@@ -220,7 +220,7 @@ pub(super) fn plan_command(args: PlanArgs, out: &mut impl Write) -> Result<ExitC
 /// there is none.
 fn print_probe_plan(
     p: &ProbePlanSummary,
-    spec: &crate::measure::probes::ProbeSpec,
+    spec: &crate::detect::probes::ProbeSpec,
     out: &mut impl Write,
 ) -> Result<()> {
     let t = &p.target;
@@ -265,7 +265,7 @@ fn print_probe_plan(
         t.step_within_captures,
         100.0 * t.power,
         100.0 * t.false_alarms_per_run,
-        crate::measure::probe_plan::RUNS,
+        crate::detect::probe_plan::RUNS,
         spec.z,
         spec.step_sigmas,
         spec.step_pct

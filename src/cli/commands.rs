@@ -117,31 +117,31 @@ pub struct PlanSummary {
     /// What reciprocal pairs alone tell about the lamp's drift, per acquisition order (the
     /// configured one first), at 7 s per capture.
     pub drift_from_pairs: Vec<OrderIdentifiability>,
-    /// The probe cadence that meets the detection target (`measure::probe_plan`).
+    /// The probe cadence that meets the detection target (`detect::probe_plan`).
     pub probes: ProbePlanSummary,
 }
 
-/// `measure::probe_plan` for the config's sample, order and probe settings.
+/// `detect::probe_plan` for the config's sample, order and probe settings.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ProbePlanSummary {
     pub isotropic_sample: bool,
     /// Each probe round is followed by a joint-3 sentinel probe (anisotropic sample).
     pub sentinel: bool,
-    pub session: crate::measure::probe_plan::ProbeSession,
-    pub target: crate::measure::probe_plan::DetectionTarget,
+    pub session: crate::detect::probe_plan::ProbeSession,
+    pub target: crate::detect::probe_plan::DetectionTarget,
     /// The configured cadence's figures (`[probes] every`), when probes are on.
-    pub configured: Option<crate::measure::probe_plan::CadenceFigures>,
-    pub design: crate::measure::probe_plan::ProbePlan,
+    pub configured: Option<crate::detect::probe_plan::CadenceFigures>,
+    pub design: crate::detect::probe_plan::ProbePlan,
 }
 
-/// `measure::identifiability` for one acquisition order.
+/// `detect::identifiability` for one acquisition order.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OrderIdentifiability {
     pub order: String,
     /// Whether the config offers it (`[plan] order`).
     pub configurable: bool,
     #[serde(flatten)]
-    pub pairs: crate::measure::identifiability::PairIdentifiability,
+    pub pairs: crate::detect::identifiability::PairIdentifiability,
 }
 
 /// The capture interval the identifiability figures assume (the UBO rig's, 7 s).
@@ -154,7 +154,7 @@ const SECONDS_PER_CAPTURE: f64 = 7.0;
 fn drift_from_pairs(
     spec: &crate::measure::plan::PlanSpec,
 ) -> Result<Vec<OrderIdentifiability>, crate::measure::plan::PlanError> {
-    use crate::measure::identifiability::pair_identifiability;
+    use crate::detect::identifiability::pair_identifiability;
     use crate::measure::plan::{AcquisitionOrder, PlanSpec, SamplingPlan};
     let steps = [0.1, 0.25, 0.5, 0.75, 0.9];
     let t = SECONDS_PER_CAPTURE / 3600.0;
@@ -198,7 +198,7 @@ fn drift_from_pairs(
     Ok(out)
 }
 
-/// Whether the daemon follows each probe with a joint-3 sentinel (`measure::sentinel`).
+/// Whether the daemon follows each probe with a joint-3 sentinel (`detect::sentinel`).
 pub(crate) fn sentinel(cfg: &Config) -> bool {
     !cfg.sample.isotropic && cfg.probes.sentinel
 }
@@ -207,9 +207,9 @@ pub(crate) fn sentinel(cfg: &Config) -> bool {
 fn probe_plan(
     cfg: &Config,
     scatter: ProbeScatter,
-    target: &crate::measure::probe_plan::DetectionTarget,
+    target: &crate::detect::probe_plan::DetectionTarget,
 ) -> anyhow::Result<ProbePlanSummary> {
-    use crate::measure::probe_plan::{cadence_figures, design, ColourProbes, ProbeSession};
+    use crate::detect::probe_plan::{cadence_figures, design, ColourProbes, ProbeSession};
     use anyhow::Context;
     let plan = cfg.plan()?;
     let session = ProbeSession {
@@ -269,7 +269,7 @@ pub struct ProbeScatter {
 pub fn plan_summary(
     cfg: &Config,
     probe_scatter: ProbeScatter,
-    target: &crate::measure::probe_plan::DetectionTarget,
+    target: &crate::detect::probe_plan::DetectionTarget,
 ) -> anyhow::Result<PlanSummary> {
     let plan = cfg.plan()?;
     let rig = cfg.rig()?;

@@ -35,7 +35,7 @@ pub fn for_error(e: &anyhow::Error) -> ExitCode {
         c.downcast_ref::<crate::config::ConfigError>().is_some()
             || c.downcast_ref::<crate::reference::ReferenceError>().is_some()
             || c.downcast_ref::<UsageError>().is_some()
-            || c.downcast_ref::<crate::measure::probe_plan::ProbePlanError>().is_some()
+            || c.downcast_ref::<crate::detect::probe_plan::ProbePlanError>().is_some()
             // a sidecar table that does not parse, or a pattern and order that cannot place
             // anything: the configuration's input, as a config error is
             || c.downcast_ref::<crate::archive::listing::ListingError>().is_some()

@@ -4,12 +4,12 @@
 //! session's report, byte for byte (no dates, no paths).
 
 use super::compare::CompareReport;
+use crate::checks::alarm::{Affects, Alarm, AlarmCode, Severity};
 use crate::checks::{CaptureRecord, PairRecord, Table2};
 use crate::config::Config;
+use crate::detect::sweeps::SweepRecord;
 use crate::engine::Summary;
-use crate::measure::alarm::{Affects, Alarm, AlarmCode, Severity};
 use crate::measure::plan::SamplingPlan;
-use crate::measure::sweeps::SweepRecord;
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;

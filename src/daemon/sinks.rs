@@ -1,7 +1,7 @@
 //! Shell: alarm sinks besides `alarms.jsonl` (written with the results): the log or the terminal,
 //! and an optional command hook that gets the alarm as JSON on its standard input.
 
-use crate::measure::alarm::{Alarm, Severity};
+use crate::checks::alarm::{Alarm, Severity};
 use std::process::Stdio;
 use std::time::Duration;
 use tokio::io::AsyncWriteExt;

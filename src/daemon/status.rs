@@ -5,11 +5,11 @@
 //! The run loop publishes a snapshot through a `tokio::sync::watch` channel: publishing never
 //! waits for a reader, and a slow reader only ever sees the latest snapshot.
 
+use crate::checks::alarm::{Alarm, AlarmKind};
 use crate::checks::{CaptureRecord, PairRecord};
+use crate::detect::sweeps::SweepRecord;
 use crate::engine::{Output, Summary};
-use crate::measure::alarm::{Alarm, AlarmKind};
 use crate::measure::plan::SamplingPlan;
-use crate::measure::sweeps::SweepRecord;
 use serde::Serialize;
 use std::collections::VecDeque;
 use std::path::Path;
@@ -552,7 +552,7 @@ pub fn metrics(s: &Snapshot) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::measure::alarm::{AlarmCode, Severity};
+    use crate::checks::alarm::{AlarmCode, Severity};
 
     fn capture(idx: u64, entry: usize, light: usize, probe: bool, y: f64) -> CaptureRecord {
         CaptureRecord {
@@ -680,9 +680,9 @@ mod tests {
 
         // the light sweeps' state, when they run
         let mut s4 = s2.clone();
-        s4.summary.sweeps = Some(crate::measure::sweeps::SweepSummary {
+        s4.summary.sweeps = Some(crate::detect::sweeps::SweepSummary {
             tested: 12,
-            last: Some(crate::measure::sweeps::SweepRecord {
+            last: Some(crate::detect::sweeps::SweepRecord {
                 light: 13,
                 idx: 1133,
                 t: 7931.0,
@@ -692,7 +692,7 @@ mod tests {
                 level_se_pct: 0.2,
                 level_z: Some(-1.0),
                 level_cusum: 0.0,
-                joints: vec![crate::measure::sweeps::JointFit {
+                joints: vec![crate::detect::sweeps::JointFit {
                     joint: 2,
                     offset_deg: 0.75,
                     se_deg: 0.1,
@@ -720,14 +720,14 @@ mod tests {
 
         // the probes' scatter and the joint-3 sentinel, when they run
         let mut s5 = s2.clone();
-        s5.summary.probe_drift = Some(crate::measure::drift::DriftEstimate {
+        s5.summary.probe_drift = Some(crate::detect::drift::DriftEstimate {
             pairs: 10,
             rate_pct_per_h: 0.1,
             se_pct_per_h: 0.05,
             residual_scale: 0.0025,
         });
-        s5.summary.joint3_sentinel = Some(crate::measure::sentinel::SentinelSummary {
-            pose: crate::measure::sentinel::SentinelPose {
+        s5.summary.joint3_sentinel = Some(crate::detect::sentinel::SentinelSummary {
+            pose: crate::detect::sentinel::SentinelPose {
                 entry: 33,
                 theta_o_deg: 45.0,
                 phi_o_deg: 280.0,

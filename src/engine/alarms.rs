@@ -3,7 +3,7 @@
 //! engine inputs; the rest are counted and reported as one alarm when the window ends. Windows
 //! are counted in inputs, not wall time, so a replay aggregates exactly as the live run did.
 
-use crate::measure::alarm::{Affects, Alarm, AlarmCode, Severity};
+use crate::checks::alarm::{Affects, Alarm, AlarmCode, Severity};
 use serde_json::json;
 use std::collections::BTreeMap;
 
@@ -165,7 +165,7 @@ fn aggregate(code: &AlarmCode, storm: &Storm, latest: Alarm, now: u64) -> Alarm 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::measure::alarm::AlarmKind;
+    use crate::checks::alarm::AlarmKind;
 
     fn alarm(severity: Severity, idx: u64) -> Alarm {
         Alarm::new(
@@ -226,7 +226,7 @@ mod tests {
 
     #[test]
     fn an_aggregate_affects_every_capture_its_alarms_did() {
-        use crate::measure::alarm::Handling;
+        use crate::checks::alarm::Handling;
         let mut book = AlarmBook::default();
         // reciprocity outliers, each naming its pair; all with the same action
         for i in 0..9u64 {

@@ -17,8 +17,8 @@ mod alarms;
 mod ledger;
 mod link;
 
+use crate::checks::alarm::{Alarm, AlarmCode, AlarmKind, Severity};
 use crate::config::{AlarmSpec, Config, ConfigError};
-use crate::measure::alarm::{Alarm, AlarmCode, AlarmKind, Severity};
 use crate::protocol::{
     self, Ack, Announcement, FromController, Ident, LineError, Nak, Status, ToController,
     PROTO_VERSION,
@@ -89,14 +89,14 @@ pub enum Output {
     Capture(CaptureRecord),
     Pair(PairRecord),
     Isotropy(IsotropyRecord),
-    Sweep(crate::measure::sweeps::SweepRecord),
+    Sweep(crate::detect::sweeps::SweepRecord),
     Alarm(Alarm),
     Manifest(ManifestRecord),
     /// The drift probes' pose was chosen (no `[probes] entry` configured); probes follow.
-    ProbePose(crate::measure::probes::ProbePose),
+    ProbePose(crate::detect::probes::ProbePose),
     /// The joint-3 sentinel's pose was chosen (anisotropic sample with probes); every probe is
     /// followed by a sentinel probe of it.
-    SentinelPose(crate::measure::sentinel::SentinelPose),
+    SentinelPose(crate::detect::sentinel::SentinelPose),
     /// Every capture the controller announced as taken is checked and the run is done.
     Finished,
 }
@@ -131,16 +131,16 @@ pub struct Summary {
     #[serde(default, skip_serializing_if = "Table2::is_empty")]
     pub by_command: Table2,
     /// Gain drift estimate from the probes (%/h), when probes are enabled.
-    pub probe_drift: Option<crate::measure::drift::DriftEstimate>,
+    pub probe_drift: Option<crate::detect::drift::DriftEstimate>,
     /// The pose the daemon chose for the probes (none configured), once chosen.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub probe_pose: Option<crate::measure::probes::ProbePose>,
+    pub probe_pose: Option<crate::detect::probes::ProbePose>,
     /// Arm joint 3 from the sentinel probes (anisotropic samples with probes), once chosen.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub joint3_sentinel: Option<crate::measure::sentinel::SentinelSummary>,
+    pub joint3_sentinel: Option<crate::detect::sentinel::SentinelSummary>,
     /// Gain drift estimate from isotropy classes (isotropic samples).
     #[serde(default)]
-    pub isotropy_drift: Option<crate::measure::drift::DriftEstimate>,
+    pub isotropy_drift: Option<crate::detect::drift::DriftEstimate>,
     /// The lamp's colour drift: from isotropy classes (isotropic samples), else from the probes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub colour_drift: Option<crate::checks::ColourDriftEstimate>,
@@ -149,13 +149,13 @@ pub struct Summary {
     pub observability: crate::checks::observability::Observability,
     /// Gain steps the light sweeps found, as fitted in the isotropy drift model.
     #[serde(default)]
-    pub isotropy_steps: Vec<crate::measure::drift::StepEffect>,
+    pub isotropy_steps: Vec<crate::detect::drift::StepEffect>,
     /// The off-centre mount's pattern, once the isotropy drift model carries it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sample_off_centre: Option<crate::measure::drift::MountPattern>,
+    pub sample_off_centre: Option<crate::detect::drift::MountPattern>,
     /// The light-sweep checks (isotropic samples in a light-outer order).
     #[serde(default)]
-    pub sweeps: Option<crate::measure::sweeps::SweepSummary>,
+    pub sweeps: Option<crate::detect::sweeps::SweepSummary>,
     pub alarms: BTreeMap<String, u64>,
     pub link: LinkStats,
     pub finished: bool,
@@ -189,7 +189,7 @@ pub struct Engine {
     /// The configured probe entry, or the chosen one; None until it is chosen.
     probe_entry: Option<usize>,
     /// The pose chosen for the probes (no entry configured).
-    probe_pose: Option<crate::measure::probes::ProbePose>,
+    probe_pose: Option<crate::detect::probes::ProbePose>,
     /// Whether the joint-3 sentinel was found unavailable (said once). Its pose, once chosen,
     /// is the checker's.
     sentinel_tried: bool,

@@ -5,23 +5,15 @@
 //! errors (`thiserror`). The shell (`crate::decode`, `crate::daemon`, `crate::cli`) does
 //! the I/O and feeds this module. Replaying the same inputs gives the same bytes out.
 
-pub mod alarm;
 pub mod averaging;
 pub mod colour;
 pub mod crossval;
-pub mod drift;
 pub mod geometry;
-pub mod identifiability;
 pub mod kinematics;
-pub mod lamp;
 pub mod plan;
-pub mod probe_plan;
-pub mod probes;
 pub mod reciprocity;
 pub mod resample;
-pub mod sentinel;
 pub mod shepard;
 pub mod smooth_brdf;
 pub mod stats;
-pub mod sweeps;
 pub mod timeline;

@@ -4,7 +4,7 @@
 //! A reciprocal pair, its earlier capture a = (light ℓ, camera c) at t_a and its mirror b at
 //! t_b, gives d = ln Y′_b − ln Y′_a = ln g(t_b) − ln g(t_a) + v(c) − v(ℓ) + ε after the cosine
 //! re-correction: a lamp footprint that depends on the light direction and what the camera
-//! sees beside the sample make a per-direction non-reciprocity v (`measure::drift`). The drift
+//! sees beside the sample make a per-direction non-reciprocity v (`detect::drift`). The drift
 //! is identifiable from the pairs only as far as its columns are not in the span of the
 //! direction effects. This module measures that: a linear rate's standard error, and a step's at
 //! a given point of the run, with the 80 free direction effects fitted (one is fixed by the
@@ -12,7 +12,7 @@
 //! difference of per-direction terms, so the rate is not identifiable at all; a step is, from
 //! the pairs that straddle it, as far as the direction effects leave it.
 
-use super::plan::SamplingPlan;
+use crate::measure::plan::SamplingPlan;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 

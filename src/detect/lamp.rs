@@ -10,7 +10,9 @@
 //! standard error. The colour difference per hour is that of a white surface (ΔE00 between the
 //! white at T₀ and the white one hour of drift later).
 
-use super::colour::{bands, ciede2000, xyz_to_lab, ColourError, SpectralToXyz, White, Xyz};
+use crate::measure::colour::{
+    bands, ciede2000, xyz_to_lab, ColourError, SpectralToXyz, White, Xyz,
+};
 use serde::{Deserialize, Serialize};
 
 /// Planck's second radiation constant c₂ = h·c/k (m·K), CODATA 2018.

@@ -1,0 +1,302 @@
+//! The light sweeps' findings as alarms: the words, the severity and what the operator should
+//! do.
+
+use crate::checks::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
+use crate::detect::sweeps::{JointSlip, LevelRun, SweepAt, SweepFinding};
+use serde_json::json;
+
+/// The alarm a finding of the sweep checks raises.
+pub(crate) fn alarm(f: &SweepFinding) -> Alarm {
+    let at = f.at();
+    let alarm = match f {
+        SweepFinding::GainStep {
+            at,
+            up,
+            run,
+            since_t,
+            from_idx,
+        } => gain_step(at, *up, run, *since_t, *from_idx),
+        SweepFinding::LevelAfterSlip {
+            at,
+            run,
+            joint,
+            slip_from_idx,
+        } => level_after_slip(at, run, *joint, *slip_from_idx),
+        SweepFinding::GainStepWithdrawn {
+            joint,
+            step_idx,
+            level_pct,
+            slip_from_idx,
+            ..
+        } => gain_step_withdrawn(*joint, *step_idx, *level_pct, *slip_from_idx),
+        SweepFinding::JointSlip { at, slip } => joint_slip(at, slip),
+    };
+    alarm.at(Some(at.last_idx), Some(at.last_t))
+}
+
+fn layer_deg(at: &SweepAt) -> f64 {
+    at.layer_mdeg as f64 / 1000.0
+}
+
+fn gain_step(at: &SweepAt, up: bool, run: &LevelRun, since_t: Option<f64>, from_idx: u64) -> Alarm {
+    Alarm::new(
+        AlarmKind::Drift,
+        Severity::Warning,
+        AlarmCode::GainStep,
+        format!(
+            "the gain level stepped {}: light sweep {} (captures up to {}) and the {} before it sit {:+.2} % off the earlier sweeps of θi = {}° beyond the modelled drift (CUSUM {:.1} > {:.1}; from isotropy classes, no probes); the step's size is fitted from the isotropy classes from now on",
+            if up { "up" } else { "down" },
+            at.light,
+            at.last_idx,
+            run.sweeps.saturating_sub(1),
+            run.level_pct,
+            layer_deg(at),
+            run.statistic,
+            run.threshold
+        ),
+    )
+    .with(json!({"source": "light sweeps", "level_pct": run.level_pct, "sweeps": run.sweeps, "since_idx": run.since_idx, "since_t": since_t, "statistic": run.statistic, "threshold": run.threshold}))
+    .advise(
+        action::GAIN_STEP,
+        Some(Affects::Since {
+            from_idx,
+            handling: Handling::Corrected,
+        }),
+    )
+}
+
+fn level_after_slip(at: &SweepAt, run: &LevelRun, joint: usize, slip_from_idx: u64) -> Alarm {
+    Alarm::new(
+        AlarmKind::Positioning,
+        Severity::Info,
+        AlarmCode::LevelAfterSlip,
+        format!(
+            "light sweep {} (captures up to {}) and the {} before it sit {:+.2} % off the earlier sweeps of θi = {}°, beginning after joint {joint} was named (captures from {slip_from_idx}): read as the tilt's, not as a lamp step, and not taken into the drift model",
+            at.light,
+            at.last_idx,
+            run.sweeps.saturating_sub(1),
+            run.level_pct,
+            layer_deg(at),
+        ),
+    )
+    .with(json!({"source": "light sweeps", "joint": joint, "level_pct": run.level_pct, "sweeps": run.sweeps, "since_idx": run.since_idx, "slip_from_idx": slip_from_idx, "statistic": run.statistic, "threshold": run.threshold}))
+    .advise(
+        "Nothing more than for the joint alarm: check the sample clamp and the joint; these captures are already on the retake list. A level change that persists after the joint is fixed is the lamp's.",
+        Some(Affects::Since { from_idx: slip_from_idx, handling: Handling::Retake }),
+    )
+}
+
+fn gain_step_withdrawn(joint: usize, step_idx: u64, level_pct: f64, slip_from_idx: u64) -> Alarm {
+    Alarm::new(
+        AlarmKind::Positioning,
+        Severity::Info,
+        AlarmCode::GainStepWithdrawn,
+        format!(
+            "the gain step raised at capture {step_idx} ({level_pct:+.2} %) came after joint {joint} began to slip (captures from {slip_from_idx}): it is read as the tilt's, not the lamp's, and leaves the drift model",
+        ),
+    )
+    .with(json!({"source": "light sweeps", "joint": joint, "step_idx": step_idx, "level_pct": level_pct, "slip_from_idx": slip_from_idx}))
+    .advise(
+        "Nothing more than for the joint alarm: check the sample clamp and the joint; these captures are on the retake list and the corrected colours no longer divide that step out.",
+        Some(Affects::Since { from_idx: slip_from_idx, handling: Handling::Retake }),
+    )
+}
+
+fn joint_slip(at: &SweepAt, x: &JointSlip) -> Alarm {
+    let other: Vec<serde_json::Value> = x
+        .other_joints
+        .iter()
+        .map(|f| json!({"joint": f.joint, "offset_deg": f.offset_deg, "se_deg": f.se_deg, "cusum": f.cusum}))
+        .collect();
+    let mut evidence = json!({"joint": x.joint, "offset_deg": x.offset_deg, "se_deg": x.se_deg, "estimate_sweeps": x.estimate_sweeps, "run_mean_deg": x.run_mean_deg, "sweeps": x.sweeps, "since_idx": x.since_idx, "statistic": x.statistic, "threshold": x.threshold, "other_joints": other});
+    if let Some(level) = x.attributed_level_pct {
+        evidence["attributed_level_pct"] = json!(level);
+    }
+    let size = format!(
+        "joint {} looks offset by about {:+.2}° (± {:.2}°, from {} light sweep(s) against the captures before the slip)",
+        x.joint, x.offset_deg, x.se_deg, x.estimate_sweeps
+    );
+    Alarm::new(
+        AlarmKind::Positioning,
+        Severity::Warning,
+        AlarmCode::JointOffsetSuspected,
+        match x.attributed_level_pct {
+            Some(level_pct) => format!(
+                "{size}: light sweep {} and the {} before it sit {:+.2} % off the earlier sweeps of θi = {}°, and that joint's pattern across their cameras departs from the earlier sweeps' by {:.1} standard deviations (threshold {}) in the direction that explains the level, while the encoders agree with the commands: read as the tilt's, not as a lamp step, and not taken into the drift model; a slipped joint or a moved sample is likely",
+                at.light,
+                x.sweeps.saturating_sub(1),
+                level_pct,
+                layer_deg(at),
+                x.statistic,
+                x.threshold,
+            ),
+            None => format!(
+                "{size}: the pattern across the cameras of light sweep {} and the {} before it follows that joint's sensitivity while the encoders agree with the commands; a slipped joint or a moved sample is likely (CUSUM {:.1} > {:.1})",
+                at.light,
+                x.sweeps.saturating_sub(1),
+                x.statistic,
+                x.threshold
+            ),
+        },
+    )
+    .with(evidence)
+    .advise(
+        &format!(
+            "Pause the run; check the sample clamp and arm joint {} (re-home the joint if it slipped, re-seat the sample if it moved), then resume; every capture since {} (the light sweep before the first one that showed it) is on the retake list.",
+            x.joint, x.from_idx,
+        ),
+        Some(Affects::Since { from_idx: x.from_idx, handling: Handling::Retake }),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::sweeps::JointFit;
+
+    const AT: SweepAt = SweepAt {
+        light: 47,
+        last_idx: 3887,
+        last_t: 25_000.5,
+        layer_mdeg: 60_000,
+    };
+
+    fn run() -> LevelRun {
+        LevelRun {
+            level_pct: -2.5,
+            sweeps: 3,
+            since_idx: 3725,
+            statistic: 7.25,
+            threshold: 5.5,
+        }
+    }
+
+    #[test]
+    fn a_gain_step_is_a_corrected_drift_warning_from_its_runs_first_sweep() {
+        let a = alarm(&SweepFinding::GainStep {
+            at: AT,
+            up: false,
+            run: run(),
+            since_t: Some(24_000.0),
+            from_idx: 3645,
+        });
+        assert_eq!(
+            (a.code, a.kind, a.severity),
+            (AlarmCode::GainStep, AlarmKind::Drift, Severity::Warning)
+        );
+        assert_eq!((a.idx, a.t), (Some(3887), Some(25_000.5)));
+        assert!(a.message.starts_with("the gain level stepped down: light sweep 47 (captures up to 3887) and the 2 before it sit -2.50 % off the earlier sweeps of θi = 60°"), "{}", a.message);
+        assert_eq!(
+            a.affects,
+            Some(Affects::Since {
+                from_idx: 3645,
+                handling: Handling::Corrected
+            })
+        );
+        assert_eq!(
+            serde_json::to_string(&a.evidence).unwrap(),
+            r#"{"level_pct":-2.5,"since_idx":3725,"since_t":24000.0,"source":"light sweeps","statistic":7.25,"sweeps":3,"threshold":5.5}"#
+        );
+    }
+
+    #[test]
+    fn a_level_change_after_a_slip_and_a_withdrawn_step_are_infos_that_retake_from_the_slip() {
+        for f in [
+            SweepFinding::LevelAfterSlip {
+                at: AT,
+                run: run(),
+                joint: 2,
+                slip_from_idx: 3564,
+            },
+            SweepFinding::GainStepWithdrawn {
+                at: AT,
+                joint: 2,
+                step_idx: 3726,
+                level_pct: -1.5,
+                slip_from_idx: 3564,
+            },
+        ] {
+            let a = alarm(&f);
+            assert_eq!(
+                (a.kind, a.severity),
+                (AlarmKind::Positioning, Severity::Info)
+            );
+            assert!(
+                a.message.contains("joint 2") && a.message.contains("3564"),
+                "{}",
+                a.message
+            );
+            assert_eq!(
+                a.affects,
+                Some(Affects::Since {
+                    from_idx: 3564,
+                    handling: Handling::Retake
+                })
+            );
+            assert_eq!(a.evidence["slip_from_idx"], 3564);
+        }
+    }
+
+    #[test]
+    fn a_joint_slip_says_which_joint_to_check_and_retakes_from_the_sweep_before() {
+        let slip = JointSlip {
+            joint: 2,
+            offset_deg: 1.25,
+            se_deg: 0.25,
+            estimate_sweeps: 2,
+            run_mean_deg: 1.5,
+            sweeps: 3,
+            since_idx: 3725,
+            from_idx: 3564,
+            statistic: 9.5,
+            threshold: 6.0,
+            attributed_level_pct: None,
+            other_joints: vec![JointFit {
+                joint: 1,
+                offset_deg: 0.5,
+                se_deg: 0.25,
+                z: Some(1.0),
+                cusum: 0.5,
+            }],
+        };
+        let a = alarm(&SweepFinding::JointSlip {
+            at: AT,
+            slip: slip.clone(),
+        });
+        assert_eq!(
+            (a.code, a.severity),
+            (AlarmCode::JointOffsetSuspected, Severity::Warning)
+        );
+        assert!(a
+            .action
+            .as_deref()
+            .is_some_and(|s| s.contains("arm joint 2") && s.contains("since 3564")));
+        assert_eq!(
+            a.affects,
+            Some(Affects::Since {
+                from_idx: 3564,
+                handling: Handling::Retake
+            })
+        );
+        assert!(a.message.ends_with("(CUSUM 9.5 > 6.0)"), "{}", a.message);
+        assert_eq!(
+            serde_json::to_string(&a.evidence).unwrap(),
+            r#"{"estimate_sweeps":2,"joint":2,"offset_deg":1.25,"other_joints":[{"cusum":0.5,"joint":1,"offset_deg":0.5,"se_deg":0.25}],"run_mean_deg":1.5,"se_deg":0.25,"since_idx":3725,"statistic":9.5,"sweeps":3,"threshold":6.0}"#
+        );
+        // a level change the joint's pattern explains: the level and the attribution's test
+        let a = alarm(&SweepFinding::JointSlip {
+            at: AT,
+            slip: JointSlip {
+                attributed_level_pct: Some(-0.8),
+                threshold: 3.0,
+                ..slip
+            },
+        });
+        assert!(
+            a.message.contains("sit -0.80 % off") && a.message.contains("(threshold 3)"),
+            "{}",
+            a.message
+        );
+        assert_eq!(a.evidence["attributed_level_pct"], -0.8);
+    }
+}

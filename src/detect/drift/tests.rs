@@ -1,0 +1,396 @@
+use super::*;
+
+#[test]
+fn the_rate_alarm_needs_significance_and_size_and_clears_inside_the_tolerance() {
+    // significant and beyond the tolerance, either sign
+    assert!(rate_alarm_raised(0.5, 0.1, 0.25, 4.0));
+    assert!(rate_alarm_raised(-0.5, 0.1, 0.25, 4.0));
+    // a lower bound below the tolerance does not hold it back
+    assert!(rate_alarm_raised(0.5, 0.12, 0.25, 4.0));
+    // beyond the tolerance but not significant; significant but within the tolerance
+    assert!(!rate_alarm_raised(0.5, 0.13, 0.25, 4.0));
+    assert!(!rate_alarm_raised(0.2, 0.01, 0.25, 4.0));
+    // a NaN estimate or error never raises; an infinite tolerance switches it off
+    assert!(!rate_alarm_raised(f64::NAN, 0.01, 0.25, 4.0));
+    assert!(!rate_alarm_raised(0.5, f64::NAN, 0.25, 4.0));
+    assert!(!rate_alarm_raised(0.5, 0.01, f64::INFINITY, 4.0));
+    // cleared only when the whole z band is inside the tolerance
+    assert!(rate_alarm_cleared(0.05, 0.04, 0.25, 4.0));
+    assert!(!rate_alarm_cleared(0.05, 0.06, 0.25, 4.0));
+    assert!(!rate_alarm_cleared(f64::NAN, 0.01, 0.25, 4.0));
+}
+
+#[test]
+fn the_scale_floor_bounds_the_rate_standard_error_of_a_few_quiet_observations() {
+    // four probes on a line but for 0.01 % of noise: their own scale would make a
+    // 0.04 %/h slope look like several standard errors
+    let obs = |i: usize| PairObservation {
+        t_a_h: 0.0,
+        t_b_h: 0.5 * (i + 1) as f64,
+        d: 0.0005 * 0.5 * (i + 1) as f64 + if i.is_multiple_of(2) { 1e-4 } else { -1e-4 },
+        bucket: (0, 0),
+        sigma: 0.0,
+        mount: [0.0; 4],
+    };
+    let spec = DriftSpec {
+        min_pairs: 4,
+        refit_every: 1,
+        step_detection: false,
+        ..DriftSpec::default()
+    };
+    let fit = |floor: f64| {
+        let mut d = DriftDetector::new(DriftSpec {
+            scale_floor: floor,
+            ..spec.clone()
+        });
+        for i in 0..4 {
+            d.add(obs(i));
+        }
+        d.estimate().unwrap()
+    };
+    let (own, floored) = (fit(0.0), fit(0.003));
+    assert_eq!(own.rate_pct_per_h, floored.rate_pct_per_h);
+    assert!(own.rate_pct_per_h / own.se_pct_per_h > 3.0, "{own:?}");
+    // σ ≥ 0.3 %: the SE is at least 0.3 % / √Sxx (Sxx of 0.5, 1, 1.5, 2 h is 1.25 h²)
+    let bound = 100.0 * 0.003 / 1.25f64.sqrt();
+    assert!(floored.se_pct_per_h >= bound * (1.0 - 1e-9), "{floored:?}");
+    assert!(
+        floored.rate_pct_per_h / floored.se_pct_per_h < 1.0,
+        "{floored:?}"
+    );
+}
+
+#[test]
+fn mount_coordinates_stay_finite_at_grazing_and_bad_directions() {
+    let up = Vec3::new(0.0, 0.0, 1.0);
+    assert_eq!(mount_coordinates(&up, &up), [0.0; 4]);
+    // 45° along +x: tan θ = 1
+    let d = Vec3::new(1.0, 0.0, 1.0).normalize();
+    let m = mount_coordinates(&d, &up);
+    assert!((m[0] - 1.0).abs() < 1e-12 && m[1].abs() < 1e-12);
+    // grazing and below the horizon: capped at θ = 85° (tan 85° = 11.43), never infinite
+    for w in [Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, -0.2)] {
+        let m = mount_coordinates(&w, &up);
+        assert!(m.iter().all(|v| v.is_finite() && v.abs() <= 11.5), "{m:?}");
+    }
+    // a NaN direction contributes nothing
+    let nan = Vec3::new(f64::NAN, 0.0, 1.0);
+    assert_eq!(mount_coordinates(&nan, &d), [0.0; 4]);
+}
+
+#[test]
+fn the_gain_path_is_the_rate_and_the_steps_that_have_happened() {
+    let g = GainPath {
+        rate_per_h: -0.01,
+        steps: vec![(2.0, (0.97f64).ln())],
+    };
+    assert!((g.ln_at(3600.0) + 0.01).abs() < 1e-12);
+    assert!((g.ln_at(3.0 * 3600.0) - (-0.03 + (0.97f64).ln())).abs() < 1e-12);
+    let bad = GainPath {
+        rate_per_h: f64::NAN,
+        steps: Vec::new(),
+    };
+    assert_eq!(bad.ln_at(10.0), 0.0);
+}
+use crate::fixtures::Lcg;
+
+/// Synthetic pairs with bucket effects, a rate, noise, and an optional step.
+fn run(
+    rate_pct: f64,
+    step: Option<(f64, f64)>,
+    seed: u64,
+) -> (DriftDetector, Vec<(usize, DriftEvent)>) {
+    let mut s = Lcg(seed);
+    // refit less often than the default to keep the debug-build test quick
+    let mut det = DriftDetector::new(DriftSpec {
+        refit_every: 80,
+        ..DriftSpec::default()
+    });
+    let mut events = Vec::new();
+    let buckets: Vec<f64> = (0..36).map(|_| 0.04 * s.gauss()).collect();
+    let ln_g = |t: f64| {
+        let mut v = rate_pct / 100.0 * t;
+        if let Some((t0, frac)) = step {
+            if t >= t0 {
+                v += (1.0f64 + frac).ln();
+            }
+        }
+        v
+    };
+    for i in 0..3240 {
+        let t_b = 13.0 * (i as f64 + 1.0) / 3240.0;
+        let t_a = t_b * s.uniform();
+        let b = (s.uniform() * 36.0) as usize;
+        let d = ln_g(t_b) - ln_g(t_a) + buckets[b] + 0.015 * s.gauss();
+        for e in det.add(PairObservation {
+            t_a_h: t_a,
+            t_b_h: t_b,
+            d,
+            bucket: (b as i64, 0),
+            sigma: 0.0,
+            mount: [0.0; 4],
+        }) {
+            events.push((i, e));
+        }
+    }
+    (det, events)
+}
+
+#[test]
+fn a_known_step_is_fitted_and_keeps_the_rate_unbiased() {
+    // −1 %/h and a −3 % step at 6.5 h
+    let step = (0.97f64).ln();
+    let fit = |known: bool| {
+        let mut s = Lcg(5);
+        let mut det = DriftDetector::new(DriftSpec {
+            refit_every: 3000,
+            min_pairs: 100,
+            step_detection: false,
+            ..DriftSpec::default()
+        });
+        if known {
+            det.add_step(6.5);
+        }
+        for i in 0..3000 {
+            let t_b = 13.0 * (i as f64 + 1.0) / 3000.0;
+            let t_a = t_b * s.uniform();
+            let lg = |t: f64| -0.01 * t + if t >= 6.5 { step } else { 0.0 };
+            det.add(PairObservation {
+                t_a_h: t_a,
+                t_b_h: t_b,
+                d: lg(t_b) - lg(t_a) + 0.01 * s.gauss(),
+                bucket: ((i % 5) as i64, 0),
+                sigma: 0.0,
+                mount: [0.0; 4],
+            });
+        }
+        det
+    };
+    let blind = fit(false);
+    let told = fit(true);
+    let (rb, rt) = (
+        blind.estimate().unwrap().rate_pct_per_h,
+        told.estimate().unwrap().rate_pct_per_h,
+    );
+    assert!((rt + 1.0).abs() < 0.02, "{rt}");
+    assert!((rb + 1.0).abs() > 5.0 * (rt + 1.0).abs(), "{rb} {rt}");
+    let st = told.steps()[0];
+    assert!((st.ln_size - step).abs() < 0.003, "{st:?}");
+    assert!(st.se > 0.0 && st.se < 0.003);
+    assert!(blind.steps().is_empty());
+    assert_eq!(told.steps().len(), 1);
+    // the gain curve: the step is in it after 6.5 h, not before
+    let (before, _) = told.ln_gain_at(6.4).unwrap();
+    let (after, sigma) = told.ln_gain_at(6.6).unwrap();
+    assert!(
+        (after - before - step + 0.002).abs() < 0.004,
+        "{before} {after}"
+    );
+    assert!(sigma > 0.0 && sigma.is_finite());
+    // a step withdrawn (a slip explained it) leaves the model as if never told; one that
+    // was never added changes nothing
+    let mut withdrawn = fit(true);
+    assert!(withdrawn.remove_step(7.0).is_empty());
+    assert_eq!(withdrawn.steps().len(), 1);
+    withdrawn.remove_step(6.5);
+    assert!(withdrawn.steps().is_empty());
+    assert_eq!(withdrawn.estimate(), blind.estimate());
+    // a step time nobody's pairs span yet changes nothing
+    let mut late = fit(true);
+    late.add_step(20.0);
+    assert!((late.estimate().unwrap().rate_pct_per_h - rt).abs() < 1e-9);
+    let (a, b) = (
+        late.ln_gain_at(13.0).unwrap(),
+        told.ln_gain_at(13.0).unwrap(),
+    );
+    assert!(
+        (a.0 - b.0).abs() < 1e-12 && (a.1 / b.1 - 1.0).abs() < 1e-3,
+        "{a:?} {b:?}"
+    );
+}
+
+#[test]
+fn a_pose_break_keeps_a_slips_pattern_out_of_the_rate() {
+    // −0.5 %/h; from 6.5 h a tilt moves each bucket's later member by its own amount that
+    // grows with the pair's time difference (members at other azimuths move differently)
+    let fit = |break_at: Option<f64>, at_pair: usize| {
+        let mut s = Lcg(11);
+        let mut det = DriftDetector::new(DriftSpec {
+            refit_every: 500,
+            min_pairs: 100,
+            step_detection: false,
+            ..DriftSpec::default()
+        });
+        for i in 0..3000 {
+            if i == at_pair {
+                if let Some(t) = break_at {
+                    det.add_pose_break(t);
+                }
+            }
+            let t_b = 13.0 * (i as f64 + 1.0) / 3000.0;
+            let t_a = t_b * s.uniform();
+            let tilt = if t_b >= 6.5 { 0.004 * (t_b - t_a) } else { 0.0 };
+            det.add(PairObservation {
+                t_a_h: t_a,
+                t_b_h: t_b,
+                d: -0.005 * (t_b - t_a) + tilt + 0.005 * s.gauss(),
+                bucket: ((i % 5) as i64, 0),
+                sigma: 0.0,
+                mount: [0.0; 4],
+            });
+        }
+        det
+    };
+    let rate = |d: &DriftDetector| d.estimate().unwrap().rate_pct_per_h;
+    let blind = fit(None, 0);
+    assert!((rate(&blind) + 0.5).abs() > 0.1, "{}", rate(&blind));
+    // named late (two thirds in): the pairs already taken after the break leave as well
+    let told = fit(Some(6.4), 2000);
+    assert!((rate(&told) + 0.5).abs() < 0.02, "{}", rate(&told));
+    assert_eq!(told.left_out, 3000 - 1476);
+    assert_eq!(told.estimate().unwrap().pairs, 1476);
+    // a later break than the one held changes nothing; an earlier one moves it
+    let mut again = fit(Some(6.4), 2000);
+    again.add_pose_break(9.0);
+    assert_eq!(again.left_out, told.left_out);
+    again.add_pose_break(f64::NAN);
+    assert_eq!(again.left_out, told.left_out);
+    again.add_pose_break(6.0);
+    assert!(again.left_out > told.left_out);
+    assert!((rate(&again) + 0.5).abs() < 0.02, "{}", rate(&again));
+}
+
+#[test]
+fn uncertain_observations_weigh_less() {
+    // 2,000 measured pairs with a −1 %/h drift, and 200 whose values follow +5 %/h; with
+    // no stated uncertainty the latter pull the rate, with a large one they hardly do
+    let fit = |sigma: f64| {
+        let mut s = Lcg(11);
+        let mut det = DriftDetector::new(DriftSpec {
+            refit_every: 2200,
+            min_pairs: 100,
+            ..DriftSpec::default()
+        });
+        for i in 0..2200 {
+            let t_b = 13.0 * (i as f64 + 1.0) / 2200.0;
+            let t_a = t_b * s.uniform();
+            let odd = i % 11 == 0;
+            let rate = if odd { 0.05 } else { -0.01 };
+            let d = rate * (t_b - t_a) + 0.015 * s.gauss();
+            det.add(PairObservation {
+                t_a_h: t_a,
+                t_b_h: t_b,
+                d,
+                bucket: (if odd { -1 } else { (i % 7) as i64 }, 0),
+                sigma: if odd { sigma } else { 0.0 },
+                mount: [0.0; 4],
+            });
+        }
+        det.estimate().unwrap().rate_pct_per_h
+    };
+    let plain = fit(0.0);
+    let weighted = fit(0.3);
+    assert!((weighted + 1.0).abs() < 0.05, "{weighted}");
+    assert!(
+        (weighted + 1.0).abs() < (plain + 1.0).abs(),
+        "{plain} {weighted}"
+    );
+    // a non-finite uncertainty: the observation is refused (and cannot stall the fit)
+    let mut det = DriftDetector::new(DriftSpec {
+        refit_every: 1,
+        min_pairs: 3,
+        ..DriftSpec::default()
+    });
+    for (i, sigma) in [0.0, 0.0, 0.0, f64::NAN, f64::INFINITY, 0.0]
+        .iter()
+        .enumerate()
+    {
+        let odd = !sigma.is_finite();
+        det.add(PairObservation {
+            t_a_h: 0.0,
+            t_b_h: 1.0 + i as f64,
+            d: if odd { 10.0 } else { -0.01 * (1.0 + i as f64) },
+            // alone in a bucket of its own, as an interpolated pair often is
+            bucket: (if odd { 1 } else { 0 }, 0),
+            sigma: *sigma,
+            mount: [0.0; 4],
+        });
+    }
+    assert_eq!(det.estimate().unwrap().pairs, 4);
+    assert!((det.estimate().unwrap().rate_pct_per_h + 1.0).abs() < 1e-6);
+}
+
+#[test]
+fn threshold_design_meets_the_false_alarm_budget() {
+    let h = cusum_threshold(0.5, 20.0 * 3240.0);
+    use crate::measure::stats::cusum_arl0;
+    assert!(cusum_arl0(0.5, h) / 2.0 >= 64_800.0);
+    assert!(cusum_arl0(0.5, h - 0.02) / 2.0 < 64_800.0);
+    assert!(h > 9.0 && h < 11.0, "{h}");
+}
+
+#[test]
+fn recovers_the_rate_despite_geometry_effects() {
+    for (rate, seed) in [(1.0, 1), (-1.0, 2), (0.5, 3)] {
+        let (det, events) = run(rate, None, seed);
+        let est = det.estimate().unwrap();
+        assert!((est.rate_pct_per_h - rate).abs() < 0.05, "{rate}: {est:?}");
+        assert!((est.rate_pct_per_h - rate).abs() < 4.0 * est.se_pct_per_h + 1e-3);
+        assert!(events
+            .iter()
+            .any(|(_, e)| matches!(e, DriftEvent::RateSignificant(_))));
+    }
+}
+
+#[test]
+fn a_decay_of_twice_the_tolerance_is_raised_once_significant_before_its_bound_clears() {
+    // −0.5 %/h against the 0.25 %/h tolerance: the alarm comes at the first refit where the
+    // rate is 4 SEs from zero, and in these runs that is while |r| − 4·SE is still inside the
+    // tolerance (the bound rule would have waited)
+    let mut earlier = 0;
+    for seed in 1..=4 {
+        let (_, events) = run(-0.5, None, seed);
+        let Some((_, DriftEvent::RateSignificant(e))) = events
+            .iter()
+            .find(|(_, e)| matches!(e, DriftEvent::RateSignificant(_)))
+        else {
+            panic!("seed {seed}: no rate alarm: {events:?}");
+        };
+        assert!(e.rate_pct_per_h < -0.25, "{e:?}");
+        assert!(e.rate_pct_per_h.abs() > 4.0 * e.se_pct_per_h, "{e:?}");
+        earlier += usize::from(e.rate_pct_per_h.abs() - 4.0 * e.se_pct_per_h <= 0.25);
+    }
+    assert!(earlier >= 1, "every alarm waited for the bound");
+}
+
+#[test]
+fn false_alarms_stay_within_the_budget() {
+    // designed for at most 1 false alarm in 20 runs; 30 runs may show a few by chance
+    let mut runs_with_alarm = 0;
+    for seed in 100..130 {
+        let (det, events) = run(0.0, None, seed);
+        runs_with_alarm += usize::from(!events.is_empty());
+        assert!(det.estimate().unwrap().rate_pct_per_h.abs() < 0.05);
+        assert!(
+            !events
+                .iter()
+                .any(|(_, e)| matches!(e, DriftEvent::RateSignificant(_))),
+            "seed {seed}: {events:?}"
+        );
+    }
+    assert!(
+        runs_with_alarm <= 4,
+        "{runs_with_alarm} of 30 fault-free runs alarmed"
+    );
+}
+
+#[test]
+fn a_step_is_caught_by_the_cusum() {
+    let (_, events) = run(0.0, Some((6.5, -0.03)), 5);
+    let step = events
+        .iter()
+        .find(|(_, e)| matches!(e, DriftEvent::Step { .. }));
+    let (i, e) = step.expect("a step alarm");
+    assert!(*i >= 1620, "not before the step: {i}");
+    assert!(matches!(e, DriftEvent::Step { direction: -1, .. }), "{e:?}");
+}

@@ -1,0 +1,434 @@
+//! Whole synthetic sessions through the monitor: a smooth isotropic BRDF on the UBO plan, a
+//! per-light footprint effect, 1 % capture noise, and one fault from `onset`.
+use super::model_tests::{brdf, plan_pose};
+use super::*;
+use crate::measure::geometry::azimuth_difference_deg;
+use crate::measure::plan::SamplingPlan;
+
+#[derive(Clone, Copy)]
+enum Fault {
+    None,
+    /// (joint index 0-based, degrees)
+    Joint(usize, f64),
+    /// gain factor
+    Step(f64),
+}
+
+/// The joints named as slipped, with the sweep each was named at.
+fn slips(findings: &[SweepFinding]) -> impl Iterator<Item = (&SweepAt, &JointSlip)> {
+    findings.iter().filter_map(|f| match f {
+        SweepFinding::JointSlip { at, slip } => Some((at, slip)),
+        _ => None,
+    })
+}
+
+/// The gain steps: the sweep each was found at, its run, and whether it went up.
+fn gain_steps(findings: &[SweepFinding]) -> impl Iterator<Item = (&SweepAt, &LevelRun, bool)> {
+    findings.iter().filter_map(|f| match f {
+        SweepFinding::GainStep { at, run, up, .. } => Some((at, run, *up)),
+        _ => None,
+    })
+}
+
+/// A deterministic standard normal draw (splitmix64 + Box–Muller).
+fn normal(seed: u64, k: u64) -> f64 {
+    let mix = |mut z: u64| {
+        z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    };
+    let a = mix(seed.wrapping_mul(1_000_003).wrapping_add(2 * k));
+    let b = mix(a ^ 0x5555);
+    let u1 = ((a >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+    let u2 = ((b >> 11) as f64) / (1u64 << 53) as f64;
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+/// Runs the session up to (and including) light sweep `last_light`; returns the records
+/// and the findings, in order.
+fn run(
+    fault: Fault,
+    onset: usize,
+    last_light: usize,
+    seed: u64,
+    level_test: bool,
+) -> (Vec<SweepRecord>, Vec<SweepFinding>) {
+    run_outlined(fault, onset, last_light, seed, level_test, (0.0, 0.0))
+}
+
+/// `run` on a sample whose outline shapes the lamp's footprint: every light's level moves
+/// by `outline`·tan²θi·(cos 4φi + 0.4 cos 2φi), a square's quarter-turn pattern with a
+/// rectangle's half-turn one (1.8 % and 0.7 % at θi = 75° for 0.0013).
+fn run_outlined(
+    fault: Fault,
+    onset: usize,
+    last_light: usize,
+    seed: u64,
+    level_test: bool,
+    outline: (f64, f64),
+) -> (Vec<SweepRecord>, Vec<SweepFinding>) {
+    let (_, records, findings) = simulate(fault, onset, last_light, seed, level_test, outline);
+    (records, findings)
+}
+
+/// `run_outlined`, and the monitor as the session left it.
+fn simulate(
+    fault: Fault,
+    onset: usize,
+    last_light: usize,
+    seed: u64,
+    level_test: bool,
+    (outline, second): (f64, f64),
+) -> (SweepMonitor, Vec<SweepRecord>, Vec<SweepFinding>) {
+    let plan = SamplingPlan::ubo();
+    let rig = Rig::new(Default::default()).unwrap();
+    let mut m = SweepMonitor::new(SweepSpec::default(), rig.clone(), plan.direction_count());
+    let dirs = plan.directions().to_vec();
+    let (mut records, mut findings) = (Vec::new(), Vec::new());
+    let mut current: Option<usize> = None;
+    let (mut last_w, mut wagon_dir) = (None::<f64>, 0.0);
+    for e in 0..plan.capture_count() {
+        let pe = plan.entry(e).unwrap();
+        if current != Some(pe.light) {
+            if let Some(done) = current {
+                let o = m.light_complete(done, level_test, None, None);
+                records.extend(o.record);
+                findings.extend(o.findings);
+                if done == last_light {
+                    break;
+                }
+            }
+            current = Some(pe.light);
+        }
+        let (l, c) = (dirs[pe.light], dirs[pe.camera]);
+        let Some((inc, pose)) = plan_pose(&rig, &l, &c) else {
+            continue;
+        };
+        if let Some(w) = last_w.filter(|w| *w != pose.wagon_deg) {
+            wagon_dir = (pose.wagon_deg - w).signum();
+        }
+        last_w = Some(pose.wagon_deg);
+        let mut actual = pose;
+        let mut gain = 1.0;
+        if e >= onset {
+            match fault {
+                Fault::None => {}
+                Fault::Joint(j, d) => actual.joints_deg[j] += d,
+                Fault::Step(g) => gain = g,
+            }
+        }
+        let Ok(seen) = rig.forward(&actual) else {
+            continue;
+        };
+        if seen.omega_i.z <= 0.0 || seen.omega_o.z <= 0.0 {
+            continue;
+        }
+        let (ti, pi) = (l.theta_deg.to_radians(), l.phi_deg.to_radians());
+        let shape =
+            outline * ti.tan().powi(2) * ((4.0 * pi).cos() + second * (2.0 * pi - 1.0).cos());
+        let footprint = 0.005 * normal(seed ^ 0xF00D, pe.light as u64) + shape;
+        let y = brdf(&seen.omega_i, &seen.omega_o)
+            * seen.omega_i.z
+            * gain
+            * (footprint + 0.01 * normal(seed, e as u64)).exp();
+        let dphi = if l.theta_deg == 0.0 || c.theta_deg == 0.0 {
+            0.0
+        } else {
+            azimuth_difference_deg(l.phi_deg, c.phi_deg)
+        };
+        let class = (
+            (l.theta_deg * 1000.0).round() as i64,
+            (c.theta_deg * 1000.0).round() as i64,
+            (dphi * 1000.0).round() as i64,
+        );
+        m.add(SweepCapture {
+            idx: e as u64,
+            t: 7.0 * e as f64,
+            light: pe.light,
+            camera: pe.camera,
+            class,
+            layer: class.0,
+            omega_i: inc.omega_i,
+            omega_o: inc.omega_o,
+            cmd: [
+                pose.joints_deg[0],
+                pose.joints_deg[1],
+                pose.joints_deg[2],
+                pose.wagon_deg,
+            ],
+            wagon_dir,
+            y,
+            mount: [0.0; 4],
+        });
+    }
+    (m, records, findings)
+}
+
+/// Mid-run, inside light sweep 46 (the θi = 60° layer's tenth).
+const ONSET: usize = 46 * 81 + 40;
+/// Eight sweeps after the onset.
+const LAST: usize = 54;
+
+#[test]
+fn a_fault_free_session_raises_nothing() {
+    for seed in [1, 2] {
+        let (records, findings) = run(Fault::None, usize::MAX, LAST, seed, true);
+        assert!(findings.is_empty(), "seed {seed}: {findings:?}");
+        assert!(records.len() > 40, "{}", records.len());
+        // the joint fits are tested once enough sweeps are behind them
+        assert!(records.last().unwrap().joints.iter().all(|f| f.z.is_some()));
+    }
+}
+
+/// The first positioning alarm names the offset joint with the offset's sign. A joint-1
+/// tilt also changes cos θi for the whole sweep, so it may show first as a level change,
+/// which the joint's pattern then claims.
+#[test]
+fn a_joint_offset_from_mid_run_names_that_joint() {
+    for (joint, deg, onset) in [
+        (1usize, 2.0, ONSET),
+        (1, -1.0, ONSET),
+        (0, 2.0, ONSET),
+        (0, 2.0, 40 * 81 + 40),
+    ] {
+        let (_, findings) = run(Fault::Joint(joint, deg), onset, LAST, 1, true);
+        let (at, first) = slips(&findings).next().unwrap_or_else(|| {
+            panic!(
+                "joint {} {deg}° from {onset}: no joint named in {findings:?}",
+                joint + 1
+            )
+        });
+        assert_eq!(first.joint, joint + 1, "{first:?}");
+        // the size, from the smooth model's sensitivities, within ±30 % of the truth
+        let est = first.offset_deg;
+        assert!((est / deg - 1.0).abs() <= 0.3, "estimate {est} for {deg}");
+        // the estimate comes from the sweeps that show the slip, and says how many; the
+        // CUSUM run's own mean is kept
+        let used = first.estimate_sweeps;
+        assert!(used >= 1 && used <= first.sweeps, "{first:?}");
+        assert!(first.run_mean_deg * deg > 0.0);
+        let named_at = at.last_idx;
+        assert!(
+            named_at as usize >= onset && (named_at as usize) < onset + 4 * 81,
+            "{named_at}"
+        );
+        // the captures it can have affected begin with the sweep before the one that began
+        // the CUSUM run: the onset is in it
+        let from_idx = first.from_idx;
+        assert!(from_idx as usize <= onset, "{from_idx} {onset}");
+        assert!(from_idx as usize + 2 * 81 > onset, "{from_idx} {onset}");
+        // a tilt is no lamp step: a level change that follows the slip in its layer is the
+        // slip's, and a gain step found after the slip began but before the joint was named
+        // is withdrawn when it is
+        let withdrawn: Vec<u64> = findings
+            .iter()
+            .filter_map(|f| match f {
+                SweepFinding::GainStepWithdrawn { step_idx, .. } => Some(*step_idx),
+                _ => None,
+            })
+            .collect();
+        for (step_at, _, _) in gain_steps(&findings) {
+            let idx = step_at.last_idx;
+            assert!(idx < named_at, "{findings:?}");
+            assert_eq!(idx >= from_idx, withdrawn.contains(&idx), "{findings:?}");
+        }
+        if joint == 0 && onset == ONSET {
+            // this session's tilt moves the level before the interpolant's pattern names the
+            // joint: the level crossing is attributed to the joint, and no gain step is found
+            assert!(first.attributed_level_pct.unwrap() * deg < 0.0, "{first:?}");
+            assert!(
+                !findings.iter().any(|f| matches!(
+                    f,
+                    SweepFinding::GainStep { .. } | SweepFinding::GainStepWithdrawn { .. }
+                )),
+                "{findings:?}"
+            );
+        }
+        for f in &findings {
+            if let SweepFinding::LevelAfterSlip {
+                at: level_at,
+                joint: named,
+                slip_from_idx,
+                ..
+            } = f
+            {
+                assert!(level_at.last_idx > named_at, "{f:?}");
+                assert_eq!((*named, *slip_from_idx), (joint + 1, from_idx), "{f:?}");
+            }
+        }
+    }
+}
+
+/// The slopes a slip's size is fitted with: on the noisy session, the smooth model's
+/// follow the BRDF's (correlation and regression slope near 1, the wagon's too), where the
+/// interpolant's, through one noisy node per class, do not.
+#[test]
+fn the_smooth_models_sensitivities_follow_the_brdf_where_the_interpolants_do_not() {
+    let rig = Rig::new(Default::default()).unwrap();
+    let truth = |cmd: &[f64; 4], axis: usize| {
+        let f = |d: f64| {
+            let mut p = Pose {
+                joints_deg: [cmd[0], cmd[1], cmd[2]],
+                wagon_deg: cmd[3],
+            };
+            if axis < 2 {
+                p.joints_deg[axis] += d;
+            } else {
+                p.wagon_deg += d;
+            }
+            let inc = rig.forward(&p).unwrap();
+            (brdf(&inc.omega_i, &inc.omega_o) * inc.omega_i.z).ln()
+        };
+        f(0.5) - f(-0.5)
+    };
+    // (correlation, regression slope of the truth on the model) per axis
+    let score = |m: &SweepMonitor, model: Model, axis: usize| {
+        let (mut num, mut den_m, mut den_t) = (0.0, 0.0, 0.0);
+        for c in m.captures.iter().filter(|c| (41..=48).contains(&c.light)) {
+            let Some(s) = m.sensitivities(&c.cmd, model) else {
+                continue;
+            };
+            if !s[axis].is_finite() {
+                continue;
+            }
+            let t = truth(&c.cmd, axis);
+            num += s[axis] * t;
+            den_m += s[axis] * s[axis];
+            den_t += t * t;
+        }
+        (num / (den_m * den_t).sqrt(), num / den_m)
+    };
+    for seed in [1, 2] {
+        let (m, _, _) = simulate(Fault::None, usize::MAX, 48, seed, true, (0.0, 0.0));
+        for (model, axes) in [(Model::Smooth, 3), (Model::Interpolant, 2)] {
+            for axis in 0..axes {
+                let (corr, slope) = score(&m, model, axis);
+                eprintln!(
+                    "seed {seed} {model:?} axis {axis}: correlation {corr:.2}, slope {slope:.2}"
+                );
+            }
+        }
+        for axis in 0..3 {
+            let (corr, slope) = score(&m, Model::Smooth, axis);
+            assert!(corr > 0.95, "seed {seed} axis {axis}: {corr}");
+            assert!(
+                (0.9..1.1).contains(&slope),
+                "seed {seed} axis {axis}: {slope}"
+            );
+        }
+        for axis in 0..2 {
+            let (corr, slope) = score(&m, Model::Interpolant, axis);
+            assert!(
+                corr < 0.6 && slope < 0.3,
+                "seed {seed} axis {axis}: {corr} {slope}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_square_samples_footprint_at_grazing_light_is_the_layers_pattern_not_a_step() {
+    // the last layer (θi = 75°, lights 57–80) swings by ±2.5 % with the light's azimuth
+    let (records, findings) = run_outlined(Fault::None, usize::MAX, 80, 1, true, (0.0013, 0.4));
+    assert!(gain_steps(&findings).next().is_none(), "{findings:?}");
+    let late: Vec<&SweepRecord> = records.iter().filter(|r| r.light >= 70).collect();
+    assert!(
+        late.iter().any(|r| r.level_expected_pct.abs() > 1.0),
+        "{late:?}"
+    );
+    // what is left is the per-light footprint noise of the session (0.5 % SD)
+    let left: Vec<f64> = late
+        .iter()
+        .map(|r| r.level_pct - r.level_expected_pct)
+        .collect();
+    let rms = (left.iter().map(|v| v * v).sum::<f64>() / left.len() as f64).sqrt();
+    assert!(rms < 0.8, "{left:?}");
+    // a −3 % step inside that layer, after its pattern is learnt, is still a step
+    let onset = 70 * 81 + 40;
+    let (_, findings) = run_outlined(Fault::Step(0.97), onset, 76, 1, true, (0.0013, 0.4));
+    let (at, _, _) = gain_steps(&findings)
+        .next()
+        .unwrap_or_else(|| panic!("no gain step in {findings:?}"));
+    assert!(at.last_idx <= (74 * 81) as u64, "{at:?}");
+}
+
+#[test]
+fn a_layer_takes_the_2nd_harmonics_phase_from_the_layer_below_until_it_can_fit_its_own() {
+    // an oblong outline: the 2nd harmonic as large as the 4th, with the same phase in
+    // every layer, clear in the θi = 60° layer (±0.9 % each) and swinging the level by
+    // ±8 % at θi = 75°
+    for seed in [1, 2, 3] {
+        let (records, findings) =
+            run_outlined(Fault::None, usize::MAX, 68, seed, true, (0.003, 1.0));
+        // (the θi = 60° layer's own first lights, whose layer below lends nothing at this
+        // outline, are not this test's subject)
+        assert!(
+            gain_steps(&findings).all(|(at, _, _)| at.last_idx < 57 * 81),
+            "seed {seed}: {findings:?}"
+        );
+        // from the layer's 7th light to its 10th (its own 2nd harmonic), the prediction
+        // follows the 2nd harmonic it cannot fit yet (the 4th alone is off by 5–8 % there)
+        let early: Vec<f64> = records
+            .iter()
+            .filter(|r| (64..=66).contains(&r.light))
+            .map(|r| r.level_pct - r.level_expected_pct)
+            .collect();
+        assert_eq!(early.len(), 3);
+        assert!(
+            early.iter().all(|e| e.abs() < 3.0),
+            "seed {seed}: {early:?}"
+        );
+    }
+    // the 2nd harmonic borrowed on the way does not blunt the layer's step test: a −3 %
+    // step once the layer fits its own is caught (one inside the borrowing lights, on a
+    // ±8 % swing, is not: the borrowed term's amplitude takes it up)
+    let onset = 70 * 81 + 40;
+    let (_, findings) = run_outlined(Fault::Step(0.97), onset, 76, 1, true, (0.003, 1.0));
+    assert!(
+        gain_steps(&findings).any(|(at, run, up)| {
+            let i = at.last_idx as usize;
+            i >= onset && i < onset + 5 * 81 && run.level_pct < 0.0 && !up
+        }),
+        "{findings:?}"
+    );
+}
+
+/// A step in the second sweep of the θi = 45° layer (lights 19–36): too few of the layer's
+/// own sweeps come before it for a scale of their own, so the layer is judged by the scale
+/// of the layer below, and the step's sweeps do not set the scale they are judged by. (±5 %:
+/// this session's 1 % capture noise gives levels several times the simulator's scatter;
+/// judged by the layer's own first sweeps, the same steps raise nothing.)
+#[test]
+fn a_step_at_the_start_of_a_layer_is_judged_by_the_layer_below_and_caught() {
+    let onset = 20 * 81 + 80;
+    for (gain, sign) in [(0.95, -1.0), (1.05, 1.0)] {
+        let (records, findings) = run(Fault::Step(gain), onset, 26, 1, true);
+        let (step_at, run, _) = gain_steps(&findings)
+            .next()
+            .unwrap_or_else(|| panic!("{gain}: no gain step in {findings:?}"));
+        let at = step_at.last_idx;
+        assert!(at <= (onset + 300) as u64, "{gain}: at {at}");
+        let pct = run.level_pct;
+        assert!(sign * pct > 1.0, "{gain}: {pct}");
+        // the layer's first sweeps with a level are tested, by the lent scale
+        assert!(records.iter().any(|r| r.light == 20 && r.level_z.is_some()));
+    }
+}
+
+#[test]
+fn a_lamp_step_from_mid_run_is_a_gain_step() {
+    let (_, findings) = run(Fault::Step(0.97), ONSET, LAST, 1, true);
+    let (_, run, up) = gain_steps(&findings)
+        .next()
+        .unwrap_or_else(|| panic!("no gain step in {findings:?}"));
+    // the level against the layer's pattern: the pattern, refitted on the sweeps after the
+    // step, takes up part of it (the drift model fits the size from the pairs)
+    let pct = run.level_pct;
+    assert!((-4.0..-1.0).contains(&pct) && !up, "{pct}");
+    assert!(slips(&findings).next().is_none(), "{findings:?}");
+    // with probes the level test is left out: the same run finds no gain step
+    let (records, findings) = self::run(Fault::Step(0.97), ONSET, LAST, 1, false);
+    assert!(gain_steps(&findings).next().is_none(), "{findings:?}");
+    assert!(records.iter().all(|r| r.level_z.is_none()));
+}
