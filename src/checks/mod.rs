@@ -22,6 +22,7 @@ mod drift;
 mod isotropy;
 pub mod observability;
 mod pairs;
+mod probes;
 pub mod records;
 pub mod retakes;
 mod sweeps;
@@ -33,28 +34,23 @@ pub use records::{
     IsotropyRecord, Outcome, PairRecord, PairStatus, ProbeGainCurve, Table2,
 };
 
-use crate::checks::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
+use crate::checks::alarm::{Alarm, AlarmCode};
 use crate::detect::drift::{mount_coordinates, DriftEstimate, MountPattern, StepEffect};
-use crate::detect::probes::{choose_probe_pose, PoseSample, ProbeDrift, ProbePose, ProbeSpec};
-use crate::detect::sentinel::{
-    choose_sentinel, Joint3Sentinel, RingSample, SentinelPose, SentinelSummary,
-};
+use crate::detect::probes::{ProbePose, ProbeSpec};
+use crate::detect::sentinel::SentinelSummary;
 use crate::detect::sweeps::{SweepCapture, SweepMonitor, SweepRecord, SweepSpec, SweepSummary};
 use crate::measure::colour::{RgbToXyz, White, Xyz};
 use crate::measure::geometry::{azimuth_difference_deg, Vec3};
-use crate::measure::kinematics::{Incidence, Rig};
+use crate::measure::kinematics::Rig;
 use crate::measure::plan::{AcquisitionOrder, SamplingPlan};
 use capture::{CaptureStage, Measured, Verdict};
-use drift::{drift_alarm, DriftStage};
+use drift::DriftStage;
 pub use drift::{ColourDriftEstimate, ColourDriftSpec};
 use isotropy::IsotropyStage;
 use pairs::PairStage;
+pub(crate) use probes::ProbeSetup;
+use probes::ProbeStage;
 use serde::{Deserialize, Serialize};
-use serde_json::json;
-
-/// The most captures a sentinel probe may follow its round's lamp probe by (see
-/// `Checker::sentinel_probe`).
-const SENTINEL_ROUND_CAPTURES: u64 = 3;
 
 /// Thresholds of the checks (`[checks]` in the config).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -264,48 +260,13 @@ pub struct Checker {
     drift: Option<DriftStage>,
     /// Isotropic samples in a light-outer order only.
     sweeps: Option<SweepMonitor>,
-    probes: ProbeDrift,
-    /// The lamp's colour from the probes (probes enabled).
-    probe_colour: Option<drift::ColourStage>,
-    /// With drift probes enabled the sweeps' level test is left out: the probes see steps.
-    probes_enabled: bool,
-    /// The last usable probe checked: a step the next probe finds began after it.
-    last_probe_idx: Option<u64>,
-    /// The lamp probe just checked, usable: its index and ln luminance ratio to its original
-    /// capture. Cleared by any other probe, taken by the sentinel probe after it.
-    last_lamp_probe: Option<(u64, f64)>,
-    /// Arm joint 3 from sentinel probes (anisotropic samples with probes), once its pose is
-    /// chosen.
-    sentinel: Option<Joint3Sentinel>,
-    /// The sentinel's settings: whether to choose one, and its test.
-    sentinel_spec: Option<SentinelSettings>,
-    /// The pole light's sweep was complete and no pose qualified as the sentinel.
-    sentinel_unavailable: bool,
+    /// The drift probes and the joint-3 sentinel.
+    probes: ProbeStage,
     /// The wagon's last commanded position and direction of motion (+1, −1; 0 before it
     /// first moved), over every capture (probes too: the wagon moves for them as well).
     wagon_last_cmd: Option<f64>,
     wagon_dir: f64,
     alarms: u64,
-}
-
-/// What `Checker::choose_sentinel` found.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) enum SentinelChoice {
-    Chosen(SentinelPose),
-    /// The pole light's sweep is not complete yet.
-    NotYet,
-    /// None qualifies, or the session has no sentinel.
-    Unavailable,
-}
-
-/// The joint-3 sentinel's test settings, from `[probes]`.
-#[derive(Debug, Clone, Copy)]
-struct SentinelSettings {
-    step_sigmas: f64,
-    min_deg: f64,
-    min_readings: usize,
-    /// ln units.
-    sd_floor: f64,
 }
 
 impl Checker {
@@ -327,30 +288,7 @@ impl Checker {
             isotropy: isotropic.then(IsotropyStage::default),
             drift: isotropic.then(|| DriftStage::new(&spec.colour_drift)),
             sweeps,
-            probes_enabled: probes.every > 0,
-            last_probe_idx: None,
-            last_lamp_probe: None,
-            sentinel: None,
-            sentinel_unavailable: false,
-            sentinel_spec: (!isotropic && probes.every > 0 && probes.sentinel).then_some(
-                SentinelSettings {
-                    step_sigmas: probes.step_sigmas,
-                    min_deg: probes.sentinel_min_deg,
-                    min_readings: probes.min_probes,
-                    // the scatter of the difference of two probes at the design scatter
-                    sd_floor: std::f64::consts::SQRT_2 * probes.design_scatter_pct / 100.0,
-                },
-            ),
-            probe_colour: (probes.every > 0)
-                .then(|| {
-                    drift::ColourStage::probes(
-                        &spec.colour_drift,
-                        probes.min_probes,
-                        probes.design_scatter_pct / 100.0,
-                    )
-                })
-                .flatten(),
-            probes: ProbeDrift::new(probes),
+            probes: ProbeStage::new(isotropic, probes, &spec.colour_drift),
             plan,
             rig,
             colour,
@@ -372,11 +310,7 @@ impl Checker {
         };
         // a probe of the sentinel's pose is the sentinel's; any other probe is the lamp's, and
         // the sentinel compares only with the lamp probe of its round (the last probe before it)
-        let sentinel =
-            input.probe && self.sentinel.as_ref().map(|s| s.pose().entry) == Some(input.entry);
-        if input.probe && !sentinel {
-            self.last_lamp_probe = None;
-        }
+        let sentinel = self.probes.route(input);
         let w = input.cmd[3];
         if w.is_finite() {
             if let Some(last) = self.wagon_last_cmd.filter(|last| *last != w) {
@@ -396,14 +330,14 @@ impl Checker {
                     &self.probes,
                     self.capture.probes,
                     self.drift.as_ref(),
-                    self.probe_colour.as_ref(),
                     input.t / 3600.0,
                     m.checked.xyz,
                 );
                 if sentinel {
-                    self.sentinel_probe(input, &m, &mut out);
+                    self.probes
+                        .sentinel_probe(&self.ledger, input, &m, &mut out);
                 } else if input.probe {
-                    self.probe(input, &m, &mut out);
+                    self.probes.lamp_probe(&self.ledger, input, &m, &mut out);
                 } else {
                     self.regular(input, m, &mut out);
                 }
@@ -432,189 +366,37 @@ impl Checker {
         out
     }
 
-    /// A probe re-captures its entry's pose: its luminance against the entry's original is the
-    /// gain change.
-    fn probe(&mut self, input: &CaptureInput, m: &Measured, out: &mut CheckOutput) {
-        if m.checked.dark {
-            return;
-        }
-        if let Some(orig) = self.ledger.get(input.entry) {
-            let at = (Some(input.idx), Some(input.t));
-            let (t0, y0) = (orig.t, orig.xyz[1]);
-            if y0 > 0.0 && m.checked.xyz[1] > 0.0 {
-                self.last_lamp_probe = Some((input.idx, (m.checked.xyz[1] / y0).ln()));
-            }
-            for ev in self.probes.add(
-                input.idx,
-                t0 / 3600.0,
-                y0,
-                input.t / 3600.0,
-                m.checked.xyz[1],
-            ) {
-                // a step happened after the last probe before this one
-                let since = self.last_probe_idx.map(|i| i + 1);
-                out.alarms.push(drift_alarm(ev, "probes", at, since));
-            }
-            if let Some(colour) = self.probe_colour.as_mut() {
-                colour.observe(
-                    (0, 0),
-                    (t0 / 3600.0, orig.xyz),
-                    (input.t / 3600.0, m.checked.xyz),
-                    at,
-                    &mut out.alarms,
-                );
-            }
-            self.last_probe_idx = Some(input.idx);
-        }
+    /// After a regular capture is checked (the engine calls this once for each, after
+    /// `check`): the probes' poses chosen so far, and the alarms that none qualifies.
+    pub(crate) fn after_regular_capture(&mut self, idx: u64, t: f64) -> Vec<ProbeSetup> {
+        self.probes
+            .after_regular_capture(&self.ledger, &self.plan, &self.rig, (idx, t))
     }
 
-    /// A sentinel probe: its luminance ratio against the lamp probe of its round is joint 3's
-    /// turn (`detect::sentinel`). The round's lamp probe is the last probe before it, at most
-    /// `SENTINEL_ROUND_CAPTURES` captures earlier: the round is two PROBE commands, and a
-    /// controller may read the second one a capture or two after taking the first, while the
-    /// lamp's gain does not move measurably in those seconds. Left out without such a lamp
-    /// probe (the lamp could not be divided out), and when it is dark.
-    fn sentinel_probe(&mut self, input: &CaptureInput, m: &Measured, out: &mut CheckOutput) {
-        let lamp = self.last_lamp_probe.take();
-        let (Some(orig), Some(sentinel)) = (self.ledger.get(input.entry), self.sentinel.as_mut())
-        else {
-            return;
-        };
-        let Some((lamp_idx, lamp_ln)) = lamp else {
-            return;
-        };
-        if input.idx <= lamp_idx
-            || input.idx - lamp_idx > SENTINEL_ROUND_CAPTURES
-            || m.checked.dark
-            || !(orig.xyz[1] > 0.0 && m.checked.xyz[1] > 0.0)
-        {
-            return;
-        }
-        let d = (m.checked.xyz[1] / orig.xyz[1]).ln() - lamp_ln;
-        let pose = sentinel.pose();
-        if let Some(slip) = sentinel.add(input.idx, d) {
-            out.alarms.push(
-                Alarm::new(
-                    AlarmKind::Positioning,
-                    Severity::Warning,
-                    AlarmCode::JointOffsetSuspected,
-                    format!(
-                        "joint 3 looks turned by about {:+.2}° (the sample's rotation about its normal; a tilt or a shift of the sample in its holder moves it too): the sentinel probe (entry {}, θo {:.0}°, {:+.2} %/° of joint 3) moved {:+.2} % against the lamp probe, {:.1} standard deviations of its earlier readings (threshold {}), while the encoders agree with the commands",
-                        slip.offset_deg,
-                        pose.entry,
-                        pose.theta_o_deg,
-                        pose.sensitivity_pct_per_deg,
-                        slip.offset_deg * pose.sensitivity_pct_per_deg,
-                        slip.statistic,
-                        slip.threshold
-                    ),
-                )
-                .at(Some(input.idx), Some(input.t))
-                .with(json!({"joint": 3, "offset_deg": slip.offset_deg, "source": "sentinel probes", "since_idx": slip.since_idx, "statistic": slip.statistic, "threshold": slip.threshold, "entry": pose.entry, "sensitivity_pct_per_deg": pose.sensitivity_pct_per_deg}))
-                .advise(
-                    &format!("Pause the run; check the sample clamp and arm joint 3 (re-home the joint if it slipped, re-seat the sample if it turned in its holder), then resume; every capture since {} is on the retake list.", slip.since_idx),
-                    Some(Affects::Since { from_idx: slip.since_idx, handling: Handling::Retake }),
-                ),
-            );
-        }
+    /// A probe round every this many regular captures announced (`[probes] every`; 0: none).
+    pub(crate) fn probe_every(&self) -> u64 {
+        self.probes.every()
     }
 
-    /// Chooses the joint-3 sentinel's pose (`detect::sentinel`) from the pole light's checked
-    /// captures, once, for an anisotropic sample with probes and the sentinel on; `lamp_entry`
-    /// (the lamp probe's pose) is not offered. `NotYet` while the pole light's sweep is
-    /// incomplete, `Unavailable` when it is complete and no capture qualifies (or the session
-    /// does not want a sentinel, or the plan has no pole).
-    pub(crate) fn choose_sentinel(&mut self, lamp_entry: usize) -> SentinelChoice {
-        let Some(set) = self.sentinel_spec else {
-            return SentinelChoice::Unavailable;
-        };
-        if let Some(s) = &self.sentinel {
-            return SentinelChoice::Chosen(s.pose());
-        }
-        let dirs = self.plan.directions();
-        let Some(pole) = dirs
-            .iter()
-            .find(|d| d.theta_deg.abs() < 1e-6)
-            .map(|d| d.index)
-        else {
-            self.sentinel_unavailable = true;
-            return SentinelChoice::Unavailable;
-        };
-        if !self.ledger.light_complete(pole) {
-            return SentinelChoice::NotYet;
-        }
-        let ring_len = |theta: f64| {
-            dirs.iter()
-                .filter(|d| (d.theta_deg - theta).abs() < 1e-6)
-                .count()
-                .max(1)
-        };
-        let samples: Vec<RingSample> = (0..self.plan.capture_count())
-            .filter_map(|e| {
-                let pe = self.plan.entry(e).ok()?;
-                if pe.light != pole || e == lamp_entry {
-                    return None;
-                }
-                let c = self.ledger.get(e)?;
-                if !c.exact_pose || c.dark || c.substitute {
-                    return None;
-                }
-                let cam = dirs.get(pe.camera)?;
-                Some(RingSample {
-                    entry: e,
-                    theta_o_deg: cam.theta_deg,
-                    phi_o_deg: cam.phi_deg.rem_euclid(360.0),
-                    ring_step_deg: 360.0 / ring_len(cam.theta_deg) as f64,
-                    y: c.xyz[1],
-                    dphi_dq3: self.dphi_o_dq3(&Incidence {
-                        omega_i: c.omega_i,
-                        omega_o: c.omega_o,
-                    })?,
-                })
-            })
-            .collect();
-        // a 1° turn must clear the slip test's own threshold at the design scatter
-        let min_pct_per_deg = 100.0 * set.step_sigmas * set.sd_floor;
-        let Some(pose) = choose_sentinel(&samples, min_pct_per_deg) else {
-            self.sentinel_unavailable = true;
-            return SentinelChoice::Unavailable;
-        };
-        self.sentinel = Some(Joint3Sentinel::new(
-            pose,
-            set.step_sigmas,
-            set.min_deg,
-            set.min_readings,
-            set.sd_floor,
-        ));
-        SentinelChoice::Chosen(pose)
+    /// The lamp probe's entry, when the configuration names one.
+    pub(crate) fn set_probe_entry(&mut self, entry: Option<usize>) {
+        self.probes.set_entry(entry);
     }
 
-    /// Whether this session follows each probe with a sentinel probe (anisotropic sample,
-    /// probes and the sentinel on).
-    pub(crate) fn wants_sentinel(&self) -> bool {
-        self.sentinel_spec.is_some()
+    /// The entries of a probe round (the lamp probe's, then the sentinel's); None until the
+    /// lamp probe's is known.
+    pub(crate) fn probe_round(&self) -> Option<(usize, Option<usize>)> {
+        self.probes.round()
+    }
+
+    /// The pose chosen for the lamp probe.
+    pub(crate) fn probe_pose(&self) -> Option<ProbePose> {
+        self.probes.pose()
     }
 
     /// The sentinel's pose, readings and estimate so far.
     pub(crate) fn sentinel(&self) -> Option<SentinelSummary> {
-        self.sentinel.as_ref().map(|s| SentinelSummary {
-            pose: s.pose(),
-            readings: s.readings(),
-            offset_deg: s.offset_deg(),
-        })
-    }
-
-    /// ∂φo/∂q₃ at an incidence (degrees of camera azimuth per degree of joint 3), through the
-    /// rig's kinematics.
-    fn dphi_o_dq3(&self, inc: &Incidence) -> Option<f64> {
-        const H: f64 = 0.01;
-        let pose = self.rig.inverse(inc).ok()?;
-        let mut turned = pose;
-        turned.joints_deg[2] += H;
-        let a = self.rig.forward(&pose).ok()?.angles().phi_o_deg;
-        let b = self.rig.forward(&turned).ok()?.angles().phi_o_deg;
-        let d = ((b - a + 180.0).rem_euclid(360.0) - 180.0) / H;
-        d.is_finite().then_some(d)
+        self.probes.sentinel()
     }
 
     /// A regular capture through the comparison stages, then into the ledger. A retake of an
@@ -702,7 +484,7 @@ impl Checker {
         if !self.ledger.see(input.entry, light) {
             return;
         }
-        let level_test = !self.probes_enabled;
+        let level_test = !self.probes.enabled();
         if let Some(sweeps) = self.sweeps.as_mut() {
             let mount = self.drift.as_ref().and_then(|d| d.mount());
             let gain = self.drift.as_ref().and_then(|d| d.gain_path());
@@ -745,29 +527,6 @@ impl Checker {
         }
     }
 
-    /// The probe pose chosen from the captures checked so far (`detect::probes`): usable
-    /// captures at their exact pose, neither dark nor occlusion substitutes.
-    pub(crate) fn choose_probe_pose(&self) -> Option<ProbePose> {
-        let samples: Vec<PoseSample> = (0..self.plan.capture_count())
-            .filter_map(|e| {
-                let c = self.ledger.get(e)?;
-                if !c.exact_pose || c.dark || c.substitute {
-                    return None;
-                }
-                let pe = self.plan.entry(e).ok()?;
-                Some(PoseSample {
-                    entry: e,
-                    light: pe.light,
-                    camera: pe.camera,
-                    omega_i: c.omega_i,
-                    omega_o: c.omega_o,
-                    y: c.xyz[1],
-                })
-            })
-            .collect();
-        choose_probe_pose(&samples)
-    }
-
     /// The gain drift estimate from the probes, once there are enough.
     pub(crate) fn probe_drift(&self) -> Option<DriftEstimate> {
         self.probes.estimate()
@@ -790,10 +549,10 @@ impl Checker {
     pub fn observability(&self) -> observability::Observability {
         observability::observability(
             self.isotropy.is_some(),
-            self.probes_enabled,
+            self.probes.enabled(),
             self.plan.order(),
             self.spec.sweeps.enabled,
-            self.sentinel_spec.is_some() && !self.sentinel_unavailable,
+            self.probes.watches_joint3(),
         )
     }
 
@@ -803,7 +562,7 @@ impl Checker {
         self.drift
             .as_ref()
             .and_then(|d| d.colour_estimate())
-            .or_else(|| self.probe_colour.as_ref().and_then(|c| c.estimate()))
+            .or_else(|| self.probes.colour().and_then(|c| c.estimate()))
     }
 
     /// The gain drift estimate from isotropy classes (isotropic samples), once there are enough.
@@ -871,14 +630,14 @@ impl Checker {
 /// The gain known now at time `t_h`, divided out of `xyz`: from the probes' current segment
 /// when probes run, else from the isotropy drift model (rate and the sweeps' steps).
 fn gain_correction(
-    probes: &ProbeDrift,
+    probes: &ProbeStage,
     probes_taken: u64,
     drift: Option<&DriftStage>,
-    probe_colour: Option<&drift::ColourStage>,
     t_h: f64,
     xyz: Xyz,
 ) -> Option<GainCorrected> {
-    let (gain, sigma_rel, source) = if let Some((g, s)) = probes.gain_at(t_h) {
+    let probe_colour = probes.colour();
+    let (gain, sigma_rel, source) = if let Some((g, s)) = probes.drift().gain_at(t_h) {
         (g, s, "probes")
     } else if probes_taken > 0 {
         // probes are in use but their segment is too short to fit (just after a step): the

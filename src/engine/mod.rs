@@ -11,11 +11,12 @@
 
 use crate::checks::{
     CaptureInput, CaptureRecord, CaptureStatus, CheckCounts, Checker, IsotropyRecord, Outcome,
-    PairRecord, SentinelChoice, Table2,
+    PairRecord, ProbeSetup, Table2,
 };
 mod alarms;
 mod ledger;
 mod link;
+mod probes;
 
 use crate::checks::alarm::{Alarm, AlarmCode, AlarmKind, Severity};
 use crate::config::{AlarmSpec, Config, ConfigError};
@@ -181,22 +182,8 @@ pub struct Engine {
     alarm_book: alarms::AlarmBook,
     paused_for: BTreeSet<AlarmCode>,
     captures_planned: u64,
-    /// Ask for a probe of `probe_entry` every this many regular captures announced (0: never).
-    probe_every: u64,
-    /// Regular captures announced at which the next probe round is due. A round that falls due
-    /// before the pose is known (or while the link is down) is asked for as soon as it can be.
-    probe_due_at: u64,
-    /// The configured probe entry, or the chosen one; None until it is chosen.
-    probe_entry: Option<usize>,
-    /// The pose chosen for the probes (no entry configured).
-    probe_pose: Option<crate::detect::probes::ProbePose>,
-    /// Whether the joint-3 sentinel was found unavailable (said once). Its pose, once chosen,
-    /// is the checker's.
-    sentinel_tried: bool,
-    regular_checked: u64,
-    /// Distinct regular captures the controller announced: the probe cadence counts these, so
-    /// probes stay evenly spaced in the rig's time however far checking lags behind.
-    regular_announced: u64,
+    /// When a probe round is asked for (what it holds is the checker's).
+    probes: probes::ProbeCadence,
     /// Inputs handled so far (the alarm aggregation's clock).
     inputs: u64,
 }
@@ -351,7 +338,7 @@ impl Engine {
     /// The engine of a session with this configuration: its checker, alarm settings and
     /// probe cadence.
     pub fn from_config(cfg: &Config) -> Result<Engine, ConfigError> {
-        let checker = Checker::new(
+        let mut checker = Checker::new(
             cfg.plan()?,
             cfg.rig()?,
             cfg.colour_settings()?,
@@ -359,19 +346,15 @@ impl Engine {
             cfg.sample.isotropic,
             cfg.probes.clone(),
         );
-        let mut engine = Engine::new(checker, cfg.alarms.clone());
-        if cfg.probes.every > 0 {
-            let entry = match cfg.probes.entry {
-                Some(_) => Some(cfg.probe_entry()?),
-                None => None,
-            };
-            engine.set_probes(cfg.probes.every, entry);
+        if cfg.probes.every > 0 && cfg.probes.entry.is_some() {
+            checker.set_probe_entry(Some(cfg.probe_entry()?));
         }
-        Ok(engine)
+        Ok(Engine::new(checker, cfg.alarms.clone()))
     }
 
     pub fn new(checker: Checker, spec: AlarmSpec) -> Self {
         let captures_planned = checker.plan().capture_count() as u64;
+        let checker_every = checker.probe_every();
         Engine {
             checker,
             spec,
@@ -387,24 +370,9 @@ impl Engine {
             alarm_book: alarms::AlarmBook::default(),
             paused_for: BTreeSet::new(),
             captures_planned,
-            probe_every: 0,
-            probe_entry: None,
-            probe_pose: None,
-            sentinel_tried: false,
-            regular_checked: 0,
-            regular_announced: 0,
-            probe_due_at: 0,
+            probes: probes::ProbeCadence::new(checker_every),
             inputs: 0,
         }
-    }
-
-    /// Enable drift probes (operator action): a `PROBE entry=…` every `every` regular captures
-    /// announced, of `entry`, or (None) of a pose chosen once a light sweep's worth of captures
-    /// is checked.
-    pub(crate) fn set_probes(&mut self, every: u64, entry: Option<usize>) {
-        self.probe_every = every;
-        self.probe_entry = entry;
-        self.probe_due_at = every;
     }
 
     /// Ask for the probe round that is due, if it can be asked for now: the lamp probe, then
@@ -412,29 +380,24 @@ impl Engine {
     /// round is due at the next multiple of the cadence, so a late round does not shift the
     /// ones after it.
     fn ask_probes_if_due(&mut self, out: &mut Vec<Output>) {
-        if self.probe_every == 0 || self.regular_announced < self.probe_due_at {
+        if !self.probes.is_due() {
             return;
         }
-        let Some(entry) = self.probe_entry else {
+        let Some((lamp, sentinel)) = self.checker.probe_round() else {
             return;
         };
         // after the run's last regular capture the controller takes no more captures
         if !(self.link.is_connected() && self.link.is_subscribed())
             || self.done
-            || self.regular_announced >= self.captures_planned
+            || self.probes.announced() >= self.captures_planned
         {
             return;
         }
-        self.send(out, ToController::Probe { entry });
-        if let Some(s) = self.checker.sentinel() {
-            self.send(
-                out,
-                ToController::Probe {
-                    entry: s.pose.entry,
-                },
-            );
+        self.send(out, ToController::Probe { entry: lamp });
+        if let Some(entry) = sentinel {
+            self.send(out, ToController::Probe { entry });
         }
-        self.probe_due_at = (self.regular_announced / self.probe_every + 1) * self.probe_every;
+        self.probes.handle_asked();
     }
 
     /// Captures checked so far (the next index to check).
@@ -561,7 +524,7 @@ impl Engine {
             interpolated: self.checker.interpolated_table().clone(),
             by_command: self.checker.by_command_table().clone(),
             probe_drift: self.checker.probe_drift(),
-            probe_pose: self.probe_pose,
+            probe_pose: self.checker.probe_pose(),
             joint3_sentinel: self.checker.sentinel(),
             isotropy_drift: self.checker.isotropy_drift(),
             colour_drift: self.checker.colour_drift(),
@@ -1214,7 +1177,7 @@ impl Engine {
         let regular = !a.probe;
         self.ledger.announced.insert(idx, a);
         if regular {
-            self.regular_announced += 1;
+            self.probes.handle_announced();
             self.ask_probes_if_due(out);
         }
         self.ledger.controller_next = self.ledger.controller_next.max(idx.saturating_add(1));
@@ -1270,75 +1233,16 @@ impl Engine {
         )
     }
 
-    /// After a regular capture is checked: the probes' pose and the joint-3 sentinel are
-    /// chosen once a light sweep's worth of captures is checked (tried again after each further
-    /// one while none qualifies), and a probe round that fell due is asked for.
+    /// After a regular capture is checked: the probes' poses the checker chose (or the alarm
+    /// that none qualifies), and a probe round that fell due before the pose was known.
     fn after_regular_capture(&mut self, out: &mut Vec<Output>, idx: u64, t: f64) {
-        self.regular_checked += 1;
-        // The pose is chosen once a light sweep's worth of captures is checked, and
-        // tried again after each further one while none qualifies. The choice
-        // depends on the captures checked only (not on the link), so a replay or a
-        // resume makes the same one.
-        let sweep = self.checker.plan().direction_count().max(1) as u64;
-        if self.probe_every > 0
-            && self.probe_entry.is_none()
-            && self.regular_checked.is_multiple_of(sweep)
-        {
-            match self.checker.choose_probe_pose() {
-                Some(pose) => {
-                    self.probe_entry = Some(pose.entry);
-                    self.probe_pose = Some(pose);
-                    out.push(Output::ProbePose(pose));
-                }
-                None if self.regular_checked == sweep => {
-                    let a = Alarm::new(
-                        AlarmKind::Drift,
-                        Severity::Warning,
-                        AlarmCode::ProbePoseUnavailable,
-                        "no checked capture qualifies as the drift probes' pose (off grazing, off the mirror direction, not dark, with neighbours); no probe is asked for until one does: set [probes] entry to choose one".into(),
-                    )
-                    .at(Some(idx), Some(t))
-                    .advise(
-                        "Set [probes] entry to a bright plan entry off grazing and off the mirror direction and restart the daemon (the session resumes); until then nothing watches the lamp through probes.",
-                        None,
-                    );
-                    self.alarm(out, a);
-                }
-                None => {}
+        for setup in self.checker.after_regular_capture(idx, t) {
+            match setup {
+                ProbeSetup::ProbePose(pose) => out.push(Output::ProbePose(pose)),
+                ProbeSetup::SentinelPose(pose) => out.push(Output::SentinelPose(pose)),
+                ProbeSetup::Alarm(a) => self.alarm(out, a),
             }
         }
-        // The joint-3 sentinel is chosen at the same points, once the lamp probe's
-        // pose is known (it is not offered as the sentinel).
-        if let (Some(lamp), None) = (self.probe_entry, self.checker.sentinel()) {
-            if self.probe_every > 0
-                && self.checker.wants_sentinel()
-                && self.regular_checked.is_multiple_of(sweep)
-            {
-                match self.checker.choose_sentinel(lamp) {
-                    SentinelChoice::Chosen(pose) => {
-                        out.push(Output::SentinelPose(pose));
-                    }
-                    SentinelChoice::NotYet => {}
-                    SentinelChoice::Unavailable if !self.sentinel_tried => {
-                        self.sentinel_tried = true;
-                        let a = Alarm::new(
-                            AlarmKind::Positioning,
-                            Severity::Info,
-                            AlarmCode::Joint3SentinelUnavailable,
-                            "no capture of the pole light's sweep is sensitive enough to arm joint 3 to serve as its sentinel (off grazing, on a flank of the sample's anisotropy, at least 0.5 %/°); joint 3 stays unwatched until one is: the sample may be too close to isotropic for it to matter".into(),
-                        )
-                        .at(Some(idx), Some(t))
-                        .advise(
-                            "Nothing to do if the sample is nearly isotropic; otherwise check the sample's mount by eye when convenient.",
-                            None,
-                        );
-                        self.alarm(out, a);
-                    }
-                    SentinelChoice::Unavailable => {}
-                }
-            }
-        }
-        // a round that fell due before the pose was chosen
         self.ask_probes_if_due(out);
     }
 

@@ -1,0 +1,455 @@
+//! The drift probes on the checking side, with one owner for everything a probe is: the lamp
+//! probe's pose (configured, or chosen from the captures checked), the probes' gain and colour
+//! fits, and the joint-3 sentinel (its pose, chosen from the pole light's sweep, and its slip
+//! test against the lamp probe of its round). The engine owns only when a round is asked for.
+//!
+//! The poses are chosen from the captures checked, never from the link, so a replay or a resume
+//! makes the same choice.
+
+use super::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
+use super::drift::{drift_alarm, ColourDriftSpec, ColourStage};
+use super::{CaptureInput, CheckOutput, Ledger, Measured};
+use crate::detect::drift::DriftEstimate;
+use crate::detect::probes::{choose_probe_pose, PoseSample, ProbeDrift, ProbePose, ProbeSpec};
+use crate::detect::sentinel::{
+    choose_sentinel, Joint3Sentinel, RingSample, SentinelPose, SentinelSummary,
+};
+use crate::measure::kinematics::{Incidence, Rig};
+use crate::measure::plan::SamplingPlan;
+use serde_json::json;
+
+/// The most captures a sentinel probe may follow its round's lamp probe by (see
+/// `ProbeStage::sentinel_probe`).
+const SENTINEL_ROUND_CAPTURES: u64 = 3;
+
+/// What choosing the probes' poses after a regular capture gave, in order: a pose chosen, or
+/// the alarm that none qualifies (said once).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum ProbeSetup {
+    ProbePose(ProbePose),
+    SentinelPose(SentinelPose),
+    Alarm(Alarm),
+}
+
+/// The joint-3 sentinel's test settings, from `[probes]`.
+#[derive(Debug, Clone, Copy)]
+struct SentinelSettings {
+    step_sigmas: f64,
+    min_deg: f64,
+    min_readings: usize,
+    /// ln units.
+    sd_floor: f64,
+}
+
+/// The joint-3 sentinel: whether the session wants one, the one chosen, and whether none can
+/// be.
+#[derive(Debug, Clone, Default)]
+struct SentinelWatch {
+    /// Anisotropic samples with probes and the sentinel on.
+    settings: Option<SentinelSettings>,
+    chosen: Option<Joint3Sentinel>,
+    /// The pole light's sweep was complete and no pose qualified (or the plan has no pole).
+    unavailable: bool,
+    /// Whether that was said (once).
+    said: bool,
+}
+
+/// Everything the probes are on the checking side.
+pub(super) struct ProbeStage {
+    /// `[probes] every`: a round every this many regular captures (0: no probes).
+    every: u64,
+    drift: ProbeDrift,
+    /// The lamp's colour from the probes (probes enabled).
+    colour: Option<ColourStage>,
+    /// The lamp probe's entry, configured or chosen; None until chosen.
+    entry: Option<usize>,
+    /// The pose chosen for the lamp probe (no entry configured).
+    pose: Option<ProbePose>,
+    /// The last usable lamp probe checked: a step the next probe finds began after it.
+    last_probe_idx: Option<u64>,
+    /// The lamp probe just checked, usable: its index and ln luminance ratio to its original
+    /// capture. Cleared by any other probe, taken by the sentinel probe after it.
+    last_lamp_probe: Option<(u64, f64)>,
+    sentinel: SentinelWatch,
+    /// Regular captures checked: the poses are chosen at each multiple of a light sweep.
+    regular_checked: u64,
+}
+
+impl ProbeStage {
+    pub(super) fn new(isotropic: bool, probes: ProbeSpec, colour: &ColourDriftSpec) -> Self {
+        let enabled = probes.every > 0;
+        ProbeStage {
+            every: probes.every,
+            colour: enabled
+                .then(|| {
+                    ColourStage::probes(
+                        colour,
+                        probes.min_probes,
+                        probes.design_scatter_pct / 100.0,
+                    )
+                })
+                .flatten(),
+            entry: None,
+            pose: None,
+            last_probe_idx: None,
+            last_lamp_probe: None,
+            sentinel: SentinelWatch {
+                settings: (!isotropic && enabled && probes.sentinel).then_some(SentinelSettings {
+                    step_sigmas: probes.step_sigmas,
+                    min_deg: probes.sentinel_min_deg,
+                    min_readings: probes.min_probes,
+                    // the scatter of the difference of two probes at the design scatter
+                    sd_floor: std::f64::consts::SQRT_2 * probes.design_scatter_pct / 100.0,
+                }),
+                ..SentinelWatch::default()
+            },
+            drift: ProbeDrift::new(probes),
+            regular_checked: 0,
+        }
+    }
+
+    pub(super) fn enabled(&self) -> bool {
+        self.every > 0
+    }
+
+    /// `[probes] every` (0: no probes).
+    pub(super) fn every(&self) -> u64 {
+        self.every
+    }
+
+    /// The lamp probe's entry, when the configuration names one.
+    pub(super) fn set_entry(&mut self, entry: Option<usize>) {
+        self.entry = entry;
+    }
+
+    /// The entries of a probe round: the lamp probe's, then the sentinel's (its probe follows
+    /// the lamp's, whose gain cancels between the two). None until the lamp probe's is known.
+    pub(super) fn round(&self) -> Option<(usize, Option<usize>)> {
+        let lamp = self.entry?;
+        Some((lamp, self.sentinel.chosen.as_ref().map(|s| s.pose().entry)))
+    }
+
+    /// The pose chosen for the lamp probe.
+    pub(super) fn pose(&self) -> Option<ProbePose> {
+        self.pose
+    }
+
+    /// Whether a probe capture is the sentinel's (any other probe is the lamp's); a lamp probe
+    /// ends the round of the one before it.
+    pub(super) fn route(&mut self, input: &CaptureInput) -> bool {
+        let sentinel = input.probe
+            && self.sentinel.chosen.as_ref().map(|s| s.pose().entry) == Some(input.entry);
+        if input.probe && !sentinel {
+            self.last_lamp_probe = None;
+        }
+        sentinel
+    }
+
+    /// A lamp probe re-captures its entry's pose: its luminance against the entry's original
+    /// is the gain change.
+    pub(super) fn lamp_probe(
+        &mut self,
+        ledger: &Ledger,
+        input: &CaptureInput,
+        m: &Measured,
+        out: &mut CheckOutput,
+    ) {
+        if m.checked.dark {
+            return;
+        }
+        let Some(orig) = ledger.get(input.entry) else {
+            return;
+        };
+        let at = (Some(input.idx), Some(input.t));
+        let (t0, y0) = (orig.t, orig.xyz[1]);
+        if y0 > 0.0 && m.checked.xyz[1] > 0.0 {
+            self.last_lamp_probe = Some((input.idx, (m.checked.xyz[1] / y0).ln()));
+        }
+        for ev in self.drift.add(
+            input.idx,
+            t0 / 3600.0,
+            y0,
+            input.t / 3600.0,
+            m.checked.xyz[1],
+        ) {
+            // a step happened after the last probe before this one
+            let since = self.last_probe_idx.map(|i| i + 1);
+            out.alarms.push(drift_alarm(ev, "probes", at, since));
+        }
+        if let Some(colour) = self.colour.as_mut() {
+            colour.observe(
+                (0, 0),
+                (t0 / 3600.0, orig.xyz),
+                (input.t / 3600.0, m.checked.xyz),
+                at,
+                &mut out.alarms,
+            );
+        }
+        self.last_probe_idx = Some(input.idx);
+    }
+
+    /// A sentinel probe: its luminance ratio against the lamp probe of its round is joint 3's
+    /// turn (`detect::sentinel`). The round's lamp probe is the last probe before it, at most
+    /// `SENTINEL_ROUND_CAPTURES` captures earlier: the round is two PROBE commands, and a
+    /// controller may read the second one a capture or two after taking the first, while the
+    /// lamp's gain does not move measurably in those seconds. Left out without such a lamp
+    /// probe (the lamp could not be divided out), and when it is dark.
+    pub(super) fn sentinel_probe(
+        &mut self,
+        ledger: &Ledger,
+        input: &CaptureInput,
+        m: &Measured,
+        out: &mut CheckOutput,
+    ) {
+        let lamp = self.last_lamp_probe.take();
+        let (Some(orig), Some(sentinel)) = (ledger.get(input.entry), self.sentinel.chosen.as_mut())
+        else {
+            return;
+        };
+        let Some((lamp_idx, lamp_ln)) = lamp else {
+            return;
+        };
+        if input.idx <= lamp_idx
+            || input.idx - lamp_idx > SENTINEL_ROUND_CAPTURES
+            || m.checked.dark
+            || !(orig.xyz[1] > 0.0 && m.checked.xyz[1] > 0.0)
+        {
+            return;
+        }
+        let d = (m.checked.xyz[1] / orig.xyz[1]).ln() - lamp_ln;
+        let pose = sentinel.pose();
+        if let Some(slip) = sentinel.add(input.idx, d) {
+            out.alarms.push(
+                Alarm::new(
+                    AlarmKind::Positioning,
+                    Severity::Warning,
+                    AlarmCode::JointOffsetSuspected,
+                    format!(
+                        "joint 3 looks turned by about {:+.2}° (the sample's rotation about its normal; a tilt or a shift of the sample in its holder moves it too): the sentinel probe (entry {}, θo {:.0}°, {:+.2} %/° of joint 3) moved {:+.2} % against the lamp probe, {:.1} standard deviations of its earlier readings (threshold {}), while the encoders agree with the commands",
+                        slip.offset_deg,
+                        pose.entry,
+                        pose.theta_o_deg,
+                        pose.sensitivity_pct_per_deg,
+                        slip.offset_deg * pose.sensitivity_pct_per_deg,
+                        slip.statistic,
+                        slip.threshold
+                    ),
+                )
+                .at(Some(input.idx), Some(input.t))
+                .with(json!({"joint": 3, "offset_deg": slip.offset_deg, "source": "sentinel probes", "since_idx": slip.since_idx, "statistic": slip.statistic, "threshold": slip.threshold, "entry": pose.entry, "sensitivity_pct_per_deg": pose.sensitivity_pct_per_deg}))
+                .advise(
+                    &format!("Pause the run; check the sample clamp and arm joint 3 (re-home the joint if it slipped, re-seat the sample if it turned in its holder), then resume; every capture since {} is on the retake list.", slip.since_idx),
+                    Some(Affects::Since { from_idx: slip.since_idx, handling: Handling::Retake }),
+                ),
+            );
+        }
+    }
+
+    /// After a regular capture is checked: the lamp probe's pose and the joint-3 sentinel are
+    /// chosen once a light sweep's worth of captures is checked, and tried again after each
+    /// further sweep's worth while none qualifies; the sentinel once the lamp probe's pose is
+    /// known (it is not offered as the sentinel). That none qualifies is said once each.
+    pub(super) fn after_regular_capture(
+        &mut self,
+        ledger: &Ledger,
+        plan: &SamplingPlan,
+        rig: &Rig,
+        (idx, t): (u64, f64),
+    ) -> Vec<ProbeSetup> {
+        self.regular_checked += 1;
+        let mut setup = Vec::new();
+        let sweep = plan.direction_count().max(1) as u64;
+        if !self.enabled() || !self.regular_checked.is_multiple_of(sweep) {
+            return setup;
+        }
+        if self.entry.is_none() {
+            match choose_probe_pose(&pose_samples(ledger, plan)) {
+                Some(pose) => {
+                    self.entry = Some(pose.entry);
+                    self.pose = Some(pose);
+                    setup.push(ProbeSetup::ProbePose(pose));
+                }
+                None if self.regular_checked == sweep => {
+                    setup.push(ProbeSetup::Alarm(
+                        Alarm::new(
+                            AlarmKind::Drift,
+                            Severity::Warning,
+                            AlarmCode::ProbePoseUnavailable,
+                            "no checked capture qualifies as the drift probes' pose (off grazing, off the mirror direction, not dark, with neighbours); no probe is asked for until one does: set [probes] entry to choose one".into(),
+                        )
+                        .at(Some(idx), Some(t))
+                        .advise(
+                            "Set [probes] entry to a bright plan entry off grazing and off the mirror direction and restart the daemon (the session resumes); until then nothing watches the lamp through probes.",
+                            None,
+                        ),
+                    ));
+                }
+                None => {}
+            }
+        }
+        let Some(lamp) = self.entry else {
+            return setup;
+        };
+        if self.sentinel.chosen.is_some() || self.sentinel.settings.is_none() {
+            return setup;
+        }
+        match self.choose_sentinel(ledger, plan, rig, lamp) {
+            Some(pose) => setup.push(ProbeSetup::SentinelPose(pose)),
+            None if self.sentinel.unavailable && !self.sentinel.said => {
+                self.sentinel.said = true;
+                setup.push(ProbeSetup::Alarm(
+                    Alarm::new(
+                        AlarmKind::Positioning,
+                        Severity::Info,
+                        AlarmCode::Joint3SentinelUnavailable,
+                        "no capture of the pole light's sweep is sensitive enough to arm joint 3 to serve as its sentinel (off grazing, on a flank of the sample's anisotropy, at least 0.5 %/°); joint 3 stays unwatched until one is: the sample may be too close to isotropic for it to matter".into(),
+                    )
+                    .at(Some(idx), Some(t))
+                    .advise(
+                        "Nothing to do if the sample is nearly isotropic; otherwise check the sample's mount by eye when convenient.",
+                        None,
+                    ),
+                ));
+            }
+            None => {}
+        }
+        setup
+    }
+
+    /// Chooses the joint-3 sentinel's pose (`detect::sentinel`) from the pole light's checked
+    /// captures; `lamp_entry` (the lamp probe's pose) is not offered. None while the pole
+    /// light's sweep is incomplete, and (marked unavailable) when it is complete and no capture
+    /// qualifies, or the plan has no pole.
+    fn choose_sentinel(
+        &mut self,
+        ledger: &Ledger,
+        plan: &SamplingPlan,
+        rig: &Rig,
+        lamp_entry: usize,
+    ) -> Option<SentinelPose> {
+        let set = self.sentinel.settings?;
+        let dirs = plan.directions();
+        let Some(pole) = dirs
+            .iter()
+            .find(|d| d.theta_deg.abs() < 1e-6)
+            .map(|d| d.index)
+        else {
+            self.sentinel.unavailable = true;
+            return None;
+        };
+        if !ledger.light_complete(pole) {
+            return None;
+        }
+        let ring_len = |theta: f64| {
+            dirs.iter()
+                .filter(|d| (d.theta_deg - theta).abs() < 1e-6)
+                .count()
+                .max(1)
+        };
+        let samples: Vec<RingSample> = (0..plan.capture_count())
+            .filter_map(|e| {
+                let pe = plan.entry(e).ok()?;
+                if pe.light != pole || e == lamp_entry {
+                    return None;
+                }
+                let c = ledger.get(e)?;
+                if !c.exact_pose || c.dark || c.substitute {
+                    return None;
+                }
+                let cam = dirs.get(pe.camera)?;
+                Some(RingSample {
+                    entry: e,
+                    theta_o_deg: cam.theta_deg,
+                    phi_o_deg: cam.phi_deg.rem_euclid(360.0),
+                    ring_step_deg: 360.0 / ring_len(cam.theta_deg) as f64,
+                    y: c.xyz[1],
+                    dphi_dq3: dphi_o_dq3(
+                        rig,
+                        &Incidence {
+                            omega_i: c.omega_i,
+                            omega_o: c.omega_o,
+                        },
+                    )?,
+                })
+            })
+            .collect();
+        // a 1° turn must clear the slip test's own threshold at the design scatter
+        let min_pct_per_deg = 100.0 * set.step_sigmas * set.sd_floor;
+        let Some(pose) = choose_sentinel(&samples, min_pct_per_deg) else {
+            self.sentinel.unavailable = true;
+            return None;
+        };
+        self.sentinel.chosen = Some(Joint3Sentinel::new(
+            pose,
+            set.step_sigmas,
+            set.min_deg,
+            set.min_readings,
+            set.sd_floor,
+        ));
+        Some(pose)
+    }
+
+    /// Whether the sentinel watches joint 3 (wanted, and not found unavailable).
+    pub(super) fn watches_joint3(&self) -> bool {
+        self.sentinel.settings.is_some() && !self.sentinel.unavailable
+    }
+
+    /// The sentinel's pose, readings and estimate so far.
+    pub(super) fn sentinel(&self) -> Option<SentinelSummary> {
+        self.sentinel.chosen.as_ref().map(|s| SentinelSummary {
+            pose: s.pose(),
+            readings: s.readings(),
+            offset_deg: s.offset_deg(),
+        })
+    }
+
+    /// The probes' fit of the gain.
+    pub(super) fn drift(&self) -> &ProbeDrift {
+        &self.drift
+    }
+
+    /// The gain drift estimate from the probes, once there are enough.
+    pub(super) fn estimate(&self) -> Option<DriftEstimate> {
+        self.drift.estimate()
+    }
+
+    /// The lamp's colour from the probes.
+    pub(super) fn colour(&self) -> Option<&ColourStage> {
+        self.colour.as_ref()
+    }
+}
+
+/// The captures the lamp probe's pose is chosen from (`detect::probes`): usable captures at
+/// their exact pose, neither dark nor occlusion substitutes.
+fn pose_samples(ledger: &Ledger, plan: &SamplingPlan) -> Vec<PoseSample> {
+    (0..plan.capture_count())
+        .filter_map(|e| {
+            let c = ledger.get(e)?;
+            if !c.exact_pose || c.dark || c.substitute {
+                return None;
+            }
+            let pe = plan.entry(e).ok()?;
+            Some(PoseSample {
+                entry: e,
+                light: pe.light,
+                camera: pe.camera,
+                omega_i: c.omega_i,
+                omega_o: c.omega_o,
+                y: c.xyz[1],
+            })
+        })
+        .collect()
+}
+
+/// ∂φo/∂q₃ at an incidence (degrees of camera azimuth per degree of joint 3), through the rig's
+/// kinematics.
+fn dphi_o_dq3(rig: &Rig, inc: &Incidence) -> Option<f64> {
+    const H: f64 = 0.01;
+    let pose = rig.inverse(inc).ok()?;
+    let mut turned = pose;
+    turned.joints_deg[2] += H;
+    let a = rig.forward(&pose).ok()?.angles().phi_o_deg;
+    let b = rig.forward(&turned).ok()?.angles().phi_o_deg;
+    let d = ((b - a + 180.0).rem_euclid(360.0) - 180.0) / H;
+    d.is_finite().then_some(d)
+}
