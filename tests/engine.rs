@@ -915,11 +915,16 @@ fn alarm_storms_are_aggregated_and_every_occurrence_is_counted() {
     );
     let held: u64 = emitted
         .iter()
-        .filter_map(|a| a.evidence.get("aggregated").and_then(|v| v.as_u64()))
+        .filter_map(|a| {
+            a.evidence
+                .to_json()
+                .get("aggregated")
+                .and_then(|v| v.as_u64())
+        })
         .sum();
     let full = emitted
         .iter()
-        .filter(|a| a.evidence.get("aggregated").is_none())
+        .filter(|a| a.evidence.to_json().get("aggregated").is_none())
         .count() as u64;
     // what is written in full or as a count adds up to what was seen, but for the last window
     // (2,000 inputs), which is still open
@@ -1232,8 +1237,8 @@ fn on_an_anisotropic_sample_a_sentinel_probe_follows_each_probe_and_names_a_turn
     let named = alarms_with_code(&out, "joint-offset-suspected");
     assert_eq!(named.len(), 1, "{named:?}");
     let a = &named[0];
-    assert_eq!(a.evidence["joint"], 3);
-    let est = a.evidence["offset_deg"].as_f64().unwrap();
+    assert_eq!(a.evidence.to_json()["joint"], 3);
+    let est = a.evidence.to_json()["offset_deg"].as_f64().unwrap();
     assert!((0.7..1.3).contains(&est), "{est}");
     // regular capture 1,500 is capture 1,500 + 2 × 15 probes in; the round after regular
     // capture 1,600 departs and the one after 1,700 confirms it
@@ -1265,7 +1270,7 @@ fn a_sentinel_taken_a_capture_after_its_lamp_probe_still_names_the_turn_at_the_s
     let (e, out) = anisotropic_run(2300, 1500, 1.0, true);
     let named = alarms_with_code(&out, "joint-offset-suspected");
     assert_eq!(named.len(), 1, "{named:?}");
-    let est = named[0].evidence["offset_deg"].as_f64().unwrap();
+    let est = named[0].evidence.to_json()["offset_deg"].as_f64().unwrap();
     assert!((0.7..1.3).contains(&est), "{est}");
     // the round asked after regular capture 1,499 takes its sentinel after 1,500, the first
     // turned one: that reading departs, and the next round's (after regular capture 1,600,

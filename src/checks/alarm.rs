@@ -1,6 +1,7 @@
 //! Alarms: what was seen, against what threshold, with the evidence. Deterministic (controller
 //! time and capture index only; wall-clock time is added by the shell's sinks, never here).
 
+use super::evidence::Evidence;
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -341,6 +342,7 @@ impl<'de> Deserialize<'de> for AlarmCode {
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(from = "AlarmRecord")]
 pub struct Alarm {
     pub kind: AlarmKind,
     pub severity: Severity,
@@ -352,8 +354,9 @@ pub struct Alarm {
     pub t: Option<f64>,
     /// A sentence that explains itself: what was seen, against what threshold.
     pub message: String,
-    /// The numbers behind the message.
-    pub evidence: serde_json::Value,
+    /// The numbers behind the message, typed (written as the object of its fields).
+    #[serde(serialize_with = "super::evidence::write_sorted")]
+    pub evidence: Evidence,
     /// What the operator can do about it. Every drift, positioning and reciprocity alarm that
     /// opens a condition says it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -361,6 +364,39 @@ pub struct Alarm {
     /// Which captures the condition affects, and what the output does about them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub affects: Option<Affects>,
+}
+
+/// An alarm as a result file holds it: its evidence is read by its code.
+#[derive(Deserialize)]
+struct AlarmRecord {
+    kind: AlarmKind,
+    severity: Severity,
+    code: AlarmCode,
+    idx: Option<u64>,
+    t: Option<f64>,
+    message: String,
+    #[serde(default)]
+    evidence: serde_json::Value,
+    #[serde(default)]
+    action: Option<String>,
+    #[serde(default)]
+    affects: Option<Affects>,
+}
+
+impl From<AlarmRecord> for Alarm {
+    fn from(r: AlarmRecord) -> Self {
+        Alarm {
+            kind: r.kind,
+            severity: r.severity,
+            code: r.code,
+            idx: r.idx,
+            t: r.t,
+            message: r.message,
+            evidence: Evidence::read(r.code, r.evidence),
+            action: r.action,
+            affects: r.affects,
+        }
+    }
 }
 
 /// What the operator can do, for the conditions several stages raise. Each says what to check,
@@ -498,7 +534,7 @@ impl Alarm {
             idx: None,
             t: None,
             message,
-            evidence: serde_json::Value::Null,
+            evidence: Evidence::None,
             action: None,
             affects: None,
         }
@@ -508,7 +544,8 @@ impl Alarm {
         self.t = t;
         self
     }
-    pub fn with(mut self, evidence: serde_json::Value) -> Self {
+    pub fn with(mut self, evidence: Evidence) -> Self {
+        debug_assert!(evidence.fits(self.code), "{:?} for {}", evidence, self.code);
         self.evidence = evidence;
         self
     }

@@ -3,13 +3,13 @@
 //! can be used at all (its outcome, non-finite, clipped and dark pixels, runs of failures).
 //! Every later stage works on what this one measured; it never pairs or compares captures.
 
+use super::evidence::{self, Evidence};
 use super::records::{CaptureInput, CaptureRecord, CaptureStatus, Outcome};
 use super::{Checked, Ctx};
 use crate::checks::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::measure::colour::xyz_to_lab;
 use crate::measure::geometry::{angle_between, Spherical};
 use crate::measure::kinematics::{Incidence, Pose};
-use serde_json::json;
 
 /// What the capture stage made of a capture.
 pub(super) enum Verdict {
@@ -113,6 +113,17 @@ struct Episode {
 }
 
 impl Episode {
+    fn evidence(&self) -> evidence::Episode {
+        evidence::Episode {
+            axis: self.axis.to_string(),
+            captures: self.captures,
+            first_idx: self.first_idx,
+            last_idx: self.last_idx,
+            worst_deg: self.worst_deg,
+            by_command: self.by_command,
+        }
+    }
+
     /// Note one capture showing the condition on `axis` with error `deg`: the alarm to raise
     /// (from `raise`), when it starts an episode.
     fn note(
@@ -168,14 +179,7 @@ impl Episode {
                 ),
             )
             .at(Some(idx), Some(t))
-            .with(json!({
-                "axis": e.axis,
-                "captures": e.captures,
-                "first_idx": e.first_idx,
-                "last_idx": e.last_idx,
-                "worst_deg": e.worst_deg,
-                "by_command": e.by_command,
-            }))
+            .with(Evidence::Episode(e.evidence()))
             .affecting(Affects::Between {
                 from_idx: e.first_idx,
                 to_idx: e.last_idx,
@@ -221,14 +225,7 @@ impl CaptureStage {
                         e.axis, e.first_idx, e.captures, e.last_idx, e.worst_deg, e.by_command_note()
                     ),
                 )
-                .with(json!({
-                    "axis": e.axis,
-                    "captures": e.captures,
-                    "first_idx": e.first_idx,
-                    "last_idx": e.last_idx,
-                    "worst_deg": e.worst_deg,
-                    "by_command": e.by_command,
-                }))
+                .with(Evidence::Episode(e.evidence()))
                 .advise(
                     &if code == AlarmCode::PoseOffPlan {
                         POSE_OFF_PLAN_ACTION.to_string()
@@ -389,7 +386,10 @@ impl CaptureStage {
             ),
         )
         .at(Some(input.idx), Some(input.t))
-        .with(json!({"file": input.file, "consecutive_failures": self.consecutive_failures}))
+        .with(Evidence::CaptureFailure(evidence::CaptureFailure {
+            file: input.file.clone(),
+            consecutive_failures: self.consecutive_failures,
+        }))
     }
 }
 
@@ -514,7 +514,7 @@ impl CaptureStage {
                     ),
                 )
                 .at(at.0, at.1)
-                .with(json!({"pose_error_deg": judged_err, "enc": input.enc, "cmd": input.cmd}))
+                .with(Evidence::PoseError(evidence::PoseError { pose_error_deg: judged_err, enc: input.enc, cmd: input.cmd }))
                 .advise(
                     POSE_OFF_PLAN_ACTION,
                     Some(Affects::Since { from_idx: input.idx, handling: Handling::Retake }),
@@ -555,7 +555,7 @@ impl CaptureStage {
                         ),
                     )
                     .at(at.0, at.1)
-                    .with(json!({"axis": name, "enc": input.enc, "cmd": input.cmd}))
+                    .with(Evidence::EncoderReading(evidence::EncoderReading { axis: name.to_string(), enc: input.enc, cmd: input.cmd }))
                     .advise(
                         &encoder_action(name),
                         Some(Affects::Since { from_idx: input.idx, handling: Handling::Inspect }),
@@ -631,7 +631,7 @@ fn quality(
                 ),
             )
             .at(at.0, at.1)
-            .with(json!({"nonfinite": stats.nonfinite, "pixels": stats.pixels})),
+            .with(Evidence::NonFinite(evidence::NonFinite { nonfinite: stats.nonfinite, pixels: stats.pixels })),
         );
     }
     let clipped_fraction = stats.clipped as f64 / stats.pixels.max(1) as f64;
@@ -649,7 +649,11 @@ fn quality(
                 ),
             )
             .at(at.0, at.1)
-            .with(json!({"clipped": stats.clipped, "pixels": stats.pixels, "max_value": stats.max_value})),
+            .with(Evidence::Clipped(evidence::Clipped {
+                clipped: stats.clipped,
+                pixels: stats.pixels,
+                max_value: stats.max_value,
+            })),
         );
     }
     if y <= ctx.spec.dark_y {
@@ -664,7 +668,7 @@ fn quality(
                 ),
             )
             .at(at.0, at.1)
-            .with(json!({"y": y})),
+            .with(Evidence::Dark(evidence::Dark { y })),
         );
     }
 }

@@ -11,6 +11,7 @@
 //! two rates become one colour-temperature rate through `detect::lamp`, alarmed as
 //! `colour-drift` in K/h and in ΔE00/h of a white.
 
+use super::evidence::{self, Evidence, Source};
 use super::pairs::PendingPartner;
 use super::records::{PairRecord, PairStatus};
 use super::{Ctx, GeometryKey, Ledger};
@@ -23,7 +24,6 @@ use crate::detect::lamp::LampColour;
 use crate::detect::probes::{colour_fit_spec, UNSTABLE_FACTOR};
 use crate::measure::colour::{White, Xyz};
 use serde::{Deserialize, Serialize};
-use serde_json::json;
 use std::collections::HashMap;
 
 /// The colour-drift check (`[checks.colour_drift]`).
@@ -52,8 +52,8 @@ impl Default for ColourDriftSpec {
 /// The lamp's colour drift as estimated from isotropy classes or probes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ColourDriftEstimate {
-    /// `isotropy classes` or `probes`.
-    pub source: String,
+    /// Isotropy classes or probes.
+    pub source: Source,
     /// Observations in each of the two rate fits.
     pub observations: usize,
     /// The lamp model's reference colour temperature (K).
@@ -72,7 +72,7 @@ pub struct ColourDriftEstimate {
 
 /// Two rate fits on the log-chromaticities and the alarm state, for one source.
 pub(super) struct ColourStage {
-    source: &'static str,
+    source: Source,
     spec: ColourDriftSpec,
     model: LampColour,
     /// ln(X/Y) and ln(Z/Y).
@@ -105,7 +105,7 @@ const COLOUR_REFIT_PAIRS: usize = 100;
 impl ColourStage {
     /// The colour fits for `source`, with the fits' model `fits` (its own rate alarm is
     /// switched off: the colour alarm is decided on the combined rate).
-    fn new(source: &'static str, spec: ColourDriftSpec, fits: DriftSpec) -> Option<Self> {
+    fn new(source: Source, spec: ColourDriftSpec, fits: DriftSpec) -> Option<Self> {
         // the config's range check keeps the temperature valid; a model that cannot be built
         // leaves the colour check out rather than the session
         let model = LampColour::new(spec.lamp_cct_k).ok()?;
@@ -134,7 +134,7 @@ impl ColourStage {
         scale_floor: f64,
     ) -> Option<Self> {
         Self::new(
-            "probes",
+            Source::Probes,
             spec.clone(),
             colour_fit_spec(min_probes, scale_floor),
         )
@@ -192,7 +192,7 @@ impl ColourStage {
             .map(|w| self.model.delta_e00_per_h(rate.k_per_h, w))
             .unwrap_or(f64::NAN);
         let e = ColourDriftEstimate {
-            source: self.source.into(),
+            source: self.source,
             observations: u.pairs,
             lamp_cct_k: self.model.reference_k(),
             k_per_h: rate.k_per_h,
@@ -249,21 +249,21 @@ fn colour_alarm(e: &ColourDriftEstimate, at: (Option<u64>, Option<f64>)) -> Alar
             e.k_per_h,
             e.se_k_per_h,
             e.observations,
-            if e.source == "probes" { "probes" } else { "isotropy comparisons" },
+            if e.source == Source::Probes { "probes" } else { "isotropy comparisons" },
             e.de00_per_h,
             if e.k_per_h < 0.0 { "cooler, redder light" } else { "hotter, bluer light" },
         ),
     )
     .at(at.0, at.1)
-    .with(json!({
-        "k_per_h": e.k_per_h,
-        "se_k_per_h": e.se_k_per_h,
-        "de00_per_h": e.de00_per_h,
-        "lamp_cct_k": e.lamp_cct_k,
-        "x_rate_pct_per_h": e.x_rate_pct_per_h,
-        "z_rate_pct_per_h": e.z_rate_pct_per_h,
-        "n": e.observations,
-        "source": e.source,
+    .with(Evidence::ColourRate(evidence::ColourRate {
+        k_per_h: e.k_per_h,
+        se_k_per_h: e.se_k_per_h,
+        de00_per_h: e.de00_per_h,
+        lamp_cct_k: e.lamp_cct_k,
+        x_rate_pct_per_h: e.x_rate_pct_per_h,
+        z_rate_pct_per_h: e.z_rate_pct_per_h,
+        n: e.observations,
+        source: e.source,
     }))
     .advise(action::COLOUR_DRIFT, Some(Affects::Since { from_idx: 0, handling: Handling::Corrected }))
 }
@@ -273,7 +273,7 @@ fn raise(events: Vec<DriftEvent>, at: (Option<u64>, Option<f64>), alarms: &mut V
     alarms.extend(
         events
             .into_iter()
-            .map(|ev| drift_alarm(ev, "isotropy classes", at, None)),
+            .map(|ev| drift_alarm(ev, Source::IsotropyClasses, at, None)),
     );
 }
 
@@ -292,7 +292,7 @@ impl DriftStage {
         DriftStage {
             detector: DriftDetector::new(isotropy_drift_spec()),
             colour: ColourStage::new(
-                "isotropy classes",
+                Source::IsotropyClasses,
                 colour.clone(),
                 DriftSpec {
                     refit_every: COLOUR_REFIT_PAIRS,
@@ -487,7 +487,7 @@ impl DriftStage {
 /// capture a step can have affected (after the last observation before it), when known.
 pub(super) fn drift_alarm(
     ev: DriftEvent,
-    source: &str,
+    source: Source,
     at: (Option<u64>, Option<f64>),
     since: Option<u64>,
 ) -> Alarm {
@@ -502,7 +502,7 @@ pub(super) fn drift_alarm(
             ),
         )
         .at(at.0, at.1)
-        .with(json!({"rate_pct_per_h": e.rate_pct_per_h, "se_pct_per_h": e.se_pct_per_h, "n": e.pairs, "source": source}))
+        .with(Evidence::GainRate(evidence::GainRate { rate_pct_per_h: e.rate_pct_per_h, se_pct_per_h: e.se_pct_per_h, n: e.pairs, source }))
         // a rate acts on the whole run, from its first capture
         .advise(action::GAIN_DRIFT, Some(Affects::Since { from_idx: 0, handling: Handling::Corrected })),
         DriftEvent::RateCleared(e) => Alarm::new(
@@ -526,7 +526,7 @@ pub(super) fn drift_alarm(
             ),
         )
         .at(at.0, at.1)
-        .with(json!({"scatter_pct": 100.0 * scatter, "design_scatter_pct": 100.0 * design, "probes": probes, "source": source}))
+        .with(Evidence::LampScatter(evidence::LampScatter { scatter_pct: 100.0 * scatter, design_scatter_pct: 100.0 * design, probes, source }))
         .advise(
             "Let the lamp warm up and settle; check its supply, its connections and any draught or fan near it; if the scatter stays, pause the run and fix the lamp. The captures since the first probe judged carry the lamp's noise, which no correction removes.",
             Some(Affects::Since { from_idx, handling: Handling::Inspect }),
@@ -542,7 +542,7 @@ pub(super) fn drift_alarm(
             ),
         )
         .at(at.0, at.1)
-        .with(json!({"scatter_pct": 100.0 * scatter, "design_scatter_pct": 100.0 * design, "probes": probes, "source": source})),
+        .with(Evidence::LampScatter(evidence::LampScatter { scatter_pct: 100.0 * scatter, design_scatter_pct: 100.0 * design, probes, source })),
         DriftEvent::MountPattern(m) => mount_alarm(&m, source, at),
         DriftEvent::Step { direction, statistic, threshold, pairs_since_reset } => Alarm::new(
             AlarmKind::Drift,
@@ -554,7 +554,7 @@ pub(super) fn drift_alarm(
             ),
         )
         .at(at.0, at.1)
-        .with(json!({"direction": direction, "statistic": statistic, "threshold": threshold, "source": source}))
+        .with(Evidence::TrendStep(evidence::TrendStep { direction, statistic, threshold, source }))
         .advise(
             action::GAIN_STEP,
             since.or(at.0).map(|from_idx| Affects::Since { from_idx, handling: Handling::Corrected }),
@@ -563,7 +563,7 @@ pub(super) fn drift_alarm(
 }
 
 /// The off-centre mount's pattern became part of the drift model.
-fn mount_alarm(m: &MountPattern, source: &str, at: (Option<u64>, Option<f64>)) -> Alarm {
+fn mount_alarm(m: &MountPattern, source: Source, at: (Option<u64>, Option<f64>)) -> Alarm {
     let ((cam, cam_az), (light, light_az)) = (m.camera_pct(), m.light_pct());
     let (cam_se, light_se) = (100.0 * m.camera_se, 100.0 * m.light_se);
     Alarm::new(
@@ -580,11 +580,15 @@ fn mount_alarm(m: &MountPattern, source: &str, at: (Option<u64>, Option<f64>)) -
         ),
     )
     .at(at.0, at.1)
-    .with(json!({
-        "camera_pct": cam, "camera_azimuth_deg": cam_az, "camera_se_pct": cam_se,
-        "light_pct": light, "light_azimuth_deg": light_az, "light_se_pct": light_se,
-        "rate_inflation": m.rate_inflation,
-        "source": source,
+    .with(Evidence::MountPattern(evidence::MountPattern {
+        camera_pct: cam,
+        camera_azimuth_deg: cam_az,
+        camera_se_pct: cam_se,
+        light_pct: light,
+        light_azimuth_deg: light_az,
+        light_se_pct: light_se,
+        rate_inflation: m.rate_inflation,
+        source,
     }))
     .advise(action::SAMPLE_OFF_CENTRE, Some(Affects::Since { from_idx: 0, handling: Handling::Inspect }))
 }

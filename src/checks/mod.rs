@@ -19,6 +19,7 @@ pub mod alarm;
 mod capture;
 pub mod catalogue;
 mod drift;
+pub mod evidence;
 mod isotropy;
 pub mod observability;
 mod pairs;

@@ -5,6 +5,7 @@
 //! a partner interpolated from that direction's captures. A session without substitutes never
 //! builds an interpolant.
 
+use super::evidence::{Evidence, PairOutlier};
 use super::records::{Interpolation, PairRecord, PairStatus, Table2};
 use super::{Checked, Ctx, Ledger};
 use crate::checks::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
@@ -14,7 +15,6 @@ use crate::measure::geometry::{angle_between, Spherical};
 use crate::measure::reciprocity::{pair_residual, PairError};
 use crate::measure::resample::{ResampleSpec, Resampler, Sample};
 use crate::measure::stats::median_sorted;
-use serde_json::json;
 use std::collections::HashMap;
 
 /// A substitute capture waiting for its partner's light direction to be complete.
@@ -192,7 +192,16 @@ impl PairStage {
                     ),
                 )
                 .at(at.0, at.1)
-                .with(json!({"de2000": de, "limit": limit, "median": med, "mad": mad, "pairs": n, "a": pair.a, "b": pair.b, "theta_pair_deg": [bucket.0 as f64 / 1000.0, bucket.1 as f64 / 1000.0]}))
+                .with(Evidence::PairOutlier(PairOutlier {
+                    de2000: de,
+                    limit,
+                    median: med,
+                    mad,
+                    pairs: n,
+                    a: pair.a,
+                    b: pair.b,
+                    theta_pair_deg: [bucket.0 as f64 / 1000.0, bucket.1 as f64 / 1000.0],
+                }))
                 .advise(
                     "Look at the two captures: a single outlier is usually a speck, a glint or a flicker; outliers that recur in one direction point at the sample's mount or a pose error. Retake the pair if one capture is plainly wrong.",
                     Some(Affects::Captures { idx: vec![pair.a, pair.b], handling: Handling::Inspect }),

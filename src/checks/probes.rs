@@ -8,6 +8,7 @@
 
 use super::alarm::{Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use super::drift::{drift_alarm, ColourDriftSpec, ColourStage};
+use super::evidence::{self, Evidence, Source};
 use super::{CaptureInput, CheckOutput, Ledger, Measured};
 use crate::detect::drift::DriftEstimate;
 use crate::detect::probes::{choose_probe_pose, PoseSample, ProbeDrift, ProbePose, ProbeSpec};
@@ -16,7 +17,6 @@ use crate::detect::sentinel::{
 };
 use crate::measure::kinematics::{Incidence, Rig};
 use crate::measure::plan::SamplingPlan;
-use serde_json::json;
 
 /// The most captures a sentinel probe may follow its round's lamp probe by (see
 /// `ProbeStage::sentinel_probe`).
@@ -174,7 +174,7 @@ impl ProbeStage {
         ) {
             // a step happened after the last probe before this one
             let since = self.last_probe_idx.map(|i| i + 1);
-            out.alarms.push(drift_alarm(ev, "probes", at, since));
+            out.alarms.push(drift_alarm(ev, Source::Probes, at, since));
         }
         if let Some(colour) = self.colour.as_mut() {
             colour.observe(
@@ -236,7 +236,16 @@ impl ProbeStage {
                     ),
                 )
                 .at(Some(input.idx), Some(input.t))
-                .with(json!({"joint": 3, "offset_deg": slip.offset_deg, "source": "sentinel probes", "since_idx": slip.since_idx, "statistic": slip.statistic, "threshold": slip.threshold, "entry": pose.entry, "sensitivity_pct_per_deg": pose.sensitivity_pct_per_deg}))
+                .with(Evidence::Joint3Slip(evidence::Joint3Slip {
+                    joint: 3,
+                    offset_deg: slip.offset_deg,
+                    source: Source::SentinelProbes,
+                    since_idx: slip.since_idx,
+                    statistic: slip.statistic,
+                    threshold: slip.threshold,
+                    entry: pose.entry,
+                    sensitivity_pct_per_deg: pose.sensitivity_pct_per_deg,
+                }))
                 .advise(
                     &format!("Pause the run; check the sample clamp and arm joint 3 (re-home the joint if it slipped, re-seat the sample if it turned in its holder), then resume; every capture since {} is on the retake list.", slip.since_idx),
                     Some(Affects::Since { from_idx: slip.since_idx, handling: Handling::Retake }),

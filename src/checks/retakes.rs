@@ -69,32 +69,24 @@ pub fn retakes(
     let mut open_pose: Option<u64> = None;
     for a in alarms {
         let ev = &a.evidence;
-        let range = |from: Option<u64>, to: Option<u64>| from.zip(to).map(|(f, t)| f..=t);
         match a.code {
             AlarmCode::PoseOffPlan if open_pose.is_none() => open_pose = a.idx,
             AlarmCode::PoseOffPlanCleared => {
-                let r = range(
-                    ev.get("first_idx").and_then(|v| v.as_u64()),
-                    ev.get("last_idx").and_then(|v| v.as_u64()),
-                );
-                for i in r.into_iter().flatten() {
+                for i in ev.episode_range().map(|(f, t)| f..=t).into_iter().flatten() {
                     add(i, "the pose was off the plan".into());
                 }
                 open_pose = None;
             }
             AlarmCode::JointOffsetSuspected => {
-                let joint = ev.get("joint").and_then(|v| v.as_u64()).unwrap_or(0);
-                let offset = ev
-                    .get("offset_deg")
-                    .and_then(|v| v.as_f64())
-                    .unwrap_or(f64::NAN);
+                let slip = ev.slip();
+                let (joint, offset) = slip.map_or((0, f64::NAN), |(j, o, _)| (j, o));
                 // the captures the alarm says it affects; a session recorded before alarms
                 // said so gives the start of the sweeps that showed the slip
                 let since = match &a.affects {
                     Some(Affects::Since { from_idx, .. }) => Some(*from_idx),
-                    _ => ev.get("since_idx").and_then(|v| v.as_u64()).or(a.idx),
+                    _ => slip.map(|(_, _, since)| since).or(a.idx),
                 };
-                for i in range(since, last).into_iter().flatten() {
+                for i in since.zip(last).map(|(f, t)| f..=t).into_iter().flatten() {
                     add(
                         i,
                         format!(
@@ -176,6 +168,7 @@ pub fn session_retakes(
 mod tests {
     use super::*;
     use crate::checks::alarm::{AlarmCode, AlarmKind, Severity};
+    use crate::checks::evidence::Evidence;
     use serde_json::json;
 
     fn cap(idx: u64, entry: usize, status: CaptureStatus) -> CaptureRecord {
@@ -216,6 +209,7 @@ mod tests {
         assert_eq!(r.len(), 371);
     }
 
+    /// An alarm whose evidence is read as a result file holds it.
     fn alarm(code: AlarmCode, idx: u64, evidence: serde_json::Value) -> Alarm {
         Alarm::new(
             AlarmKind::Positioning,
@@ -224,7 +218,7 @@ mod tests {
             String::new(),
         )
         .at(Some(idx), None)
-        .with(evidence)
+        .with(Evidence::read(code, evidence))
     }
 
     #[test]
@@ -244,12 +238,12 @@ mod tests {
             alarm(
                 AlarmCode::PoseOffPlanCleared,
                 23,
-                json!({"first_idx": 20, "last_idx": 22}),
+                json!({"axis": "pose", "captures": 3, "first_idx": 20, "last_idx": 22, "worst_deg": 0.5, "by_command": 0}),
             ),
             alarm(
                 AlarmCode::JointOffsetSuspected,
                 95,
-                json!({"joint": 2, "offset_deg": 1.1, "since_idx": 90}),
+                json!({"joint": 2, "offset_deg": 1.1, "since_idx": 90, "se_deg": 0.2, "estimate_sweeps": 1, "run_mean_deg": 1.1, "sweeps": 1, "statistic": 9.0, "threshold": 6.0, "other_joints": []}),
             ),
         ];
         let r = retakes(&caps, &alarms, &spec());
@@ -267,7 +261,7 @@ mod tests {
         let slip = alarm(
             AlarmCode::JointOffsetSuspected,
             95,
-            json!({"joint": 2, "offset_deg": 1.1, "since_idx": 90}),
+            json!({"joint": 2, "offset_deg": 1.1, "since_idx": 90, "se_deg": 0.2, "estimate_sweeps": 1, "run_mean_deg": 1.1, "sweeps": 1, "statistic": 9.0, "threshold": 6.0, "other_joints": []}),
         )
         .advise(
             "check joint 2",

@@ -1,9 +1,9 @@
 //! The light sweeps' findings as alarms: the words, the severity and what the operator should
 //! do.
 
+use super::evidence::{self, Evidence, Source};
 use crate::checks::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::detect::sweeps::{JointSlip, LevelRun, SweepAt, SweepFinding};
-use serde_json::json;
 
 /// The alarm a finding of the sweep checks raises.
 pub(crate) fn alarm(f: &SweepFinding) -> Alarm {
@@ -55,7 +55,15 @@ fn gain_step(at: &SweepAt, up: bool, run: &LevelRun, since_t: Option<f64>, from_
             run.threshold
         ),
     )
-    .with(json!({"source": "light sweeps", "level_pct": run.level_pct, "sweeps": run.sweeps, "since_idx": run.since_idx, "since_t": since_t, "statistic": run.statistic, "threshold": run.threshold}))
+    .with(Evidence::SweepStep(evidence::SweepStep {
+        source: Source::LightSweeps,
+        level_pct: run.level_pct,
+        sweeps: run.sweeps,
+        since_idx: run.since_idx,
+        since_t,
+        statistic: run.statistic,
+        threshold: run.threshold,
+    }))
     .advise(
         action::GAIN_STEP,
         Some(Affects::Since {
@@ -79,7 +87,16 @@ fn level_after_slip(at: &SweepAt, run: &LevelRun, joint: usize, slip_from_idx: u
             layer_deg(at),
         ),
     )
-    .with(json!({"source": "light sweeps", "joint": joint, "level_pct": run.level_pct, "sweeps": run.sweeps, "since_idx": run.since_idx, "slip_from_idx": slip_from_idx, "statistic": run.statistic, "threshold": run.threshold}))
+    .with(Evidence::LevelAfterSlip(evidence::LevelAfterSlip {
+        source: Source::LightSweeps,
+        joint,
+        level_pct: run.level_pct,
+        sweeps: run.sweeps,
+        since_idx: run.since_idx,
+        slip_from_idx,
+        statistic: run.statistic,
+        threshold: run.threshold,
+    }))
     .advise(
         "Nothing more than for the joint alarm: check the sample clamp and the joint; these captures are already on the retake list. A level change that persists after the joint is fixed is the lamp's.",
         Some(Affects::Since { from_idx: slip_from_idx, handling: Handling::Retake }),
@@ -95,7 +112,13 @@ fn gain_step_withdrawn(joint: usize, step_idx: u64, level_pct: f64, slip_from_id
             "the gain step raised at capture {step_idx} ({level_pct:+.2} %) came after joint {joint} began to slip (captures from {slip_from_idx}): it is read as the tilt's, not the lamp's, and leaves the drift model",
         ),
     )
-    .with(json!({"source": "light sweeps", "joint": joint, "step_idx": step_idx, "level_pct": level_pct, "slip_from_idx": slip_from_idx}))
+    .with(Evidence::StepWithdrawn(evidence::StepWithdrawn {
+        source: Source::LightSweeps,
+        joint,
+        step_idx,
+        level_pct,
+        slip_from_idx,
+    }))
     .advise(
         "Nothing more than for the joint alarm: check the sample clamp and the joint; these captures are on the retake list and the corrected colours no longer divide that step out.",
         Some(Affects::Since { from_idx: slip_from_idx, handling: Handling::Retake }),
@@ -103,15 +126,28 @@ fn gain_step_withdrawn(joint: usize, step_idx: u64, level_pct: f64, slip_from_id
 }
 
 fn joint_slip(at: &SweepAt, x: &JointSlip) -> Alarm {
-    let other: Vec<serde_json::Value> = x
-        .other_joints
-        .iter()
-        .map(|f| json!({"joint": f.joint, "offset_deg": f.offset_deg, "se_deg": f.se_deg, "cusum": f.cusum}))
-        .collect();
-    let mut evidence = json!({"joint": x.joint, "offset_deg": x.offset_deg, "se_deg": x.se_deg, "estimate_sweeps": x.estimate_sweeps, "run_mean_deg": x.run_mean_deg, "sweeps": x.sweeps, "since_idx": x.since_idx, "statistic": x.statistic, "threshold": x.threshold, "other_joints": other});
-    if let Some(level) = x.attributed_level_pct {
-        evidence["attributed_level_pct"] = json!(level);
-    }
+    let evidence = Evidence::JointSlip(evidence::JointSlip {
+        joint: x.joint,
+        offset_deg: x.offset_deg,
+        se_deg: x.se_deg,
+        estimate_sweeps: x.estimate_sweeps,
+        run_mean_deg: x.run_mean_deg,
+        sweeps: x.sweeps,
+        since_idx: x.since_idx,
+        statistic: x.statistic,
+        threshold: x.threshold,
+        other_joints: x
+            .other_joints
+            .iter()
+            .map(|f| evidence::OtherJoint {
+                joint: f.joint,
+                offset_deg: f.offset_deg,
+                se_deg: f.se_deg,
+                cusum: f.cusum,
+            })
+            .collect(),
+        attributed_level_pct: x.attributed_level_pct,
+    });
     let size = format!(
         "joint {} looks offset by about {:+.2}° (± {:.2}°, from {} light sweep(s) against the captures before the slip)",
         x.joint, x.offset_deg, x.se_deg, x.estimate_sweeps
@@ -194,7 +230,7 @@ mod tests {
             })
         );
         assert_eq!(
-            serde_json::to_string(&a.evidence).unwrap(),
+            serde_json::to_value(&a).unwrap()["evidence"].to_string(),
             r#"{"level_pct":-2.5,"since_idx":3725,"since_t":24000.0,"source":"light sweeps","statistic":7.25,"sweeps":3,"threshold":5.5}"#
         );
     }
@@ -233,7 +269,10 @@ mod tests {
                     handling: Handling::Retake
                 })
             );
-            assert_eq!(a.evidence["slip_from_idx"], 3564);
+            assert_eq!(
+                serde_json::to_value(&a).unwrap()["evidence"]["slip_from_idx"],
+                3564
+            );
         }
     }
 
@@ -280,7 +319,7 @@ mod tests {
         );
         assert!(a.message.ends_with("(CUSUM 9.5 > 6.0)"), "{}", a.message);
         assert_eq!(
-            serde_json::to_string(&a.evidence).unwrap(),
+            serde_json::to_value(&a).unwrap()["evidence"].to_string(),
             r#"{"estimate_sweeps":2,"joint":2,"offset_deg":1.25,"other_joints":[{"cusum":0.5,"joint":1,"offset_deg":0.5,"se_deg":0.25}],"run_mean_deg":1.5,"se_deg":0.25,"since_idx":3725,"statistic":9.5,"sweeps":3,"threshold":6.0}"#
         );
         // a level change the joint's pattern explains: the level and the attribution's test
@@ -297,6 +336,8 @@ mod tests {
             "{}",
             a.message
         );
-        assert_eq!(a.evidence["attributed_level_pct"], -0.8);
+        assert!(
+            matches!(&a.evidence, Evidence::JointSlip(e) if e.attributed_level_pct == Some(-0.8))
+        );
     }
 }

@@ -235,7 +235,7 @@ fn a_step_found_by_the_sweeps_enters_the_gain_correction() {
         last = out.capture;
     }
     assert_eq!(steps.len(), 1, "{steps:?}");
-    let since_t = steps[0].evidence["since_t"].as_f64().unwrap();
+    let since_t = steps[0].evidence.to_json()["since_t"].as_f64().unwrap();
     assert!(
         since_t <= t_step && since_t > t_step - 81.0 * 7.0,
         "{since_t}"
@@ -384,7 +384,7 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
             handling: Handling::Inspect
         })
     );
-    assert_eq!(cleared.evidence["by_command"], 4);
+    assert_eq!(cleared.evidence.to_json()["by_command"], 4);
     assert!(
         cleared.message.contains("4 placed by the commanded pose"),
         "{}",
@@ -401,9 +401,9 @@ fn a_pose_fault_is_one_episode_not_an_alarm_per_capture() {
     let open = ch.open_conditions();
     assert_eq!(open.len(), 1, "{open:?}");
     assert!(open.iter().any(|a| a.code == AlarmCode::EncoderMismatch
-        && a.evidence["axis"] == "wagon"
-        && a.evidence["first_idx"] == 60
-        && a.evidence["by_command"] == 319));
+        && a.evidence.to_json()["axis"] == "wagon"
+        && a.evidence.to_json()["first_idx"] == 60
+        && a.evidence.to_json()["by_command"] == 319));
     let c = ch.counts();
     assert_eq!(c.encoder_mismatch, 11 + 340);
     assert_eq!(c.placed_by_command, 4 + 319);
@@ -508,7 +508,7 @@ fn encoder_episodes_are_kept_per_axis() {
                         "{}@{}:{}",
                         a.code,
                         a.idx.unwrap_or(u64::MAX),
-                        a.evidence["axis"]
+                        a.evidence.to_json()["axis"]
                     )
                 }),
         );
@@ -530,7 +530,7 @@ fn encoder_episodes_are_kept_per_axis() {
         .open_conditions()
         .iter()
         .filter(|a| a.code == AlarmCode::EncoderMismatch)
-        .map(|a| a.evidence["axis"].to_string())
+        .map(|a| a.evidence.to_json()["axis"].to_string())
         .collect();
     assert_eq!(open, ["\"joint 2\"", "\"wagon\""]);
 }
@@ -657,7 +657,7 @@ fn probes_give_the_lamp_colour_drift_on_an_anisotropic_sample() {
     });
     assert!(ch.isotropy_drift().is_none());
     let e = ch.colour_drift().unwrap();
-    assert_eq!(e.source, "probes");
+    assert_eq!(e.source, crate::checks::evidence::Source::Probes);
     assert!((e.k_per_h + 40.0).abs() < 4.0, "{e:?}");
     let colour: Vec<_> = alarms
         .iter()
@@ -749,7 +749,7 @@ fn a_flickering_lamp_at_the_probes_is_lamp_unstable_with_its_scatter() {
             .collect();
         assert_eq!(unstable.len(), want, "{flicker}: {unstable:?}");
         if let Some(a) = unstable.first() {
-            let s = a.evidence["scatter_pct"].as_f64().unwrap();
+            let s = a.evidence.to_json()["scatter_pct"].as_f64().unwrap();
             assert!((0.8..2.5).contains(&s), "{s}");
             assert!(a.message.contains("unstable"));
             // from the first of the eight probes judged (probes follow every 100th capture)
@@ -825,7 +825,7 @@ fn a_sample_off_the_rotation_centre_is_named_and_its_pattern_is_not_taken_for_dr
         assert_eq!(named.len(), 1, "{named:?}");
         assert!(named[0].idx.unwrap() < 600, "{:?}", named[0].idx);
         assert_advised(&named);
-        let ev = &named[0].evidence;
+        let ev = named[0].evidence.to_json();
         assert!(
             (ev["camera_pct"].as_f64().unwrap() - 3.0).abs() < 0.3,
             "{ev}"

@@ -4,7 +4,8 @@
 //! session's report, byte for byte (no dates, no paths).
 
 use super::compare::CompareReport;
-use crate::checks::alarm::{Affects, Alarm, AlarmCode, Severity};
+use crate::checks::alarm::{Affects, Alarm, Severity};
+use crate::checks::evidence::Evidence;
 use crate::checks::{CaptureRecord, PairRecord, Table2};
 use crate::config::Config;
 use crate::detect::sweeps::SweepRecord;
@@ -798,25 +799,20 @@ fn files_section(inp: &ReportInputs) -> String {
     const SHOWN: usize = 200;
     let mut rows: Vec<(String, String)> = Vec::new();
     for a in inp.alarms.iter() {
-        match a.code {
-            AlarmCode::DuplicateFiles => {
-                for g in a.evidence["groups"].as_array().into_iter().flatten() {
-                    let kept = g["kept"].as_str().unwrap_or("?");
-                    let entry = &g["entry"];
-                    for o in g["others"].as_array().into_iter().flatten() {
+        match &a.evidence {
+            Evidence::DuplicateFiles(d) => {
+                for g in &d.groups {
+                    for o in &g.others {
                         rows.push((
-                            o.as_str().unwrap_or("?").to_string(),
-                            format!("plan entry {entry} again ({kept} is checked)"),
+                            o.clone(),
+                            format!("plan entry {} again ({} is checked)", g.entry, g.kept),
                         ));
                     }
                 }
             }
-            AlarmCode::SkippedFiles => {
-                for f in a.evidence["files"].as_array().into_iter().flatten() {
-                    rows.push((
-                        f["file"].as_str().unwrap_or("?").to_string(),
-                        f["why"].as_str().unwrap_or("?").to_string(),
-                    ));
+            Evidence::SkippedFiles(sk) => {
+                for f in &sk.files {
+                    rows.push((f.file.clone(), f.why.clone()));
                 }
             }
             _ => {}
@@ -936,7 +932,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
 
     if let Some(c) = &s.colour_drift {
         let _ = write!(h, "<h2>Lamp colour</h2><p>From {} observations ({}: the same geometry at other times), the chromaticity over time (ln X/Y and ln Z/Y, each a rate fit like the gain's), read through a black-body lamp at {:.0} K: <b>{:+.1} ± {:.1} K/h</b> (standard error; negative is redder), ΔE00 {:.3} per hour on a white. The corrected colours in captures.csv have this drift divided out of X and Z. The lines are the chromaticity change as known at each capture's time (red ln X/Y, blue ln Z/Y); ticks are the alarms.</p>",
-            c.observations, esc(&c.source), c.lamp_cct_k, c.k_per_h, c.se_k_per_h, c.de00_per_h);
+            c.observations, esc(c.source.as_str()), c.lamp_cct_k, c.k_per_h, c.se_k_per_h, c.de00_per_h);
         h.push_str(&colour_plot(inp));
     }
 

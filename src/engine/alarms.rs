@@ -4,7 +4,7 @@
 //! are counted in inputs, not wall time, so a replay aggregates exactly as the live run did.
 
 use crate::checks::alarm::{Affects, Alarm, AlarmCode, Severity};
-use serde_json::json;
+use crate::checks::evidence::{Aggregated, Evidence};
 use std::collections::BTreeMap;
 
 const ALARM_BURST: u32 = 5;
@@ -152,12 +152,12 @@ fn aggregate(code: &AlarmCode, storm: &Storm, latest: Alarm, now: u64) -> Alarm 
     // the held alarms' captures together, and their action if they shared one
     a.affects = storm.affects.clone();
     a.action = storm.action.clone().flatten();
-    a = a.with(json!({
-        "aggregated": storm.held,
-        "window_inputs": [first, now],
-        "captures": storm.captures,
-        "latest": latest,
-    }));
+    a = a.with(Evidence::Aggregated(Box::new(Aggregated {
+        aggregated: storm.held,
+        window_inputs: [first, now],
+        captures: storm.captures.clone(),
+        latest,
+    })));
     a.idx = None;
     a
 }
@@ -198,7 +198,7 @@ mod tests {
         assert_eq!(emitted[5].idx, Some(12));
         let agg = book.flush(20, true);
         assert_eq!(agg.len(), 1);
-        assert_eq!(agg[0].evidence["aggregated"], 14);
+        assert_eq!(agg[0].evidence.to_json()["aggregated"], 14);
         assert_eq!(agg[0].severity, Severity::Critical);
         assert_eq!(book.total(), 20);
         assert_eq!(book.criticals(), 8);

@@ -19,13 +19,13 @@ mod link;
 mod probes;
 
 use crate::checks::alarm::{Alarm, AlarmCode, AlarmKind, Severity};
+use crate::checks::evidence::{self, Evidence};
 use crate::config::{AlarmSpec, Config, ConfigError};
 use crate::protocol::{
     self, Ack, Announcement, FromController, Ident, LineError, Nak, Status, ToController,
     PROTO_VERSION,
 };
 use serde::{Deserialize, Serialize};
-use serde_json::json;
 use std::collections::{BTreeMap, BTreeSet};
 
 /// An input of the engine; also the unit of the session journal.
@@ -239,12 +239,16 @@ fn skipped_alarm(
             AlarmCode::SkippedFiles,
             format!("{total} file(s) under the capture folder were not placed as captures ({by_kind}): {first}"),
         )
-        .with(json!({
-            "counts": counts,
-            "files": listed
+        .with(Evidence::SkippedFiles(evidence::SkippedFiles {
+            counts: counts.clone(),
+            files: listed
                 .iter()
-                .map(|(f, r)| json!({"file": f, "kind": r.kind(), "why": r.to_string()}))
-                .collect::<Vec<_>>(),
+                .map(|(f, r)| evidence::SkippedFile {
+                    file: f.clone(),
+                    kind: r.kind().to_string(),
+                    why: r.to_string(),
+                })
+                .collect(),
         }))
         .advise(
             "The report lists each file not placed and why. A capture among them needs a name that source.pattern matches (or a sidecar row) and angles on the plan; other files can stay or be moved out of the capture folder.",
@@ -294,7 +298,17 @@ fn duplicate_alarm(groups: &[crate::archive::listing::DuplicateGroup]) -> Option
                 g.kept
             ),
         )
-        .with(json!({ "groups": groups }))
+        .with(Evidence::DuplicateFiles(evidence::DuplicateFiles {
+            groups: groups
+                .iter()
+                .map(|g| evidence::DuplicateGroup {
+                    entry: g.entry,
+                    kept: g.kept.clone(),
+                    others: g.others.clone(),
+                    rule_prefers: g.rule_prefers.clone(),
+                })
+                .collect(),
+        }))
         .advise(
             "Move the copies and rejected files out of the capture folder (or rename them so the pattern does not match), so that each plan entry has one file.",
             None,
@@ -676,7 +690,10 @@ impl Engine {
                     format!("{} sent the same malformed CAPTURE line for capture {i} again ({why}); capture {i} is skipped and checking goes on", self.source_name()),
                 )
                 .at(Some(i), None)
-                .with(json!({"idx": i, "reason": why})),
+                .with(Evidence::AnnouncementRefused(evidence::AnnouncementRefused {
+                    idx: i,
+                    reason: why.to_string(),
+                })),
             );
             self.drain(out);
         }
@@ -795,7 +812,11 @@ impl Engine {
                                 files.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
                             ),
                         )
-                        .with(json!({ "files": files })),
+                        .with(Evidence::UnannouncedFiles(
+                            evidence::UnannouncedFiles {
+                                files: files.clone(),
+                            },
+                        )),
                     );
                 }
             }
@@ -816,7 +837,10 @@ impl Engine {
                         "{n_bad} of the last {seen} lines from the controller were corrupt (threshold {threshold}); latest: {what}"
                     ),
                 )
-                .with(json!({"bad_lines": n_bad, "window": seen})),
+                .with(Evidence::CrcErrors(evidence::CrcErrors {
+                    bad_lines: n_bad as u64,
+                    window: seen as u64,
+                })),
             );
         }
     }
@@ -979,7 +1003,10 @@ impl Engine {
                     format!("{} did not send a readable CAPTURE line for capture {i} when asked again; capture {i} is skipped and checking goes on", self.source_name()),
                 )
                 .at(Some(i), None)
-                .with(json!({"idx": i, "reason": "no readable line after a resend was asked"})),
+                .with(Evidence::AnnouncementRefused(evidence::AnnouncementRefused {
+                    idx: i,
+                    reason: "no readable line after a resend was asked".into(),
+                })),
             );
         }
         self.ledger.missing.extend(lost.iter().copied());
@@ -1009,7 +1036,11 @@ impl Engine {
                     AlarmCode::CaptureNeverAnnounced,
                     format!("{} captures between {first} and {last} are not in {}'s capture log (resync reports next = {next})", lost.len(), self.source_name()),
                 )
-                .with(json!({"count": lost.len(), "first": first, "last": last})),
+                .with(Evidence::NeverAnnounced(evidence::NeverAnnounced {
+                    count: lost.len() as u64,
+                    first,
+                    last,
+                })),
             );
         }
     }
@@ -1153,7 +1184,10 @@ impl Engine {
                         msg,
                     )
                     .at(Some(idx), Some(a.t))
-                    .with(json!({"kept": prev.file, "ignored": a.file})),
+                    .with(Evidence::DuplicateIndex(evidence::DuplicateIndex {
+                        kept: prev.file.clone(),
+                        ignored: a.file.clone(),
+                    })),
                 );
             }
             return;
@@ -1221,11 +1255,11 @@ impl Engine {
             ),
         )
         .at(Some(input.idx), Some(input.t))
-        .with(json!({
-            "step_s": step.step_s,
-            "announced_t": step.announced_s,
-            "previous_t": step.previous_s,
-            "shift_s": step.shift_s,
+        .with(Evidence::TimeStep(evidence::TimeStep {
+            step_s: step.step_s,
+            announced_t: step.announced_s,
+            previous_t: step.previous_s,
+            shift_s: step.shift_s,
         }))
         .advise(
             "Check the clock of the rig's computer (a manual correction, a time-zone change, a failing clock battery) and keep it from stepping during a run; the drift rates across the step are approximate.",
