@@ -5,7 +5,7 @@
 
 use crate::checks::CheckSpec;
 use crate::measure::averaging::AverageOptions;
-use crate::measure::colour::{ColourError, RgbPrimaries, RgbToXyz, White, Xyz};
+use crate::measure::colour::{ColourError, RgbPrimaries, White, Xyz};
 use crate::measure::kinematics::{KinematicsError, Rig, RigSpec};
 use crate::measure::plan::{PlanError, PlanSpec, SamplingPlan};
 use crate::measure::reciprocity::DEFAULT_MIN_COS;
@@ -663,8 +663,14 @@ impl Config {
                 });
             }
         }
-        if self.probes.every > 0 && self.probes.entry.is_some() {
-            self.probe_entry()?;
+        if let (true, Some(e)) = (self.probes.every > 0, self.probes.entry) {
+            let n = SamplingPlan::new(&self.plan)?.capture_count();
+            if e >= n {
+                return Err(ConfigError::Invalid {
+                    field: "probes.entry",
+                    message: format!("{e} is not a plan entry (0..{n})"),
+                });
+            }
         }
         if self.source.kind == crate::archive::SourceKind::Files {
             self.validate_files_source()?;
@@ -799,76 +805,6 @@ impl Config {
         }
         v
     }
-
-    /// The white for L*a*b* in the live checks (a reference-capture white is for offline use).
-    pub(crate) fn live_white(&self) -> Result<White, ConfigError> {
-        match self.colour.white {
-            WhiteSpec::ReferenceCapture { .. } => Err(ConfigError::Invalid {
-                field: "colour.white",
-                message: "kind = \"reference-capture\" is not available to the live checks yet; use \"d65\" or \"xyz\"".into(),
-            }),
-            w => w.resolve(None).map_err(|source| ConfigError::Colour {
-                field: "colour.white",
-                source,
-            }),
-        }
-    }
-
-    /// The colour settings of the live checks.
-    pub(crate) fn colour_settings(&self) -> Result<crate::checks::ColourSettings, ConfigError> {
-        Ok(crate::checks::ColourSettings {
-            to_xyz: self.rgb_to_xyz(),
-            rgb_scale: self.colour.rgb_scale,
-            white: self.live_white()?,
-            min_cos: self.reciprocity.min_cos,
-        })
-    }
-
-    /// The plan entry re-captured by probes: the configured one, or lamp at the pole and camera
-    /// at the first direction with θ = 45°.
-    pub fn probe_entry(&self) -> Result<usize, ConfigError> {
-        let plan = self.plan()?;
-        if let Some(e) = self.probes.entry {
-            if e < plan.capture_count() {
-                return Ok(e);
-            }
-            return Err(ConfigError::Invalid {
-                field: "probes.entry",
-                message: format!("{e} is not a plan entry (0..{})", plan.capture_count()),
-            });
-        }
-        let dirs = plan.directions();
-        let light = dirs.iter().position(|d| d.theta_deg == 0.0);
-        let camera = dirs.iter().position(|d| (d.theta_deg - 45.0).abs() < 1e-9);
-        match (light, camera) {
-            (Some(l), Some(c)) => plan.index_of(l, c).ok_or(ConfigError::Invalid {
-                field: "probes.entry",
-                message: "no default probe entry in this plan; set one".into(),
-            }),
-            _ => Err(ConfigError::Invalid {
-                field: "probes.entry",
-                message:
-                    "the plan has no θ = 0 and θ = 45° directions for the default probe; set one"
-                        .into(),
-            }),
-        }
-    }
-
-    pub fn plan(&self) -> Result<SamplingPlan, ConfigError> {
-        Ok(SamplingPlan::new(&self.plan)?)
-    }
-    pub fn rig(&self) -> Result<Rig, ConfigError> {
-        Ok(Rig::new(self.rig.clone())?)
-    }
-    pub(crate) fn rgb_to_xyz(&self) -> RgbToXyz {
-        RgbToXyz::new(self.colour.primaries)
-    }
-    /// Mean RGB of a capture → XYZ on the configured scale.
-    pub(crate) fn xyz_of(&self, mean_rgb: [f64; 3]) -> Xyz {
-        let s = self.colour.rgb_scale;
-        self.rgb_to_xyz()
-            .convert([mean_rgb[0] * s, mean_rgb[1] * s, mean_rgb[2] * s])
-    }
 }
 
 #[cfg(test)]
@@ -879,7 +815,7 @@ mod tests {
     fn empty_config_is_the_ubo_default() {
         let c = Config::from_toml_str("").unwrap();
         assert_eq!(c, Config::default());
-        assert_eq!(c.plan().unwrap().capture_count(), 6561);
+        assert_eq!(SamplingPlan::new(&c.plan).unwrap().capture_count(), 6561);
     }
 
     #[test]

@@ -13,6 +13,8 @@
 //!   severity and advice for every finding) and the result records (pure).
 //! - [`config`]: the TOML configuration as plain data (parsing and validation; the
 //!   checks' and core's spec types are its sections).
+//! - [`setup`]: the fixed parts of a session built from its configuration once (plan, rig,
+//!   colour conversion, probe entry).
 //! - [`engine`]: the deterministic session engine: inputs (serial lines, link events, capture
 //!   outcomes) in, lines to send, captures to ingest and result records out (pure).
 //! - [`decode`]: shell side, HDR/EXR bytes → RGB buffer, hardened against malformed files.
@@ -43,3 +45,4 @@ pub mod measure;
 pub mod protocol;
 pub mod reference;
 pub mod session;
+pub mod setup;

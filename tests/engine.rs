@@ -509,7 +509,10 @@ fn a_long_resync_reply_is_not_asked_again_midway() {
 fn a_retaken_entry_is_not_paired_twice() {
     let text = sim_toml();
     let cfg = Config::from_toml_str(&text).unwrap();
-    let (plan, rig) = (cfg.plan().unwrap(), cfg.rig().unwrap());
+    let (plan, rig) = (
+        goniowatch::setup::plan(&cfg).unwrap(),
+        goniowatch::setup::rig(&cfg).unwrap(),
+    );
     let a = 1usize;
     let b = plan.reciprocal_of(a).unwrap();
     let pose = |entry: usize| {
@@ -619,8 +622,8 @@ fn probes_are_requested_only_when_enabled() {
             .replace("# entry = 19", "entry = 19"),
     )
     .unwrap();
-    let entry = cfg.probe_entry().unwrap();
-    let plan = cfg.plan().unwrap();
+    let plan = goniowatch::setup::plan(&cfg).unwrap();
+    let entry = goniowatch::setup::probe_entry(&cfg, &plan).unwrap();
     let e0 = plan.entry(entry).unwrap();
     assert_eq!(plan.directions()[e0.light].theta_deg, 0.0);
     assert_eq!(plan.directions()[e0.camera].theta_deg, 45.0);

@@ -151,10 +151,9 @@ struct Ctx<'a> {
 
 impl Ctx<'_> {
     fn xyz_of(&self, rgb: [f64; 3]) -> Xyz {
-        let s = self.colour.rgb_scale;
         self.colour
             .to_xyz
-            .convert([rgb[0] * s, rgb[1] * s, rgb[2] * s])
+            .convert_scaled(rgb, self.colour.rgb_scale)
     }
 
     fn geometry_key(&self, light: usize, camera: usize) -> GeometryKey {

@@ -65,7 +65,7 @@ fn average_file_inner(
         .context("cannot read file")?;
     let img = decode(&bytes, &limits)?;
     let s: CaptureStats = crate::daemon::ingest::average_decoded(&img, opts)?;
-    let xyz = cfg.xyz_of(s.mean_rgb);
+    let xyz = crate::setup::rgb_to_xyz(cfg).convert_scaled(s.mean_rgb, cfg.colour.rgb_scale);
     let lab = cfg
         .colour
         .white
@@ -211,7 +211,7 @@ fn probe_plan(
 ) -> anyhow::Result<ProbePlanSummary> {
     use crate::detect::probe_plan::{cadence_figures, design, ColourProbes, ProbeSession};
     use anyhow::Context;
-    let plan = cfg.plan()?;
+    let plan = crate::setup::plan(cfg)?;
     let session = ProbeSession {
         captures: plan.capture_count() as u64,
         seconds_per_capture: SECONDS_PER_CAPTURE,
@@ -224,8 +224,10 @@ fn probe_plan(
         // a pose the daemon chooses is among the first sweep's captures: the default pose, or
         // the middle of the first sweep, stands in for it
         anchor: match cfg.probes.entry {
-            Some(_) => cfg.probe_entry()? as u64,
-            None => cfg.probe_entry().unwrap_or(plan.direction_count() / 2) as u64,
+            Some(_) => crate::setup::probe_entry(cfg, &plan)? as u64,
+            None => {
+                crate::setup::probe_entry(cfg, &plan).unwrap_or(plan.direction_count() / 2) as u64
+            }
         },
         probes_from: if cfg.probes.entry.is_some() {
             0
@@ -271,8 +273,8 @@ pub fn plan_summary(
     probe_scatter: ProbeScatter,
     target: &crate::detect::probe_plan::DetectionTarget,
 ) -> anyhow::Result<PlanSummary> {
-    let plan = cfg.plan()?;
-    let rig = cfg.rig()?;
+    let plan = crate::setup::plan(cfg)?;
+    let rig = crate::setup::rig(cfg)?;
     let dirs = plan.directions();
     let mut substitutes = Vec::new();
     let mut unreachable = Vec::new();

@@ -842,7 +842,7 @@ fn files_section(inp: &ReportInputs) -> String {
 
 /// The report's HTML.
 pub(crate) fn render_html(inp: &ReportInputs) -> Result<String> {
-    let plan = inp.config.plan().context("the session's plan")?;
+    let plan = crate::setup::plan(&inp.config).context("the session's plan")?;
     let s = &inp.summary;
     let c = &s.checked;
     let mut h = String::new();
@@ -1035,7 +1035,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
     if retakes.is_empty() {
         h.push_str("<p>No capture needs taking again: none failed, went missing, was dark or had bad pixels, was taken off the plan, or came after a slipped joint. (Lamp drift is not a reason: the corrected colours divide it out.)</p>");
     } else {
-        let plan = inp.config.plan().ok();
+        let plan = crate::setup::plan(&inp.config).ok();
         let _ = write!(h, "<p><b>{} captures</b> should be taken again (retakes.csv has them all; lamp drift is not a reason, the corrected colours divide it out):</p><table><tr><th>capture</th><th>plan entry</th><th>light (θ, φ)</th><th>camera (θ, φ)</th><th>why</th></tr>", retakes.len());
         let dir = |k: usize| {
             plan.as_ref()
@@ -1233,7 +1233,7 @@ impl CsvRow for SweepRecord {
 
 /// The session's retake list (with its never-captured plan entries once it is finished).
 fn session_retakes(inp: &ReportInputs) -> Vec<crate::checks::retakes::Retake> {
-    match inp.config.plan() {
+    match crate::setup::plan(&inp.config) {
         Ok(plan) => crate::checks::retakes::session_retakes(
             &inp.captures,
             &inp.alarms,
@@ -1264,7 +1264,7 @@ fn retakes_csv(inp: &ReportInputs) -> String {
 }
 
 pub(crate) fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, String)>> {
-    let plan = inp.config.plan().context("the session's plan")?;
+    let plan = crate::setup::plan(&inp.config).context("the session's plan")?;
     let s = &inp.summary;
     let mut t2 = String::from("set,pairs,abs_dX,abs_dY,abs_dZ,dE76,dC,dH,dE00\n");
     for (name, t) in [

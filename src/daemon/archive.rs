@@ -182,7 +182,7 @@ pub fn preflight(root: &Path, config: &crate::config::Config) -> Result<Listing>
     place(&ArchiveLink {
         root: root.to_path_buf(),
         spec: config.source.clone(),
-        plan: config.plan()?,
+        plan: crate::setup::plan(config)?,
         rig: Rig::new(config.rig.clone())?,
         finished: true,
         prior: Vec::new(),

@@ -345,7 +345,7 @@ async fn start(
     listener: Option<tokio::net::TcpListener>,
 ) -> Result<(Live, Channels)> {
     let cfg = &session.config;
-    let bar = progress_bar(opts, cfg.plan()?.capture_count() as u64);
+    let bar = progress_bar(opts, crate::setup::plan(cfg)?.capture_count() as u64);
     // recover: rebuild the results from the journal, then note the restart
     let engine = if session.resumed {
         let (e, n) = recover(session).context("cannot recover the session from its journal")?;
@@ -425,7 +425,7 @@ async fn start(
         status: None,
     };
     if let Some(listener) = listener {
-        let mut model = StatusModel::new(&cfg.plan()?, cfg.checks.dark_y);
+        let mut model = StatusModel::new(&crate::setup::plan(cfg)?, cfg.checks.dark_y);
         if session.resumed {
             model.load(&session.dir);
         }
@@ -471,7 +471,7 @@ async fn start(
             let archive = super::archive::ArchiveLink {
                 root: session.info.capture_root.clone(),
                 spec: cfg.source.clone(),
-                plan: cfg.plan()?,
+                plan: crate::setup::plan(cfg)?,
                 rig: crate::measure::kinematics::Rig::new(cfg.rig.clone())?,
                 finished: opts.finished_set,
                 prior: if watch_files {

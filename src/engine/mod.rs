@@ -25,6 +25,7 @@ use crate::protocol::{
     self, Ack, Announcement, FromController, Ident, LineError, Nak, Status, ToController,
     PROTO_VERSION,
 };
+use crate::setup::Setup;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -352,16 +353,17 @@ impl Engine {
     /// The engine of a session with this configuration: its checker, alarm settings and
     /// probe cadence.
     pub fn from_config(cfg: &Config) -> Result<Engine, ConfigError> {
+        let setup = Setup::new(cfg)?;
         let mut checker = Checker::new(
-            cfg.plan()?,
-            cfg.rig()?,
-            cfg.colour_settings()?,
+            setup.plan,
+            setup.rig,
+            setup.colour,
             cfg.checks.clone(),
             cfg.sample.isotropic,
             cfg.probes.clone(),
         );
-        if cfg.probes.every > 0 && cfg.probes.entry.is_some() {
-            checker.set_probe_entry(Some(cfg.probe_entry()?));
+        if cfg.probes.every > 0 {
+            checker.set_probe_entry(setup.probe_entry);
         }
         Ok(Engine::new(checker, cfg.alarms.clone()))
     }

@@ -152,6 +152,11 @@ impl RgbToXyz {
         let v = self.m * Vector3::new(rgb[0], rgb[1], rgb[2]);
         [v[0], v[1], v[2]]
     }
+
+    /// `rgb` scaled by `scale` (the files' values onto the white's scale), then converted.
+    pub fn convert_scaled(&self, rgb: Rgb, scale: f64) -> Xyz {
+        self.convert([rgb[0] * scale, rgb[1] * scale, rgb[2] * scale])
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -260,8 +260,7 @@ impl Session {
                 (config, text, base)
             }
         };
-        config
-            .live_white()
+        crate::setup::live_white(&config)
             .with_context(|| format!("invalid config {}", config_path.display()))?;
         let info = SessionInfo {
             created_ms: super::journal::now_ms(),
