@@ -505,7 +505,7 @@ impl RuntimeSlot<'_> {
 
 impl Config {
     /// Read, parse and validate a config file; also returns its text.
-    pub fn load(path: &std::path::Path) -> Result<(Config, String), ConfigError> {
+    pub(crate) fn load(path: &std::path::Path) -> Result<(Config, String), ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
             path: path.display().to_string(),
             source,
@@ -595,7 +595,7 @@ impl Config {
         })
     }
 
-    pub fn validate(&self) -> Result<(), ConfigError> {
+    pub(crate) fn validate(&self) -> Result<(), ConfigError> {
         SamplingPlan::new(&self.plan)?;
         Rig::new(self.rig.clone())?;
         for (field, v) in self.numeric_values() {

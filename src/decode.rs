@@ -40,7 +40,7 @@ pub enum CaptureFormat {
 impl CaptureFormat {
     /// Low dynamic range: values are display-encoded codes in [0, 1] after linearising, and a
     /// code at its maximum is a clipped pixel.
-    pub fn is_ldr(self) -> bool {
+    pub(crate) fn is_ldr(self) -> bool {
         matches!(self, CaptureFormat::Png | CaptureFormat::Jpeg)
     }
 }

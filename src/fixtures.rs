@@ -40,7 +40,7 @@ impl Lcg {
 
 /// What an ideal rig averages for a reciprocal, smooth BRDF (a grey-brown base and a
 /// Blinn–Phong lobe): RGB times cos θi.
-pub fn reciprocal_reading(wi: &Vec3, wo: &Vec3) -> [f64; 3] {
+pub(crate) fn reciprocal_reading(wi: &Vec3, wo: &Vec3) -> [f64; 3] {
     let h = (wi + wo).normalize();
     let lobe = 0.6 * h.z.powi(40);
     [
@@ -51,7 +51,7 @@ pub fn reciprocal_reading(wi: &Vec3, wo: &Vec3) -> [f64; 3] {
 }
 
 /// sRGB primaries, D65 white with Y = 100, readings scaled by 100.
-pub fn ubo_colour() -> ColourSettings {
+pub(crate) fn ubo_colour() -> ColourSettings {
     ColourSettings {
         to_xyz: RgbToXyz::new(RgbPrimaries::SrgbIec),
         rgb_scale: 100.0,
@@ -132,7 +132,7 @@ pub fn ubo_session(upto: usize, gain: impl Fn(f64) -> f64) -> Vec<CaptureInput> 
 /// What an ideal rig averages for an anisotropic sample: `reciprocal_reading` times a factor
 /// exp(sin²θi cos 2(φi − 20°) + sin²θo cos 2(φo − 20°)) whose lobes turn with the sample
 /// (reciprocal, like the real thing).
-pub fn anisotropic_reading(wi: &Vec3, wo: &Vec3) -> [f64; 3] {
+pub(crate) fn anisotropic_reading(wi: &Vec3, wo: &Vec3) -> [f64; 3] {
     let aniso = |w: &Vec3| {
         let phi = w.y.atan2(w.x) - 20f64.to_radians();
         (1.0 - w.z * w.z) * (2.0 * phi).cos()

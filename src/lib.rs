@@ -37,7 +37,7 @@ pub mod cli;
 pub mod config;
 pub mod daemon;
 pub mod decode;
-pub mod detect;
+pub(crate) mod detect;
 pub mod engine;
 #[cfg(any(test, feature = "fixtures"))]
 pub mod fixtures;

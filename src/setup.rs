@@ -10,7 +10,7 @@ use crate::measure::plan::SamplingPlan;
 
 /// What a session's checker is built from.
 #[derive(Debug, Clone)]
-pub struct Setup {
+pub(crate) struct Setup {
     pub plan: SamplingPlan,
     pub rig: Rig,
     pub colour: ColourSettings,
@@ -19,7 +19,7 @@ pub struct Setup {
 }
 
 impl Setup {
-    pub fn new(cfg: &Config) -> Result<Setup, ConfigError> {
+    pub(crate) fn new(cfg: &Config) -> Result<Setup, ConfigError> {
         let plan = plan(cfg)?;
         let probe_entry = match cfg.probes.entry {
             Some(_) => Some(probe_entry(cfg, &plan)?),
@@ -45,12 +45,12 @@ pub fn rig(cfg: &Config) -> Result<Rig, ConfigError> {
 }
 
 /// Mean linear RGB → XYZ by `[colour] primaries` (scaled by `rgb_scale` before it).
-pub fn rgb_to_xyz(cfg: &Config) -> RgbToXyz {
+pub(crate) fn rgb_to_xyz(cfg: &Config) -> RgbToXyz {
     RgbToXyz::new(cfg.colour.primaries)
 }
 
 /// The white for L*a*b* in the live checks (a reference-capture white is for offline use).
-pub fn live_white(cfg: &Config) -> Result<White, ConfigError> {
+pub(crate) fn live_white(cfg: &Config) -> Result<White, ConfigError> {
     match cfg.colour.white {
         WhiteSpec::ReferenceCapture { .. } => Err(ConfigError::Invalid {
             field: "colour.white",
@@ -64,7 +64,7 @@ pub fn live_white(cfg: &Config) -> Result<White, ConfigError> {
 }
 
 /// The colour settings of the live checks.
-pub fn colour_settings(cfg: &Config) -> Result<ColourSettings, ConfigError> {
+pub(crate) fn colour_settings(cfg: &Config) -> Result<ColourSettings, ConfigError> {
     Ok(ColourSettings {
         to_xyz: rgb_to_xyz(cfg),
         rgb_scale: cfg.colour.rgb_scale,

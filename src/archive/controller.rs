@@ -12,7 +12,7 @@ use crate::protocol::{format, parse, ToController};
 use std::collections::VecDeque;
 
 /// The `rig` of the `IDENT` it sends.
-pub const RIG_ID: &str = "files";
+pub(crate) const RIG_ID: &str = "files";
 
 pub struct ArchiveController {
     session: String,

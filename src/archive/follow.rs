@@ -25,10 +25,10 @@ use crate::measure::timeline::{StepBack, TimeLine};
 use std::collections::BTreeMap;
 
 /// How often one file is checked again after it changed.
-pub const MAX_RECHECKS: u32 = 5;
+pub(crate) const MAX_RECHECKS: u32 = 5;
 
 /// What a listing says of a file: its size and modification time; `None` when it is absent.
-pub type Fingerprint = Option<(u64, Option<f64>)>;
+pub(crate) type Fingerprint = Option<(u64, Option<f64>)>;
 
 #[derive(Debug, Clone, PartialEq)]
 enum Seen {
@@ -58,7 +58,7 @@ struct Followed {
 
 /// What one listing asks of the link.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Step {
+pub(crate) struct Step {
     /// Captures to announce, in order; `idx` is the capture index each will get.
     pub announce: Vec<(u64, ArchiveCapture)>,
     /// How many of `announce` are rechecks of a file announced before.
@@ -70,7 +70,7 @@ pub struct Step {
 }
 
 #[derive(Debug, Clone, Default)]
-pub struct Follower {
+pub(crate) struct Follower {
     /// The absolute time the session's capture times count from.
     origin: Option<f64>,
     files: BTreeMap<String, Followed>,
@@ -83,7 +83,7 @@ pub struct Follower {
 }
 
 impl Follower {
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self::default()
     }
 
@@ -92,7 +92,7 @@ impl Follower {
     /// capture's absolute time: the origin is taken from the first listing, as for a new
     /// session (the same while the earliest file is the same). Returns false, and takes nothing more,
     /// once the indices are not consecutive from 0.
-    pub fn handle_prior(
+    pub(crate) fn handle_prior(
         &mut self,
         idx: u64,
         capture: &ArchiveCapture,
@@ -135,7 +135,7 @@ impl Follower {
 
     /// The ingestion's verdict on capture `idx`: `Some(sha256)` of the bytes checked when it
     /// decoded, `None` when it failed or its file never appeared.
-    pub fn handle_outcome(&mut self, idx: u64, checked: Option<String>) {
+    pub(crate) fn handle_outcome(&mut self, idx: u64, checked: Option<String>) {
         let Some(name) = self.by_idx.get(&idx) else {
             return;
         };
@@ -151,7 +151,7 @@ impl Follower {
 
     /// One listing of the folder. `prints`: each listed file's fingerprint; `content`: the
     /// SHA-256 of a file's bytes now (asked only of a usable capture's file that changed).
-    pub fn handle_listing(
+    pub(crate) fn handle_listing(
         &mut self,
         listing: &Listing,
         prints: &BTreeMap<String, (u64, Option<f64>)>,
@@ -247,7 +247,7 @@ impl Follower {
     }
 
     /// Whether every one of `planned` entries has a capture announced.
-    pub fn complete(&self, planned: usize) -> bool {
+    pub(crate) fn complete(&self, planned: usize) -> bool {
         self.by_entry.len() >= planned
     }
 }

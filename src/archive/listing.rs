@@ -16,7 +16,7 @@ use thiserror::Error;
 
 /// What the listing knows of one file (the shell reads the folder; time is data).
 #[derive(Debug, Clone, PartialEq)]
-pub struct FileFact {
+pub(crate) struct FileFact {
     /// Path relative to the capture folder, with `/` separators.
     pub name: String,
     /// Modification time, seconds since the Unix epoch.
@@ -28,7 +28,7 @@ pub struct FileFact {
 /// One row of a sidecar table.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct SidecarRow {
+pub(crate) struct SidecarRow {
     pub file: String,
     #[serde(default)]
     pub theta_i: Option<f64>,
@@ -50,7 +50,7 @@ pub struct SidecarRow {
 }
 
 #[derive(Debug, Error, PartialEq)]
-pub enum ListingError {
+pub(crate) enum ListingError {
     #[error("source.pattern does not compile: {0}")]
     Pattern(String),
     #[error("source.pattern needs the named groups tl, pl, tv and pv, or entry")]
@@ -86,7 +86,7 @@ pub enum SkipReason {
 
 impl SkipReason {
     /// The reason's kind, as the summary counts skipped files.
-    pub fn kind(&self) -> &'static str {
+    pub(crate) fn kind(&self) -> &'static str {
         match self {
             SkipReason::NotACapture => "not-a-capture",
             SkipReason::NoMatch => "no-match",
@@ -122,7 +122,7 @@ impl std::fmt::Display for SkipReason {
 
 /// Where the capture times come from.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub enum TimeSource {
+pub(crate) enum TimeSource {
     Sidecar,
     Mtime,
     /// No times: capture position × this many seconds.
@@ -148,7 +148,7 @@ pub struct ArchiveCapture {
 
 /// Which of several files placed on one plan entry stands for it, in both `check` and watch
 /// mode (said in the README and the alarm).
-pub const DUPLICATE_RULE: &str = "the file fewest folders deep, then the one with the shortest name (copies add \" copy\" or \" (1)\"), then the one whose extension is written as in source.extensions, then the earliest in the capture order, then the first by name";
+pub(crate) const DUPLICATE_RULE: &str = "the file fewest folders deep, then the one with the shortest name (copies add \" copy\" or \" (1)\"), then the one whose extension is written as in source.extensions, then the earliest in the capture order, then the first by name";
 
 /// Files placed on the same plan entry: the one kept by [`DUPLICATE_RULE`] and the others.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -164,7 +164,7 @@ pub struct DuplicateGroup {
 }
 
 #[derive(Debug, Clone, PartialEq)]
-pub struct Listing {
+pub(crate) struct Listing {
     pub captures: Vec<ArchiveCapture>,
     /// The absolute time (seconds; since the Unix epoch for modification times) that the
     /// captures' `t` count from: 0 when the times are capture positions.
@@ -181,7 +181,7 @@ pub struct Listing {
 
 impl Listing {
     /// One paragraph for the operator: what was found, the order and the times used.
-    pub fn describe(&self) -> String {
+    pub(crate) fn describe(&self) -> String {
         let order = match self.order {
             OrderRule::Index => "the capture index in the names or the sidecar",
             OrderRule::Time => "the sidecar's times",
@@ -222,7 +222,7 @@ impl Listing {
 }
 
 /// Parse a sidecar's text: CSV with a header row when `csv`, else JSON lines.
-pub fn parse_sidecar(text: &str, csv: bool) -> Result<Vec<SidecarRow>, ListingError> {
+pub(crate) fn parse_sidecar(text: &str, csv: bool) -> Result<Vec<SidecarRow>, ListingError> {
     if csv {
         let mut r = ::csv::ReaderBuilder::new()
             .trim(::csv::Trim::All)
@@ -251,7 +251,7 @@ pub fn parse_sidecar(text: &str, csv: bool) -> Result<Vec<SidecarRow>, ListingEr
 }
 
 /// Compile and check `[source] pattern`.
-pub fn compile_pattern(pattern: &str) -> Result<Regex, ListingError> {
+pub(crate) fn compile_pattern(pattern: &str) -> Result<Regex, ListingError> {
     let re = Regex::new(pattern).map_err(|e| ListingError::Pattern(e.to_string()))?;
     let names: BTreeSet<&str> = re.capture_names().flatten().collect();
     let angles = ["tl", "pl", "tv", "pv"].iter().all(|g| names.contains(g));
@@ -552,7 +552,7 @@ fn capture_of(
 }
 
 /// Place `files` (and the sidecar's rows, when given) on `plan`.
-pub fn build(
+pub(crate) fn build(
     files: &[FileFact],
     sidecar: Option<&[SidecarRow]>,
     spec: &SourceSpec,

@@ -12,7 +12,7 @@
 //! Pure: file facts (names, modification times) and sidecar rows come in as data.
 
 pub mod controller;
-pub mod follow;
+pub(crate) mod follow;
 pub mod listing;
 
 use serde::{Deserialize, Serialize};
@@ -50,7 +50,7 @@ pub enum OrderRule {
 /// The Bonn convention: `tl<θi>`, `pl<φi>`, `tv<θo>`, `pv<φo>` in degrees, in that order,
 /// anywhere in the name (e.g. `tl015_pl060_tv030_pv000.exr`, `00042 tl15 pl60 tv30 pv0.hdr`);
 /// a leading number, when present, is the capture index.
-pub const BONN_PATTERN: &str = r"(?i)^(?:.*/)?(?:(?P<idx>\d+)[ _-]+)?tl(?P<tl>\d+(?:\.\d+)?)[ _-]*pl(?P<pl>\d+(?:\.\d+)?)[ _-]*tv(?P<tv>\d+(?:\.\d+)?)[ _-]*pv(?P<pv>\d+(?:\.\d+)?)[^/]*$";
+pub(crate) const BONN_PATTERN: &str = r"(?i)^(?:.*/)?(?:(?P<idx>\d+)[ _-]+)?tl(?P<tl>\d+(?:\.\d+)?)[ _-]*pl(?P<pl>\d+(?:\.\d+)?)[ _-]*tv(?P<tv>\d+(?:\.\d+)?)[ _-]*pv(?P<pv>\d+(?:\.\d+)?)[^/]*$";
 
 /// `[source]` in the config.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -17,7 +17,7 @@ pub enum AlarmKind {
 
 impl AlarmKind {
     /// The name in the result files.
-    pub fn as_str(self) -> &'static str {
+    pub(crate) fn as_str(self) -> &'static str {
         match self {
             AlarmKind::Link => "link",
             AlarmKind::CaptureQuality => "capture-quality",
@@ -134,7 +134,7 @@ pub enum AlarmCode {
 
 impl AlarmCode {
     /// Every code.
-    pub const ALL: [AlarmCode; 44] = [
+    pub(crate) const ALL: [AlarmCode; 44] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
@@ -232,7 +232,7 @@ impl AlarmCode {
     }
 
     /// What the condition is, in a few words (for the docs and the status page).
-    pub fn meaning(self) -> &'static str {
+    pub(crate) fn meaning(self) -> &'static str {
         match self {
             AlarmCode::AnnouncementRefused => "a CAPTURE line stayed unreadable after it was asked for again; that capture is skipped",
             AlarmCode::BadAnnouncement => "a CAPTURE line was malformed; it is asked for again",
@@ -282,7 +282,7 @@ impl AlarmCode {
     }
 
     /// The code that ends an episode of this one (`pose-off-plan` → `pose-off-plan-cleared`).
-    pub fn cleared(self) -> Option<AlarmCode> {
+    pub(crate) fn cleared(self) -> Option<AlarmCode> {
         match self {
             AlarmCode::PoseOffPlan => Some(AlarmCode::PoseOffPlanCleared),
             AlarmCode::EncoderMismatch => Some(AlarmCode::EncoderMismatchCleared),
@@ -401,15 +401,15 @@ impl From<AlarmRecord> for Alarm {
 
 /// What the operator can do, for the conditions several stages raise. Each says what to check,
 /// what the output does meanwhile, and whether anything must be taken again.
-pub mod action {
+pub(crate) mod action {
     /// A gain drift (a rate).
-    pub const GAIN_DRIFT: &str = "Let the lamp warm up and settle, or check its supply; the corrected colours divide the drift out, so no capture needs taking again. If the rate keeps growing, pause the run and re-seat or replace the lamp.";
+    pub(crate) const GAIN_DRIFT: &str = "Let the lamp warm up and settle, or check its supply; the corrected colours divide the drift out, so no capture needs taking again. If the rate keeps growing, pause the run and re-seat or replace the lamp.";
     /// A gain step.
-    pub const GAIN_STEP: &str = "Check the lamp, its supply and anything that may shade the sample or reflect onto it; the step is fitted and divided out of the corrected colours. Steps that recur mean an unstable lamp: pause the run and fix it.";
+    pub(crate) const GAIN_STEP: &str = "Check the lamp, its supply and anything that may shade the sample or reflect onto it; the step is fitted and divided out of the corrected colours. Steps that recur mean an unstable lamp: pause the run and fix it.";
     /// The sample sits off the arm's rotation centre.
-    pub const SAMPLE_OFF_CENTRE: &str = "Check that the sample is centred in its holder and lies flat at the holder's height; at the next chance re-centre it. The drift checks model the pattern from now on, at some cost in precision; drift probes ([probes] every = N) measure the lamp free of it.";
+    pub(crate) const SAMPLE_OFF_CENTRE: &str = "Check that the sample is centred in its holder and lies flat at the holder's height; at the next chance re-centre it. The drift checks model the pattern from now on, at some cost in precision; drift probes ([probes] every = N) measure the lamp free of it.";
     /// A colour drift of the lamp.
-    pub const COLOUR_DRIFT: &str = "Let the lamp settle or check its supply voltage (a colour drift at a steady luminance is the filament's temperature); the corrected colours divide the drift out.";
+    pub(crate) const COLOUR_DRIFT: &str = "Let the lamp settle or check its supply voltage (a colour drift at a steady luminance is the filament's temperature); the corrected colours divide the drift out.";
 }
 
 /// What the output does about the captures a condition affects.
@@ -425,7 +425,7 @@ pub enum Handling {
 }
 
 impl Handling {
-    pub fn as_str(self) -> &'static str {
+    pub(crate) fn as_str(self) -> &'static str {
         match self {
             Handling::Corrected => "corrected",
             Handling::Retake => "retake",
@@ -451,7 +451,7 @@ pub enum Affects {
 }
 
 impl Affects {
-    pub fn handling(&self) -> Handling {
+    pub(crate) fn handling(&self) -> Handling {
         match self {
             Affects::Captures { handling, .. }
             | Affects::Since { handling, .. }
@@ -474,7 +474,7 @@ impl Affects {
     /// else from the earliest first capture on; the more demanding handling (retake, then
     /// inspect, then corrected). A list is kept to `max_listed` captures, beyond which it
     /// becomes "from its first on".
-    pub fn merge(self, other: Affects, max_listed: usize) -> Affects {
+    pub(crate) fn merge(self, other: Affects, max_listed: usize) -> Affects {
         let rank = |h: Handling| match h {
             Handling::Retake => 2,
             Handling::Inspect => 1,
@@ -506,7 +506,7 @@ impl Affects {
     }
 
     /// A short phrase for the surfaces, e.g. "captures 3280 on: corrected".
-    pub fn describe(&self) -> String {
+    pub(crate) fn describe(&self) -> String {
         let which = match self {
             Affects::Captures { idx, .. } => {
                 let list: Vec<String> = idx.iter().map(u64::to_string).collect();
@@ -539,24 +539,24 @@ impl Alarm {
             affects: None,
         }
     }
-    pub fn at(mut self, idx: Option<u64>, t: Option<f64>) -> Self {
+    pub(crate) fn at(mut self, idx: Option<u64>, t: Option<f64>) -> Self {
         self.idx = idx;
         self.t = t;
         self
     }
-    pub fn with(mut self, evidence: Evidence) -> Self {
+    pub(crate) fn with(mut self, evidence: Evidence) -> Self {
         debug_assert!(evidence.fits(self.code), "{:?} for {}", evidence, self.code);
         self.evidence = evidence;
         self
     }
     /// What the operator can do, and the captures the condition affects.
-    pub fn advise(mut self, action: &str, affects: Option<Affects>) -> Self {
+    pub(crate) fn advise(mut self, action: &str, affects: Option<Affects>) -> Self {
         self.action = Some(action.to_string());
         self.affects = affects;
         self
     }
     /// The captures the condition affects, without an action (a condition that has ended).
-    pub fn affecting(mut self, affects: Affects) -> Self {
+    pub(crate) fn affecting(mut self, affects: Affects) -> Self {
         self.affects = Some(affects);
         self
     }

@@ -95,7 +95,7 @@ pub fn entry(code: AlarmCode) -> CodeEntry {
 }
 
 /// Every code's entry, by name.
-pub fn catalogue() -> Vec<CodeEntry> {
+pub(crate) fn catalogue() -> Vec<CodeEntry> {
     let mut v: Vec<CodeEntry> = AlarmCode::ALL.iter().map(|c| entry(*c)).collect();
     v.sort_by_key(|e| e.code);
     v

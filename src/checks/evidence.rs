@@ -27,7 +27,7 @@ pub enum Source {
 
 impl Source {
     /// The name in messages and result files.
-    pub fn as_str(self) -> &'static str {
+    pub(crate) fn as_str(self) -> &'static str {
         match self {
             Source::IsotropyClasses => "isotropy classes",
             Source::Probes => "probes",
@@ -418,7 +418,7 @@ fn parse<T: serde::de::DeserializeOwned>(
 
 impl Evidence {
     /// Evidence as a result file holds it, for an alarm of `code`.
-    pub fn read(code: AlarmCode, v: serde_json::Value) -> Evidence {
+    pub(crate) fn read(code: AlarmCode, v: serde_json::Value) -> Evidence {
         use AlarmCode as C;
         if v.is_null() {
             return Evidence::None;
@@ -483,7 +483,7 @@ impl Evidence {
 
     /// Whether this evidence is of a kind an alarm of `code` carries (every code may carry
     /// none, an aggregation of its storm, or evidence read in an unknown shape).
-    pub fn fits(&self, code: AlarmCode) -> bool {
+    pub(crate) fn fits(&self, code: AlarmCode) -> bool {
         use AlarmCode as C;
         match self {
             Evidence::None | Evidence::Aggregated(_) | Evidence::Unknown(_) => true,
@@ -527,7 +527,7 @@ impl Evidence {
 
     /// A named joint slip: the joint (1–3), its offset (degrees) and the capture that ended the
     /// first sweep (or followed the last reading in control) that showed it.
-    pub fn slip(&self) -> Option<(usize, f64, u64)> {
+    pub(crate) fn slip(&self) -> Option<(usize, f64, u64)> {
         match self {
             Evidence::JointSlip(e) => Some((e.joint, e.offset_deg, e.since_idx)),
             Evidence::Joint3Slip(e) => Some((e.joint, e.offset_deg, e.since_idx)),
@@ -536,7 +536,7 @@ impl Evidence {
     }
 
     /// The first capture and the last of a closed episode.
-    pub fn episode_range(&self) -> Option<(u64, u64)> {
+    pub(crate) fn episode_range(&self) -> Option<(u64, u64)> {
         match self {
             Evidence::Episode(e) => Some((e.first_idx, e.last_idx)),
             _ => None,

@@ -19,13 +19,13 @@ pub mod alarm;
 mod capture;
 pub mod catalogue;
 mod drift;
-pub mod evidence;
+pub(crate) mod evidence;
 mod isotropy;
-pub mod observability;
+pub(crate) mod observability;
 mod pairs;
 mod probes;
-pub mod records;
-pub mod retakes;
+pub(crate) mod records;
+pub(crate) mod retakes;
 mod sweeps;
 #[cfg(test)]
 mod tests;
@@ -46,7 +46,7 @@ use crate::measure::kinematics::Rig;
 use crate::measure::plan::{AcquisitionOrder, SamplingPlan};
 use capture::{CaptureStage, Measured, Verdict};
 use drift::DriftStage;
-pub use drift::{ColourDriftEstimate, ColourDriftSpec};
+pub(crate) use drift::{ColourDriftEstimate, ColourDriftSpec};
 use isotropy::IsotropyStage;
 use pairs::PairStage;
 pub(crate) use probes::ProbeSetup;
@@ -359,7 +359,7 @@ impl Checker {
 
     /// At the end of a session: the substitutes still waiting for their partner's light
     /// direction are scored against what was captured.
-    pub fn finish(&mut self, t: f64) -> CheckOutput {
+    pub(crate) fn finish(&mut self, t: f64) -> CheckOutput {
         let mut out = CheckOutput::default();
         self.resolve(|_, _| true, t, &mut out);
         self.alarms += out.alarms.len() as u64;
@@ -546,7 +546,7 @@ impl Checker {
     }
 
     /// What this session's detectors watch and cannot see (sample, order, probes, sweeps).
-    pub fn observability(&self) -> observability::Observability {
+    pub(crate) fn observability(&self) -> observability::Observability {
         observability::observability(
             self.isotropy.is_some(),
             self.probes.enabled(),
@@ -558,7 +558,7 @@ impl Checker {
 
     /// The lamp's colour drift, once estimated: from isotropy classes (isotropic samples), else
     /// from the probes.
-    pub fn colour_drift(&self) -> Option<ColourDriftEstimate> {
+    pub(crate) fn colour_drift(&self) -> Option<ColourDriftEstimate> {
         self.drift
             .as_ref()
             .and_then(|d| d.colour_estimate())
@@ -571,7 +571,7 @@ impl Checker {
     }
 
     /// The off-centre mount's pattern, once the isotropy drift model carries it.
-    pub fn sample_off_centre(&self) -> Option<MountPattern> {
+    pub(crate) fn sample_off_centre(&self) -> Option<MountPattern> {
         self.drift.as_ref().and_then(|d| d.mount())
     }
 
@@ -580,10 +580,10 @@ impl Checker {
         self.capture.open_episodes()
     }
 
-    pub fn plan(&self) -> &SamplingPlan {
+    pub(crate) fn plan(&self) -> &SamplingPlan {
         &self.plan
     }
-    pub fn table2(&self) -> &Table2 {
+    pub(crate) fn table2(&self) -> &Table2 {
         &self.pairs.table2
     }
     /// Table 2 over the exact pairs with a capture placed by the commanded pose (a subset of
@@ -603,7 +603,7 @@ impl Checker {
     }
 
     /// The counters of every stage, and the alarms.
-    pub fn counts(&self) -> CheckCounts {
+    pub(crate) fn counts(&self) -> CheckCounts {
         let (c, p) = (&self.capture, &self.pairs);
         CheckCounts {
             captures: c.captures,

@@ -35,7 +35,7 @@ fn blind(what: &str, why: &str, remedy: &str) -> BlindSpot {
 /// `[sample]`, `probes` whether drift probes are enabled, `sweeps` whether the light-sweep
 /// checks are enabled in the config, `sentinel` whether probes of an anisotropic sample are
 /// followed by a joint-3 sentinel (`[probes] sentinel`).
-pub fn observability(
+pub(crate) fn observability(
     isotropic: bool,
     probes: bool,
     order: AcquisitionOrder,

@@ -19,7 +19,7 @@ pub enum CaptureStatus {
 }
 
 impl CaptureStatus {
-    pub fn as_str(self) -> &'static str {
+    pub(crate) fn as_str(self) -> &'static str {
         match self {
             CaptureStatus::Ok => "ok",
             CaptureStatus::Failed => "failed",
@@ -51,7 +51,7 @@ pub enum PairStatus {
 }
 
 impl PairStatus {
-    pub fn as_str(self) -> &'static str {
+    pub(crate) fn as_str(self) -> &'static str {
         match self {
             PairStatus::Exact => "exact",
             PairStatus::NeedsResampling => "needs-resampling",
@@ -226,7 +226,7 @@ pub struct Table2 {
 
 impl Table2 {
     /// No pair taken yet.
-    pub fn is_empty(&self) -> bool {
+    pub(crate) fn is_empty(&self) -> bool {
         self.pairs == 0
     }
 

@@ -16,7 +16,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 /// One capture to take again, or a plan entry never captured (no capture index).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Retake {
+pub(crate) struct Retake {
     pub idx: Option<u64>,
     pub entry: usize,
     pub light: usize,
@@ -28,7 +28,7 @@ pub struct Retake {
 /// The retake list of a session, in capture order. A capture's own quality (dark, non-finite
 /// or clipped pixels beyond `spec`'s limits) is judged from its record, not from the alarms,
 /// which hold back all but a few of a code in a storm.
-pub fn retakes(
+pub(crate) fn retakes(
     captures: &[CaptureRecord],
     alarms: &[Alarm],
     spec: &super::CheckSpec,
@@ -133,7 +133,7 @@ pub fn retakes(
 /// `retakes`, then, once the session is `finished`, every one of those entries that no regular
 /// capture stands for (a file source's entry without a file, a run that ended before it), in
 /// entry order.
-pub fn session_retakes(
+pub(crate) fn session_retakes(
     captures: &[CaptureRecord],
     alarms: &[Alarm],
     spec: &super::CheckSpec,

@@ -10,7 +10,7 @@ use std::path::Path;
 
 /// One line of `goniowatch average --json`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct AverageRecord {
+pub(crate) struct AverageRecord {
     pub file: String,
     #[serde(flatten)]
     pub outcome: AverageOutcome,
@@ -18,13 +18,13 @@ pub struct AverageRecord {
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(untagged)]
-pub enum AverageOutcome {
+pub(crate) enum AverageOutcome {
     Ok(Box<AverageOk>),
     Err { error: String },
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct AverageOk {
+pub(crate) struct AverageOk {
     pub format: CaptureFormat,
     pub width: usize,
     pub height: usize,
@@ -41,7 +41,7 @@ pub struct AverageOk {
 }
 
 /// Read, decode and average one file. Every failure becomes an `Err` outcome with a message.
-pub fn average_file(path: &Path, cfg: &Config, opts: &AverageOptions) -> AverageRecord {
+pub(crate) fn average_file(path: &Path, cfg: &Config, opts: &AverageOptions) -> AverageRecord {
     let file = path.display().to_string();
     let outcome = match average_file_inner(path, cfg, opts) {
         Ok(ok) => AverageOutcome::Ok(Box::new(ok)),
@@ -90,7 +90,7 @@ fn average_file_inner(
 
 /// A plan entry that the rig takes at a substitute pose.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct SubstituteRecord {
+pub(crate) struct SubstituteRecord {
     pub index: usize,
     pub light: usize,
     pub camera: usize,
@@ -100,7 +100,7 @@ pub struct SubstituteRecord {
 
 /// The output of `goniowatch plan --json`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct PlanSummary {
+pub(crate) struct PlanSummary {
     pub directions: usize,
     pub captures: usize,
     pub reciprocal_pairs: usize,
@@ -123,7 +123,7 @@ pub struct PlanSummary {
 
 /// `detect::probe_plan` for the config's sample, order and probe settings.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ProbePlanSummary {
+pub(crate) struct ProbePlanSummary {
     pub isotropic_sample: bool,
     /// Each probe round is followed by a joint-3 sentinel probe (anisotropic sample).
     pub sentinel: bool,
@@ -136,7 +136,7 @@ pub struct ProbePlanSummary {
 
 /// `detect::identifiability` for one acquisition order.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct OrderIdentifiability {
+pub(crate) struct OrderIdentifiability {
     pub order: String,
     /// Whether the config offers it (`[plan] order`).
     pub configurable: bool,
@@ -261,14 +261,14 @@ fn probe_plan(
 
 /// The probes' scatter against their original capture that `plan` designs for (% SD).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ProbeScatter {
+pub(crate) struct ProbeScatter {
     /// Of the luminance ratio.
     pub luminance_pct: f64,
     /// Of ln X/Y and of ln Z/Y, each.
     pub chromaticity_pct: f64,
 }
 
-pub fn plan_summary(
+pub(crate) fn plan_summary(
     cfg: &Config,
     probe_scatter: ProbeScatter,
     target: &crate::detect::probe_plan::DetectionTarget,

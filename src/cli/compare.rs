@@ -16,7 +16,7 @@ use std::path::Path;
 
 /// What `compare` reports: the inputs' names and the cross-validation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CompareReport {
+pub(crate) struct CompareReport {
     pub session: String,
     pub reference: String,
     pub reference_name: Option<String>,
@@ -28,7 +28,7 @@ pub struct CompareReport {
 
 /// How to correct for gain drift.
 #[derive(Debug, Clone, PartialEq)]
-pub enum GainChoice {
+pub(crate) enum GainChoice {
     /// The session's own drift estimate, when it has one.
     Session,
     /// A rate given by the operator (%/h).
@@ -93,7 +93,7 @@ pub(crate) fn probe_gain_curve(dir: &Path, dark_y: f64) -> Result<Vec<(f64, f64)
     Ok(points)
 }
 
-pub fn compare(
+pub(crate) fn compare(
     session: &Path,
     reference_file: &Path,
     gain: GainChoice,
@@ -178,7 +178,7 @@ pub fn compare(
 }
 
 /// The human-readable form.
-pub fn render(r: &CompareReport) -> String {
+pub(crate) fn render(r: &CompareReport) -> String {
     use std::fmt::Write;
     let mut s = String::new();
     let x = &r.result;

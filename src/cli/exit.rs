@@ -3,21 +3,21 @@
 use std::process::ExitCode;
 
 /// Some captures named on the command line could not be decoded (`average`).
-pub const EXIT_FILE_FAILED: u8 = 1;
+pub(crate) const EXIT_FILE_FAILED: u8 = 1;
 /// A usage or configuration error, or malformed input named on the command line.
-pub const EXIT_USAGE: u8 = 2;
+pub(crate) const EXIT_USAGE: u8 = 2;
 /// Anything else that failed at run time.
-pub const EXIT_RUNTIME: u8 = 3;
+pub(crate) const EXIT_RUNTIME: u8 = 3;
 /// The run raised a critical alarm.
-pub const EXIT_CRITICAL: u8 = 4;
+pub(crate) const EXIT_CRITICAL: u8 = 4;
 /// A replay did not reproduce the recorded results.
-pub const EXIT_REPLAY_MISMATCH: u8 = 5;
+pub(crate) const EXIT_REPLAY_MISMATCH: u8 = 5;
 /// `check` and watch mode: the result is empty or meaningless (`cli::summary::meaningless`).
-pub const EXIT_MEANINGLESS: u8 = 6;
+pub(crate) const EXIT_MEANINGLESS: u8 = 6;
 
 /// A mistake in how the command was called (exit status 2).
 #[derive(Debug)]
-pub struct UsageError(pub String);
+pub(crate) struct UsageError(pub String);
 
 impl std::fmt::Display for UsageError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

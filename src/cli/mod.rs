@@ -8,11 +8,11 @@
 mod acquisition;
 mod analysis;
 pub mod args;
-pub mod commands;
-pub mod compare;
+pub(crate) mod commands;
+pub(crate) mod compare;
 pub mod exit;
-pub mod report;
-pub mod summary;
+pub(crate) mod report;
+pub(crate) mod summary;
 
 use anyhow::Result;
 use args::{Cli, Command};

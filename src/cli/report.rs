@@ -17,7 +17,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// What a report is made of: the session's recorded files.
-pub struct ReportInputs {
+pub(crate) struct ReportInputs {
     pub summary: Summary,
     pub config_text: String,
     pub config: Config,
@@ -52,7 +52,7 @@ fn catch_up_counts(summary: &mut Summary, captures: &[CaptureRecord]) -> Option<
     Some(before)
 }
 
-pub fn load(dir: &Path) -> Result<ReportInputs> {
+pub(crate) fn load(dir: &Path) -> Result<ReportInputs> {
     use crate::session::folder::{load_config, load_summary, read_complete_records};
     let (config, config_text) = load_config(dir)?;
     let mut summary = load_summary(dir)?;
@@ -1352,7 +1352,7 @@ pub(crate) fn render_csvs(inp: &ReportInputs) -> Result<Vec<(&'static str, Strin
 }
 
 /// Write the report of `session` into `out` (default SESSION/report); returns the files written.
-pub fn report(session: &Path, out: Option<&Path>) -> Result<Vec<PathBuf>> {
+pub(crate) fn report(session: &Path, out: Option<&Path>) -> Result<Vec<PathBuf>> {
     let inp = load(session)?;
     let out_dir = out
         .map(Path::to_path_buf)

@@ -5,7 +5,7 @@ use crate::engine::Summary;
 /// Why a finished check's result means nothing, if it does not: most of its captures failed
 /// or are missing, or no reciprocal pair was scored (Table 2 would print zeros that look like a
 /// perfect sample). `check` and watch mode then exit with a code of their own, never 0.
-pub fn meaningless(s: &Summary) -> Option<String> {
+pub(crate) fn meaningless(s: &Summary) -> Option<String> {
     let c = &s.checked;
     if c.captures == 0 {
         return Some("no capture was checked".into());
@@ -29,7 +29,7 @@ pub fn meaningless(s: &Summary) -> Option<String> {
 }
 
 /// Print the end-of-run summary in the paper's Table 2 form.
-pub fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Result<()> {
+pub(crate) fn print_summary(s: &Summary, out: &mut impl std::io::Write) -> std::io::Result<()> {
     print_counts(s, out)?;
     print_tables(s, out)?;
     print_lamp_and_pose(s, out)?;

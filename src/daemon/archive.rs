@@ -178,7 +178,7 @@ fn identity(root: &Path) -> Option<(u64, u64)> {
 
 /// Place the files of `root` as a session with `config` would (for `check` to refuse a folder
 /// with no capture before a session folder is made).
-pub fn preflight(root: &Path, config: &crate::config::Config) -> Result<Listing> {
+pub(crate) fn preflight(root: &Path, config: &crate::config::Config) -> Result<Listing> {
     place(&ArchiveLink {
         root: root.to_path_buf(),
         spec: config.source.clone(),
@@ -191,7 +191,7 @@ pub fn preflight(root: &Path, config: &crate::config::Config) -> Result<Listing>
 }
 
 /// Tell the operator what was placed and what was not (the first `show` skipped files).
-pub fn describe(listing: &Listing, show: usize) -> String {
+pub(crate) fn describe(listing: &Listing, show: usize) -> String {
     let mut s = format!("goniowatch: files source: {}", listing.describe());
     for (name, why) in listing.skipped.iter().take(show) {
         s.push_str(&format!("\n  skipped {name}: {why}"));

@@ -278,7 +278,7 @@ fn settled(
 }
 
 /// Ingest one announced capture with the retry policy; blocks the calling (worker) thread.
-pub fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions) -> Outcome {
+pub(crate) fn ingest(root: &Path, name: &str, spec: &IngestSpec, opts: &AverageOptions) -> Outcome {
     let path = match resolve(root, name) {
         Ok(p) => p,
         Err(e) => {

@@ -87,7 +87,7 @@ fn serial_builder(port: &str, spec: &LinkSpec) -> tokio_serial::SerialPortBuilde
 }
 
 /// Run the link until `stop` turns true. Inputs go to `events`; lines to send come from `lines`.
-pub async fn run(
+pub(crate) async fn run(
     spec: LinkSpec,
     events: mpsc::UnboundedSender<Input>,
     mut lines: mpsc::UnboundedReceiver<String>,

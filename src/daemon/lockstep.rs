@@ -33,7 +33,7 @@ use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
 
 /// What `lockstep` needs: a new session folder, its config and the rig's capture root.
-pub struct LockstepOptions {
+pub(crate) struct LockstepOptions {
     pub session_dir: PathBuf,
     pub config: PathBuf,
     pub capture_root: PathBuf,
@@ -118,7 +118,7 @@ fn framed(mut raw: Vec<u8>) -> Input {
 
 /// Run a session in lockstep with the rig on `input` / `output` (stdin and stdout for the
 /// command); returns the summary and whether a critical alarm was raised. Refuses a folder that already holds a session: a lab recording is never resumed.
-pub fn lockstep(
+pub(crate) fn lockstep(
     opts: &LockstepOptions,
     input: impl BufRead,
     mut output: impl Write,

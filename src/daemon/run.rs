@@ -23,7 +23,7 @@ use tokio::sync::{mpsc, watch};
 /// After this long without a line from the controller, ask where it stands (`Input::Idle`).
 const IDLE_AFTER: Duration = Duration::from_secs(5);
 
-pub struct RunOptions {
+pub(crate) struct RunOptions {
     pub session_dir: PathBuf,
     pub config: Option<PathBuf>,
     /// A config given as text, and the name session.json records for it (used when `config`
@@ -49,7 +49,7 @@ pub struct RunOptions {
 const MAX_UNANNOUNCED: usize = 1000;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum RunEnd {
+pub(crate) enum RunEnd {
     Finished { critical: bool },
     Signal(i32),
 }
@@ -263,7 +263,7 @@ pub(crate) fn unannounced(
 
 /// Run beside the rig until the run is done (or a signal): start, then step on every input and
 /// tick, then shut down.
-pub async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
+pub(crate) async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
     // the status address is checked and bound before the session folder is touched
     let listener = match opts.http {
         None => None,

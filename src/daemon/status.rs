@@ -22,13 +22,13 @@ const RECENT_ALARMS: usize = 100;
 const TICKED_ALARMS: usize = 1000;
 
 #[derive(Debug, Clone, Serialize)]
-pub struct Direction {
+pub(crate) struct Direction {
     pub theta_deg: f64,
     pub phi_deg: f64,
 }
 
 #[derive(Debug, Clone, Serialize)]
-pub struct RecentPair {
+pub(crate) struct RecentPair {
     pub idx: u64,
     pub t_h: f64,
     pub status: String,
@@ -36,7 +36,7 @@ pub struct RecentPair {
 }
 
 #[derive(Debug, Clone, Serialize)]
-pub struct DriftPoint {
+pub(crate) struct DriftPoint {
     pub t_h: f64,
     pub rate_pct_per_h: f64,
     pub se_pct_per_h: f64,
@@ -44,7 +44,7 @@ pub struct DriftPoint {
 
 /// The lamp's colour-temperature drift estimate at a point of the run.
 #[derive(Debug, Clone, Serialize)]
-pub struct ColourPoint {
+pub(crate) struct ColourPoint {
     pub t_h: f64,
     pub k_per_h: f64,
     pub se_k_per_h: f64,
@@ -53,7 +53,7 @@ pub struct ColourPoint {
 /// A completed light sweep: its level against what its layer's pattern predicts, and the
 /// fitted offsets of joints 1 and 2.
 #[derive(Debug, Clone, Serialize)]
-pub struct SweepPoint {
+pub(crate) struct SweepPoint {
     pub t_h: f64,
     pub light: usize,
     /// The sweep's gain level less the layer's prediction (%), and its standard error.
@@ -64,7 +64,7 @@ pub struct SweepPoint {
 }
 
 #[derive(Debug, Clone, Serialize)]
-pub struct GainPoint {
+pub(crate) struct GainPoint {
     pub t_h: f64,
     /// Probe luminance over the original capture's.
     pub gain: f64,
@@ -72,7 +72,7 @@ pub struct GainPoint {
 
 /// What the page and the endpoints show.
 #[derive(Debug, Clone, Serialize)]
-pub struct Snapshot {
+pub(crate) struct Snapshot {
     pub summary: Summary,
     /// Captures checked (regular and probes), and those that failed or went missing.
     pub checked: u64,
@@ -326,7 +326,7 @@ impl Published {
 }
 
 /// Prometheus text exposition of a snapshot.
-pub fn metrics(s: &Snapshot) -> String {
+pub(crate) fn metrics(s: &Snapshot) -> String {
     use std::fmt::Write;
     let mut out = String::new();
     let mut g = |name: &str, help: &str, v: f64| {

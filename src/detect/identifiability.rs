@@ -18,7 +18,7 @@ use serde::Serialize;
 
 /// How well the pairs of one acquisition order identify the drift.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct PairIdentifiability {
+pub(crate) struct PairIdentifiability {
     /// Standard error of a linear drift rate (%/h) from all the pairs of a run, per 1 % of pair
     /// noise; `None` when the order makes it indistinguishable from the direction effects.
     pub rate_se_pct_per_h: Option<f64>,
@@ -102,7 +102,7 @@ impl Design<'_> {
 /// Identifiability of the drift from the reciprocal pairs of `plan`, each capture at
 /// `hours_of(index)` hours (its place in the acquisition order times the capture interval), a
 /// step tested at each of `step_fractions` of the run.
-pub fn pair_identifiability(
+pub(crate) fn pair_identifiability(
     plan: &SamplingPlan,
     hours_of: impl Fn(usize) -> f64,
     step_fractions: &[f64],

@@ -20,7 +20,7 @@ const PLANCK_C2_M_K: f64 = 1.438_776_877e-2;
 
 /// Relative spectral radiance of a black body at `t_k` kelvin, wavelength in nm (the first
 /// radiation constant is left out: only ratios are used).
-pub fn planck_relative(wavelength_nm: f64, t_k: f64) -> f64 {
+pub(crate) fn planck_relative(wavelength_nm: f64, t_k: f64) -> f64 {
     let lam = wavelength_nm * 1e-9;
     1.0 / (lam.powi(5) * (PLANCK_C2_M_K / (lam * t_k)).exp_m1())
 }
@@ -28,7 +28,7 @@ pub fn planck_relative(wavelength_nm: f64, t_k: f64) -> f64 {
 /// The lamp model at a reference colour temperature: the CIE 1931 2° observer and D65 (the
 /// illuminant the session's XYZ assume) on 5 nm bands from 380 to 780 nm.
 #[derive(Debug, Clone)]
-pub struct LampColour {
+pub(crate) struct LampColour {
     reference_k: f64,
     spectral: SpectralToXyz,
     wavelengths: Vec<f64>,
@@ -38,7 +38,7 @@ pub struct LampColour {
 
 /// A colour-temperature rate from the two log-chromaticity rates.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct CctRate {
+pub(crate) struct CctRate {
     pub k_per_h: f64,
     pub se_k_per_h: f64,
 }
@@ -46,12 +46,12 @@ pub struct CctRate {
 impl CctRate {
     /// The colour-drift alarm's rule: the rate exceeds `tolerance_k_per_h` by `z` standard
     /// errors (the daemon's `colour-drift` and `goniowatch plan`'s simulation of it).
-    pub fn exceeds(&self, tolerance_k_per_h: f64, z: f64) -> bool {
+    pub(crate) fn exceeds(&self, tolerance_k_per_h: f64, z: f64) -> bool {
         self.k_per_h.abs() - z * self.se_k_per_h > tolerance_k_per_h
     }
 
     /// The clearing rule: the rate is within `tolerance_k_per_h` by `z` standard errors.
-    pub fn within(&self, tolerance_k_per_h: f64, z: f64) -> bool {
+    pub(crate) fn within(&self, tolerance_k_per_h: f64, z: f64) -> bool {
         self.k_per_h.abs() + z * self.se_k_per_h < tolerance_k_per_h
     }
 }
@@ -59,7 +59,7 @@ impl CctRate {
 impl LampColour {
     /// The model for a lamp whose reference colour temperature is `reference_k` kelvin
     /// (1000–20,000 K).
-    pub fn new(reference_k: f64) -> Result<Self, ColourError> {
+    pub(crate) fn new(reference_k: f64) -> Result<Self, ColourError> {
         if !(reference_k.is_finite() && (1000.0..=20_000.0).contains(&reference_k)) {
             return Err(ColourError::BadTemperature {
                 kelvin: reference_k,
@@ -77,18 +77,19 @@ impl LampColour {
         Ok(m)
     }
 
-    pub fn reference_k(&self) -> f64 {
+    pub(crate) fn reference_k(&self) -> f64 {
         self.reference_k
     }
 
     /// ∂(ln X/Y, ln Z/Y)/∂T at the reference (per kelvin).
-    pub fn sensitivity(&self) -> [f64; 2] {
+    #[cfg(test)]
+    pub(crate) fn sensitivity(&self) -> [f64; 2] {
         self.sensitivity
     }
 
     /// XYZ of a perfect white (Y = 100) lit by the lamp at `t_k`, white-balanced at the
     /// reference.
-    pub fn white_at(&self, t_k: f64) -> Xyz {
+    pub(crate) fn white_at(&self, t_k: f64) -> Xyz {
         // the model holds for lamps, not for any number an estimate can reach: a temperature
         // outside 500–50,000 K (a rate extrapolated from a short span) is taken at the bound
         let t_k = if t_k.is_nan() {
@@ -108,7 +109,7 @@ impl LampColour {
     }
 
     /// (ln X/Y, ln Z/Y) of the white at `t_k` minus those at the reference.
-    pub fn log_chromaticity(&self, t_k: f64) -> [f64; 2] {
+    pub(crate) fn log_chromaticity(&self, t_k: f64) -> [f64; 2] {
         let (w, w0) = (self.white_at(t_k), self.spectral.white());
         [
             (w[0] / w[1]).ln() - (w0[0] / w0[1]).ln(),
@@ -118,7 +119,7 @@ impl LampColour {
 
     /// ∂(ln X/Y, ln Z/Y)/∂T at `t_k` (per kelvin; central difference over ±1 K: the curve is
     /// smooth on that scale, and a 1 K step keeps the difference far above rounding).
-    pub fn sensitivity_at(&self, t_k: f64) -> [f64; 2] {
+    pub(crate) fn sensitivity_at(&self, t_k: f64) -> [f64; 2] {
         let (hi, lo) = (
             self.log_chromaticity(t_k + 1.0),
             self.log_chromaticity(t_k - 1.0),
@@ -149,7 +150,7 @@ impl LampColour {
     /// least squares on the model, so the curvature of the chromaticity in T does not bias
     /// the rate), over the span; the standard error propagated through the sensitivity at the
     /// middle of the span. `None` without finite inputs.
-    pub fn cct_rate(&self, u: (f64, f64), v: (f64, f64), span_h: f64) -> Option<CctRate> {
+    pub(crate) fn cct_rate(&self, u: (f64, f64), v: (f64, f64), span_h: f64) -> Option<CctRate> {
         if !(span_h > 0.0
             && span_h.is_finite()
             && u.0.is_finite()
@@ -173,7 +174,7 @@ impl LampColour {
 
     /// ΔE00 of a white surface over one hour of a `k_per_h` drift from the reference. L\*a\*b\*
     /// is relative to `white`, so any white gives the same figure for a white surface.
-    pub fn delta_e00_per_h(&self, k_per_h: f64, white: White) -> f64 {
+    pub(crate) fn delta_e00_per_h(&self, k_per_h: f64, white: White) -> f64 {
         let w = white.xyz();
         let d = self.log_chromaticity(self.reference_k + k_per_h);
         let moved = [w[0] * d[0].exp(), w[1], w[2] * d[1].exp()];

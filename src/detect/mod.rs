@@ -4,10 +4,10 @@
 //! into alarms and owns the words, the severity and the advice. Their design is in
 //! docs/detectors.md.
 
-pub mod drift;
-pub mod identifiability;
-pub mod lamp;
-pub mod probe_plan;
-pub mod probes;
-pub mod sentinel;
-pub mod sweeps;
+pub(crate) mod drift;
+pub(crate) mod identifiability;
+pub(crate) mod lamp;
+pub(crate) mod probe_plan;
+pub(crate) mod probes;
+pub(crate) mod sentinel;
+pub(crate) mod sweeps;

@@ -60,11 +60,11 @@ pub struct SentinelSummary {
 }
 
 /// The sentinel sits off grazing: θo at most this ...
-pub const SENTINEL_MAX_THETA_O_DEG: f64 = 60.0;
+pub(crate) const SENTINEL_MAX_THETA_O_DEG: f64 = 60.0;
 /// ... and off the pole, where the azimuth is undefined.
-pub const SENTINEL_MIN_THETA_O_DEG: f64 = 5.0;
+pub(crate) const SENTINEL_MIN_THETA_O_DEG: f64 = 5.0;
 /// The smallest sensitivity (%/°) a sentinel may have whatever its test's threshold.
-pub const SENTINEL_MIN_PCT_PER_DEG: f64 = 0.5;
+pub(crate) const SENTINEL_MIN_PCT_PER_DEG: f64 = 0.5;
 
 /// Chooses the sentinel among the pole light's captures: off grazing and off the pole, both
 /// ring neighbours measured (one plan step away), on a flank (one neighbour brighter and the

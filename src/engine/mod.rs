@@ -103,7 +103,7 @@ pub enum Output {
     Finished,
 }
 
-pub use link::LinkStats;
+pub(crate) use link::LinkStats;
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
@@ -511,7 +511,7 @@ impl Engine {
 
     /// The planned entries (the first `captures_planned` of the plan, in acquisition order)
     /// that no announced regular capture stands for, in entry order.
-    pub fn entries_not_captured(&self) -> Vec<usize> {
+    pub(crate) fn entries_not_captured(&self) -> Vec<usize> {
         let taken: std::collections::BTreeSet<usize> = self
             .ledger
             .announced

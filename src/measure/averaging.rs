@@ -91,7 +91,7 @@ impl Roi {
     }
 
     /// The pixel rectangle (x0, y0, x1, y1), half-open, for an image of the given size.
-    pub fn bounds(&self, width: usize, height: usize) -> (usize, usize, usize, usize) {
+    pub(crate) fn bounds(&self, width: usize, height: usize) -> (usize, usize, usize, usize) {
         match *self {
             Roi::Full => (0, 0, width, height),
             Roi::Rect {

@@ -13,7 +13,7 @@ use thiserror::Error;
 /// CIE XYZ tristimulus values.
 pub type Xyz = [f64; 3];
 /// Linear RGB (scene-referred, no transfer function).
-pub type Rgb = [f64; 3];
+pub(crate) type Rgb = [f64; 3];
 
 /// CIE 1976 L*a*b*.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -154,7 +154,7 @@ impl RgbToXyz {
     }
 
     /// `rgb` scaled by `scale` (the files' values onto the white's scale), then converted.
-    pub fn convert_scaled(&self, rgb: Rgb, scale: f64) -> Xyz {
+    pub(crate) fn convert_scaled(&self, rgb: Rgb, scale: f64) -> Xyz {
         self.convert([rgb[0] * scale, rgb[1] * scale, rgb[2] * scale])
     }
 }

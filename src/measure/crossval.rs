@@ -106,7 +106,7 @@ fn column_norm(v: &[Xyz], j: usize) -> f64 {
 }
 
 impl ColourTransform {
-    pub fn apply(&self, v: Xyz) -> Xyz {
+    pub(crate) fn apply(&self, v: Xyz) -> Xyz {
         let t = &self.t;
         [
             t[0][0] * v[0] + t[0][1] * v[1] + t[0][2] * v[2],
@@ -184,7 +184,7 @@ pub(crate) fn fit_transform_weighted(
 
 /// Max, average and median of a list (the paper's Table 3 columns).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
-pub struct Table3Row {
+pub(crate) struct Table3Row {
     pub max: f64,
     pub avg: f64,
     pub median: f64,
@@ -246,7 +246,7 @@ pub(crate) struct SessionValue {
 /// A gain model to divide out: a measured gain curve when there is one (`points`, e.g. the
 /// drift probes: steps included), else g(t) = exp(r·t), r = rate_pct_per_h / 100 per hour.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct GainCorrection {
+pub(crate) struct GainCorrection {
     pub rate_pct_per_h: f64,
     pub se_pct_per_h: f64,
     /// Where the model comes from (`probes`, `command line`, ...).
@@ -257,7 +257,7 @@ pub struct GainCorrection {
 }
 
 impl GainCorrection {
-    pub fn gain(&self, t_s: f64) -> f64 {
+    pub(crate) fn gain(&self, t_s: f64) -> f64 {
         let t = t_s / 3600.0;
         let p = &self.points;
         if p.len() >= 2 {
@@ -286,7 +286,7 @@ impl GainCorrection {
 
 /// One of the directions with the largest deviation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Deviation {
+pub(crate) struct Deviation {
     pub idx: u64,
     pub entry: usize,
     /// θi, φi, θo, φo of the capture (degrees).
@@ -300,7 +300,7 @@ pub struct Deviation {
 
 /// Table 3 for one set of session values.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Table3 {
+pub(crate) struct Table3 {
     pub transform: ColourTransform,
     pub de76: Table3Row,
     pub de2000: Table3Row,
@@ -309,7 +309,7 @@ pub struct Table3 {
 
 /// The result of `cross_validate`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CrossValidation {
+pub(crate) struct CrossValidation {
     pub reference_layers_deg: Vec<f64>,
     pub captures_compared: usize,
     /// Captures the reference does not reach (θi beyond its layers, outgoing directions outside

@@ -118,7 +118,7 @@ impl Default for RigSpec {
 }
 
 impl RigSpec {
-    pub fn validate(&self) -> Result<(), KinematicsError> {
+    pub(crate) fn validate(&self) -> Result<(), KinematicsError> {
         let bad =
             |field: &'static str, message: String| Err(KinematicsError::BadSpec { field, message });
         if !(self.min_separation_deg.is_finite() && (0.0..90.0).contains(&self.min_separation_deg))

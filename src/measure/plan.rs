@@ -178,7 +178,7 @@ impl SamplingPlan {
     pub fn directions(&self) -> &[PlanDirection] {
         &self.directions
     }
-    pub fn order(&self) -> AcquisitionOrder {
+    pub(crate) fn order(&self) -> AcquisitionOrder {
         self.order
     }
     pub(crate) fn direction_count(&self) -> usize {
@@ -263,7 +263,7 @@ impl SamplingPlan {
     }
 
     /// Captures whose light and camera directions coincide (their own reciprocal partner).
-    pub fn self_pairs(&self) -> Vec<usize> {
+    pub(crate) fn self_pairs(&self) -> Vec<usize> {
         (0..self.directions.len())
             .filter_map(|d| self.index_of(d, d))
             .collect()

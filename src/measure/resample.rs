@@ -183,7 +183,7 @@ fn merge(points: Vec<([f64; 3], Xyz)>) -> Vec<([f64; 3], Xyz)> {
 impl Resampler {
     /// The samples of one incoming direction (their own ωi is ignored) in the mirror-aligned
     /// square of `omega_i`.
-    pub fn slice(
+    pub(crate) fn slice(
         samples: &[Sample],
         omega_i: &Vec3,
         spec: &ResampleSpec,
@@ -281,7 +281,7 @@ impl Resampler {
     }
 
     /// Nodes after merging.
-    pub fn nodes(&self) -> usize {
+    pub(crate) fn nodes(&self) -> usize {
         self.nodes
     }
 

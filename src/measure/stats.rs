@@ -25,7 +25,7 @@ impl SplitMix64 {
         lo + (hi - lo) * self.uniform()
     }
     /// Standard normal (Box–Muller).
-    pub fn gauss(&mut self) -> f64 {
+    pub(crate) fn gauss(&mut self) -> f64 {
         let (u, v) = (self.uniform().max(1e-300), self.uniform());
         (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
     }

@@ -12,7 +12,7 @@
 
 /// How far a capture's time may lie before the previous one's without being a step back
 /// (two files written in the same second, times rounded to whole seconds).
-pub const STEP_BACK_SLACK_S: f64 = 1.0;
+pub(crate) const STEP_BACK_SLACK_S: f64 = 1.0;
 
 /// A clock that went back.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -27,7 +27,7 @@ pub struct StepBack {
 }
 
 #[derive(Debug, Clone, Default)]
-pub struct TimeLine {
+pub(crate) struct TimeLine {
     /// The time line's time of the last capture checked.
     last: Option<f64>,
     /// Seconds added to announced times: the sum of the steps back so far.
@@ -37,7 +37,7 @@ pub struct TimeLine {
 impl TimeLine {
     /// The time line's time of a capture announced at `t` (checked in index order), and the
     /// step back it shows, if any.
-    pub fn handle_capture(&mut self, t: f64) -> (f64, Option<StepBack>) {
+    pub(crate) fn handle_capture(&mut self, t: f64) -> (f64, Option<StepBack>) {
         let mut on_line = t + self.shift;
         let mut step = None;
         if let Some(last) = self.last {
@@ -58,7 +58,8 @@ impl TimeLine {
     }
 
     /// Seconds added to the announced times since the steps back (0 when there were none).
-    pub fn shift_s(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn shift_s(&self) -> f64 {
         self.shift
     }
 }

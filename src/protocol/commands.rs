@@ -45,7 +45,7 @@ pub enum CommandError {
 
 impl CommandError {
     /// The `reason` of the NAK that answers it (docs/protocol.md).
-    pub fn nak_reason(&self) -> &'static str {
+    pub(crate) fn nak_reason(&self) -> &'static str {
         match self {
             CommandError::UnknownVerb(_) => "unknown-verb",
             CommandError::BadArgs { .. } => "bad-args",
@@ -55,7 +55,7 @@ impl CommandError {
 
 impl ToController {
     /// The verb on the wire.
-    pub fn verb(&self) -> &'static str {
+    pub(crate) fn verb(&self) -> &'static str {
         match self {
             ToController::Hello { .. } => "HELLO",
             ToController::Subscribe => "SUBSCRIBE",
@@ -68,7 +68,7 @@ impl ToController {
     }
 
     /// The fields, in the order they are written.
-    pub fn fields(&self) -> Vec<(&'static str, String)> {
+    pub(crate) fn fields(&self) -> Vec<(&'static str, String)> {
         match self {
             ToController::Hello { proto, client } => {
                 vec![("proto", proto.clone()), ("client", client.clone())]
@@ -83,7 +83,7 @@ impl ToController {
     }
 
     /// The framed line with sequence number `seq` (CRC included, no LF).
-    pub fn encode(&self, seq: u32) -> String {
+    pub(crate) fn encode(&self, seq: u32) -> String {
         format(seq, self.verb(), &self.fields())
     }
 

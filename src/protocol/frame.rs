@@ -100,7 +100,7 @@ impl Message {
             .find(|(k, _)| k == key)
             .map(|(_, v)| v.as_str())
     }
-    pub fn get_u64(&self, key: &str) -> Option<u64> {
+    pub(crate) fn get_u64(&self, key: &str) -> Option<u64> {
         self.get(key)?.parse().ok()
     }
     pub(crate) fn get_f64(&self, key: &str) -> Option<f64> {

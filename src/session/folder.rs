@@ -86,7 +86,7 @@ pub(crate) fn read_session_captures(dir: &Path) -> Result<Vec<crate::checks::Cap
 }
 
 /// A session's stored configuration, loaded once: the parsed config and its text.
-pub fn load_config(dir: &Path) -> Result<(Config, String)> {
+pub(crate) fn load_config(dir: &Path) -> Result<(Config, String)> {
     let path = dir.join("config.toml");
     let text = std::fs::read_to_string(&path).with_context(|| {
         format!(
@@ -202,7 +202,7 @@ impl Results {
 
 /// `path` made absolute, with `.` dropped and `..` taken by the names (a `..` after a folder
 /// that does not exist yet cannot be resolved by the file system).
-pub fn normal_absolute(path: &Path) -> Result<PathBuf> {
+pub(crate) fn normal_absolute(path: &Path) -> Result<PathBuf> {
     use std::path::Component;
     let abs = std::path::absolute(path).with_context(|| format!("{}", path.display()))?;
     let mut out = PathBuf::new();
@@ -220,7 +220,7 @@ pub fn normal_absolute(path: &Path) -> Result<PathBuf> {
 
 /// Whether `folder` (which need not exist yet) is the capture folder or lies inside it, by its
 /// names or through a link on its way: goniowatch never writes there.
-pub fn inside_capture_folder(folder: &Path, capture_root: &Path) -> bool {
+pub(crate) fn inside_capture_folder(folder: &Path, capture_root: &Path) -> bool {
     let Ok(folder) = normal_absolute(folder) else {
         return false;
     };

@@ -237,7 +237,7 @@ impl JsonlFile {
             dirty: false,
         })
     }
-    pub fn write<T: Serialize>(&mut self, value: &T) -> Result<()> {
+    pub(crate) fn write<T: Serialize>(&mut self, value: &T) -> Result<()> {
         let mut line = serde_json::to_vec(value)?;
         line.push(b'\n');
         self.write_line(&line)

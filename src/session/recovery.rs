@@ -67,7 +67,7 @@ fn results_present(dir: &Path) -> Vec<&'static str> {
 
 /// The config a new session is created from.
 #[derive(Debug, Clone, Copy)]
-pub enum ConfigGiven<'a> {
+pub(crate) enum ConfigGiven<'a> {
     /// A config file (relative paths in it are taken from its folder).
     File(&'a Path),
     /// A config text, named `source` in session.json (relative paths from the working folder).
@@ -93,7 +93,11 @@ impl ConfigGiven<'_> {
 /// `config_text`, if it cannot: a session folder belongs to one capture folder and one config,
 /// and a resume of another would report the old folder's results as the new one's. `None`
 /// for a folder that holds no session yet, or the same source.
-pub fn other_source(dir: &Path, capture_root: &Path, config_text: &str) -> Result<Option<String>> {
+pub(crate) fn other_source(
+    dir: &Path,
+    capture_root: &Path,
+    config_text: &str,
+) -> Result<Option<String>> {
     let (stored, info_path) = (dir.join("config.toml"), dir.join("session.json"));
     if !(stored.exists() && info_path.exists()) {
         return Ok(None);
@@ -133,7 +137,7 @@ pub fn other_source(dir: &Path, capture_root: &Path, config_text: &str) -> Resul
 /// written its end-of-set results (the pairs resolved at the end, the final alarms), so captures
 /// that appeared since are not appended to it, and reporting the old result for the new folder
 /// would be wrong. None for a session that is not finished, or whose captures are the folder's.
-pub fn finished_check_outdated(dir: &Path, placed: &[String]) -> Result<Option<String>> {
+pub(crate) fn finished_check_outdated(dir: &Path, placed: &[String]) -> Result<Option<String>> {
     let Ok(summary) = super::folder::load_summary(dir) else {
         return Ok(None);
     };
@@ -171,7 +175,7 @@ impl Session {
     }
 
     /// Create `dir` from a config file or text, or reopen it (then its stored config is used).
-    pub fn open_or_create_given(
+    pub(crate) fn open_or_create_given(
         dir: &Path,
         given: Option<ConfigGiven<'_>>,
         port: Option<&Path>,
@@ -371,7 +375,7 @@ pub(crate) fn verified_journal(path: &Path, require_sums: bool) -> Result<Journa
 }
 
 /// The inputs of a journal, in order.
-pub fn inputs(entries: &[JournalEntry]) -> impl Iterator<Item = (u64, &Input)> {
+pub(crate) fn inputs(entries: &[JournalEntry]) -> impl Iterator<Item = (u64, &Input)> {
     entries.iter().filter_map(|e| match &e.item {
         JournalItem::In(i) => Some((e.wall_ms, i)),
         JournalItem::Out(_) => None,

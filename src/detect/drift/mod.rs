@@ -204,17 +204,17 @@ impl MountPattern {
     }
 
     /// Whether the light's half is told apart from a rate in this fit.
-    pub fn light_separated(&self) -> bool {
+    pub(crate) fn light_separated(&self) -> bool {
         self.rate_inflation <= MAX_RATE_INFLATION
     }
 
     /// Amplitude (% per unit tan θ) and the azimuth it points to (degrees), light side.
-    pub fn light_pct(&self) -> (f64, f64) {
+    pub(crate) fn light_pct(&self) -> (f64, f64) {
         polar(self.light)
     }
 
     /// Amplitude (% per unit tan θ) and the azimuth it points to (degrees), camera side.
-    pub fn camera_pct(&self) -> (f64, f64) {
+    pub(crate) fn camera_pct(&self) -> (f64, f64) {
         polar(self.camera)
     }
 }

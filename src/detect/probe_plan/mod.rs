@@ -32,7 +32,7 @@ use simulate::*;
 /// drift before 15 % of the run, in 9 runs of 10 each, and at most one false alarm in 20
 /// fault-free runs.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct DetectionTarget {
+pub(crate) struct DetectionTarget {
     /// A linear decay of the gain (%/h; its sign does not matter to the detector).
     pub decay_pct_per_h: f64,
     /// ... flagged before this fraction of the run.
@@ -68,7 +68,7 @@ impl Default for DetectionTarget {
 
 /// The session the probes are planned for.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ProbeSession {
+pub(crate) struct ProbeSession {
     /// Regular captures in the plan.
     pub captures: u64,
     pub seconds_per_capture: f64,
@@ -89,7 +89,7 @@ pub struct ProbeSession {
 
 /// The colour check the probes feed (`[checks.colour_drift]`) and their chromaticity scatter.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ColourProbes {
+pub(crate) struct ColourProbes {
     /// The lamp's colour temperature at the start (K): the lamp model's reference.
     pub lamp_cct_k: f64,
     pub tolerance_k_per_h: f64,
@@ -100,7 +100,7 @@ pub struct ColourProbes {
 
 /// One cadence's measured figures.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct CadenceFigures {
+pub(crate) struct CadenceFigures {
     /// A probe every this many regular captures.
     pub every: u64,
     pub probes_per_run: u64,
@@ -128,7 +128,7 @@ pub struct CadenceFigures {
 /// The outcome of the design.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "outcome", rename_all = "snake_case")]
-pub enum ProbePlan {
+pub(crate) enum ProbePlan {
     /// The sparsest cadence that meets every part of the target; `tried` holds the cadences
     /// tried, sparsest first, up to it.
     Recommended {
@@ -144,7 +144,7 @@ pub enum ProbePlan {
 }
 
 #[derive(Debug, thiserror::Error, PartialEq)]
-pub enum ProbePlanError {
+pub(crate) enum ProbePlanError {
     #[error("{field}: {message}")]
     Invalid {
         field: &'static str,
@@ -153,13 +153,13 @@ pub enum ProbePlanError {
 }
 
 /// Candidate cadences, sparsest first.
-pub const CADENCES: [u64; 12] = [600, 450, 300, 250, 200, 150, 100, 75, 50, 35, 25, 15];
+pub(crate) const CADENCES: [u64; 12] = [600, 450, 300, 250, 200, 150, 100, 75, 50, 35, 25, 15];
 
 /// Monte Carlo runs per cadence and scenario: a share of 0.05 is then resolved to about ±0.015.
-pub const RUNS: u64 = 200;
+pub(crate) const RUNS: u64 = 200;
 
 /// The figures of one cadence over `RUNS` runs per scenario.
-pub fn cadence_figures(
+pub(crate) fn cadence_figures(
     s: &ProbeSession,
     spec: &ProbeSpec,
     target: &DetectionTarget,
@@ -431,7 +431,7 @@ fn unreachable_reason(
 }
 
 /// The probe plan for a session: every candidate cadence's figures and the recommendation.
-pub fn design(
+pub(crate) fn design(
     s: &ProbeSession,
     spec: &ProbeSpec,
     target: &DetectionTarget,

@@ -87,15 +87,15 @@ pub struct ProbePose {
 }
 
 /// A probe pose is far from grazing: θi at most this ...
-pub const PROBE_MAX_THETA_I_DEG: f64 = 30.0;
+pub(crate) const PROBE_MAX_THETA_I_DEG: f64 = 30.0;
 /// ... and θo at most this.
-pub const PROBE_MAX_THETA_O_DEG: f64 = 45.0;
+pub(crate) const PROBE_MAX_THETA_O_DEG: f64 = 45.0;
 /// It is off the specular peak (where a pose error changes the luminance most) by at least this.
-pub const PROBE_MIN_SPECULAR_DEG: f64 = 25.0;
+pub(crate) const PROBE_MIN_SPECULAR_DEG: f64 = 25.0;
 /// Neighbours within this angle measure its sensitivity to a pose error.
-pub const PROBE_NEIGHBOUR_DEG: f64 = 25.0;
+pub(crate) const PROBE_NEIGHBOUR_DEG: f64 = 25.0;
 /// Any candidate at most this sensitive (%/°) is quiet enough to be chosen for its brightness.
-pub const PROBE_QUIET_PCT_PER_DEG: f64 = 0.5;
+pub(crate) const PROBE_QUIET_PCT_PER_DEG: f64 = 0.5;
 
 /// Chooses the probe pose among checked captures (pass them in entry order): far from grazing
 /// and off the specular peak (the limits above), with at least two neighbours to measure its
@@ -182,13 +182,13 @@ pub(crate) fn choose_probe_pose(samples: &[PoseSample]) -> Option<ProbePose> {
 }
 
 /// `lamp-unstable` when the probes' robust scatter exceeds the design scatter by this factor ...
-pub const UNSTABLE_FACTOR: f64 = 2.0;
+pub(crate) const UNSTABLE_FACTOR: f64 = 2.0;
 /// ... and clears below this one (hysteresis).
-pub const UNSTABLE_CLEAR_FACTOR: f64 = 1.5;
+pub(crate) const UNSTABLE_CLEAR_FACTOR: f64 = 1.5;
 /// The scatter is judged over the last this many probes of a segment (the original capture
 /// that anchors the first segment left out): the MAD of fewer is too coarse, and a window keeps
 /// a flicker that starts late in a long steady segment from being outvoted.
-pub const UNSTABLE_WINDOW: usize = 8;
+pub(crate) const UNSTABLE_WINDOW: usize = 8;
 
 #[derive(Debug, Clone)]
 pub(crate) struct ProbeDrift {

@@ -6,7 +6,7 @@ use super::JointFit;
 /// The sweep a finding was made at: its light direction, its last capture with that capture's
 /// controller time, and its θi layer (millidegrees).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SweepAt {
+pub(crate) struct SweepAt {
     pub light: usize,
     pub last_idx: u64,
     pub last_t: f64,
@@ -16,7 +16,7 @@ pub struct SweepAt {
 /// A level CUSUM run that crossed its threshold: its mean level (%), the sweeps in it and the
 /// capture that ended its first sweep, its statistic and the threshold it crossed.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LevelRun {
+pub(crate) struct LevelRun {
     pub level_pct: f64,
     pub sweeps: usize,
     pub since_idx: u64,
@@ -30,7 +30,7 @@ pub struct LevelRun {
 /// the statistic and the threshold it crossed, the level change attributed to it (when a level
 /// change named it) and the sweep's fits of the other joints.
 #[derive(Debug, Clone, PartialEq)]
-pub struct JointSlip {
+pub(crate) struct JointSlip {
     /// 1 or 2.
     pub joint: usize,
     pub offset_deg: f64,
@@ -49,7 +49,7 @@ pub struct JointSlip {
 /// What the sweep checks saw in a completed sweep, with its numbers. `checks` words these as
 /// alarms.
 #[derive(Debug, Clone, PartialEq)]
-pub enum SweepFinding {
+pub(crate) enum SweepFinding {
     /// The level of the layer's sweeps moved `up` or down beyond the modelled drift and no
     /// joint's pattern explains it: a lamp step, which the drift model takes from `from_idx`
     /// (the first capture of the run's first sweep, at `since_t`).
@@ -84,7 +84,7 @@ pub enum SweepFinding {
 
 impl SweepFinding {
     /// The sweep it was made at.
-    pub fn at(&self) -> &SweepAt {
+    pub(crate) fn at(&self) -> &SweepAt {
         match self {
             SweepFinding::GainStep { at, .. }
             | SweepFinding::LevelAfterSlip { at, .. }

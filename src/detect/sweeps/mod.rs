@@ -51,7 +51,7 @@ mod session_tests;
 #[cfg(test)]
 mod tests;
 
-pub use findings::{JointSlip, LevelRun, SweepAt, SweepFinding};
+pub(crate) use findings::{JointSlip, LevelRun, SweepAt, SweepFinding};
 use level::ScaleHistory;
 use model::{Model, PatternFit, Reference, Row};
 
