@@ -237,10 +237,71 @@ def test_an_all_dark_set_is_not_a_perfect_table_2(tmp_path):
     cfg.write_text(open(os.path.join(REPO, "config", "sim.toml"), encoding="utf-8").read().replace("dark_y = 0.5", "dark_y = 100000.0"))
     code, out, err = run_check(folder, tmp_path / "dark-session", cfg)
     assert code == 6, (code, out, err[-2000:])
-    assert "no reciprocal pair was scored" in err and "rgb_scale" in err, err
+    assert "captures are dark" in err and "rgb_scale" in err, err
     # the same set with the right dark level scores its pairs and exits 0
     code, out, err = run_check(folder, tmp_path / "lit-session")
     assert code == 0, err[-2000:]
+
+
+def rescaled(folder, dest, shift):
+    """A copy of a flat-RGBE Bonn archive with every pixel times 2**shift (the exponent byte
+    moved: the copy holds the same picture exactly, on another scale); written here, not by the
+    simulator's archive writer."""
+    dest.mkdir(parents=True)
+    for name in sorted(os.listdir(folder)):
+        data = (folder / name).read_bytes()
+        head = data.index(b"\n", data.index(b"\n\n") + 2) + 1
+        px = bytearray(data[head:])
+        for i in range(3, len(px), 4):
+            if px[i]:
+                px[i] += shift
+        (dest / name).write_bytes(data[:head] + bytes(px))
+    return dest
+
+
+def check_without_config(folder, session):
+    """`goniowatch check FOLDER` with the built-in config (no --config): (code, out, err)."""
+    r = subprocess.run([binary(), "check", str(folder), "--quiet", "--session", str(session)], capture_output=True, text=True, timeout=600)
+    return r.returncode, r.stdout, r.stderr
+
+
+SCALE_FAULTS = [
+    {"kind": "lamp-step", "at_capture": 900, "step_pct": -5.0},
+    {"kind": "joint-offset", "at_capture": 1700, "joint": 2, "offset_deg": 2.0},
+]
+
+
+def test_a_bonn_archive_on_any_scale_checks_as_with_its_scale_configured(tmp_path):
+    """A Bonn-named archive at 2^-10 (about 1e-3), 1 and 2^10 (about 1e3) times the simulator's
+    radiance, checked with no config (the built-in one sets no rgb_scale): the white is taken
+    from the data and printed with the factor, every scale gives the same captures, and the same
+    drift and positioning alarms are raised and the same pairs scored as with the simulator's
+    scale (rgb_scale = 100) configured."""
+    needs_simulator()
+    folder, _ = write_archive(tmp_path, "scales", SCALE_FAULTS, naming="bonn", captures=2600, id="scales")
+    configured = tmp_path / "configured.toml"
+    configured.write_text(open(os.path.join(REPO, "config", "archive.toml"), encoding="utf-8").read() + "\n[colour]\nrgb_scale = 100.0\n")
+    code, out, err = run_check(folder, tmp_path / "configured", configured)
+    assert code == 0, err[-2000:]
+    want = [(x["code"], x.get("idx")) for x in read_jsonl(tmp_path / "configured" / "alarms.jsonl") if x["kind"] in ("drift", "positioning")]
+    codes = {c for c, _ in want}
+    assert {"gain-step", "gain-drift"} & codes and "joint-offset-suspected" in codes, want
+    want_pairs = json.load(open(tmp_path / "configured" / "summary.json"))["table2"]["pairs"]
+    assert want_pairs > 100, want_pairs
+    xyz = {}
+    for shift in (-10, 0, 10):
+        data = folder if shift == 0 else rescaled(folder, tmp_path / f"scale{shift}" / "scales", shift)
+        session = tmp_path / f"auto{shift}"
+        code, out, err = check_without_config(data, session)
+        assert code == 0, (shift, err[-2000:])
+        assert "the white is taken from the data" in err and "rgb_scale =" in err, err
+        got = [(x["code"], x.get("idx")) for x in read_jsonl(session / "alarms.jsonl") if x["kind"] in ("drift", "positioning")]
+        assert got == want, (shift, got, want)
+        assert json.load(open(session / "summary.json"))["table2"]["pairs"] == want_pairs
+        assert "rgb_scale" in (session / "config.toml").read_text()
+        xyz[shift] = [c.get("xyz") for c in read_jsonl(session / "captures.jsonl")]
+        assert_replay_identical(session, tmp_path)
+    assert xyz[-10] == xyz[0] == xyz[10]
 
 
 def test_a_finished_check_does_not_wait_for_sidecar_rows_without_their_files(tmp_path):

@@ -78,30 +78,26 @@ impl WhiteSpec {
     }
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ColourSpec {
     #[serde(default)]
     pub primaries: RgbPrimaries,
-    /// Multiplies the mean RGB before conversion (brings uncalibrated HDR values to a 0–100
-    /// scale like the paper's).
-    #[serde(default = "one")]
-    pub rgb_scale: f64,
+    /// Multiplies the mean RGB before conversion (brings uncalibrated HDR values to the
+    /// white's scale, 0–100 like the paper's). Not set: `check` and watch mode take it from
+    /// the data (the white at a high percentile of the captures' Y, printed at start and
+    /// written into the session's config); a run over serial takes the values as they are (1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rgb_scale: Option<f64>,
     #[serde(default)]
     pub white: WhiteSpec,
 }
 
-fn one() -> f64 {
-    1.0
-}
-
-impl Default for ColourSpec {
-    fn default() -> Self {
-        ColourSpec {
-            primaries: RgbPrimaries::default(),
-            rgb_scale: 1.0,
-            white: WhiteSpec::default(),
-        }
+impl ColourSpec {
+    /// The factor on the mean RGB: the configured one, or 1 when the config leaves it to the
+    /// data and nothing resolved it.
+    pub fn scale(&self) -> f64 {
+        self.rgb_scale.unwrap_or(1.0)
     }
 }
 
@@ -720,7 +716,6 @@ impl Config {
             &self.alarms,
         );
         let mut v = vec![
-            ("colour.rgb_scale", self.colour.rgb_scale),
             ("capture.clip_level", self.capture.clip_level as f64),
             ("capture.dark_level", self.capture.dark_level as f64),
             ("reciprocity.min_cos", self.reciprocity.min_cos),
@@ -790,6 +785,9 @@ impl Config {
             ),
             ("source.poll_ms", self.source.poll_ms as f64),
         ];
+        if let Some(scale) = self.colour.rgb_scale {
+            v.push(("colour.rgb_scale", scale));
+        }
         for (k, j) in self.rig.joints.iter().enumerate() {
             v.push((
                 [
@@ -880,6 +878,7 @@ mod tests {
         let keys: Vec<&str> = c.numeric_values().iter().map(|(k, _)| *k).collect();
         let mut with_entry = c.clone();
         with_entry.probes.entry = Some(3);
+        with_entry.colour.rgb_scale = Some(1.0);
         let all: Vec<&str> = with_entry
             .numeric_values()
             .iter()

@@ -67,7 +67,7 @@ pub(crate) fn live_white(cfg: &Config) -> Result<White, ConfigError> {
 pub(crate) fn colour_settings(cfg: &Config) -> Result<ColourSettings, ConfigError> {
     Ok(ColourSettings {
         to_xyz: rgb_to_xyz(cfg),
-        rgb_scale: cfg.colour.rgb_scale,
+        rgb_scale: cfg.colour.scale(),
         white: live_white(cfg)?,
         min_cos: cfg.reciprocity.min_cos,
     })

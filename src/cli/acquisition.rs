@@ -186,6 +186,27 @@ pub(super) fn check_command(args: CheckArgs, out: &mut impl Write) -> Result<Exi
         ))
         .into());
     }
+    // no scale in the config: the white from the data (the factor a resumed check was made
+    // with, or taken now from the folder's captures), written into the session's config
+    let text = match cfg.colour.rgb_scale {
+        Some(_) => text,
+        None => match crate::daemon::scale::stored(&session, &text) {
+            Some(scale) => crate::daemon::scale::with_scale(&text, scale)?,
+            None => match crate::daemon::scale::from_captures(&dir_abs, &listing.captures, &cfg) {
+                Some(found) => {
+                    eprintln!("{}", found.describe());
+                    crate::daemon::scale::with_scale(&text, found.rgb_scale)?
+                }
+                None => {
+                    eprintln!(
+                        "goniowatch: [colour] rgb_scale is not set and fewer than {} captures decode to a positive luminance: the files' values are taken as they are (rgb_scale = 1)",
+                        crate::measure::stats::WHITE_MIN_CAPTURES
+                    );
+                    text
+                }
+            },
+        },
+    };
     if let Some(why) = crate::session::recovery::other_source(&session, &dir_abs, &text)? {
         anyhow::bail!(why);
     }

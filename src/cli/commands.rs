@@ -65,7 +65,7 @@ fn average_file_inner(
         .context("cannot read file")?;
     let img = decode(&bytes, &limits)?;
     let s: CaptureStats = crate::daemon::ingest::average_decoded(&img, opts)?;
-    let xyz = crate::setup::rgb_to_xyz(cfg).convert_scaled(s.mean_rgb, cfg.colour.rgb_scale);
+    let xyz = crate::setup::rgb_to_xyz(cfg).convert_scaled(s.mean_rgb, cfg.colour.scale());
     let lab = cfg
         .colour
         .white

@@ -3,7 +3,8 @@
 use crate::engine::Summary;
 
 /// Why a finished check's result means nothing, if it does not: most of its captures failed
-/// or are missing, or no reciprocal pair was scored (Table 2 would print zeros that look like a
+/// or are missing, most are dark (the files are on another scale than the config's white), or
+/// no reciprocal pair was scored (Table 2 would print zeros that look like a
 /// perfect sample). `check` and watch mode then exit with a code of their own, never 0.
 pub(crate) fn meaningless(s: &Summary) -> Option<String> {
     let c = &s.checked;
@@ -17,6 +18,13 @@ pub(crate) fn meaningless(s: &Summary) -> Option<String> {
             c.captures,
             c.failed,
             c.missing
+        ));
+    }
+    let dark = s.dark_captures;
+    if dark * 2 > c.captures {
+        return Some(format!(
+            "{dark} of {} checked captures are dark (at or below [checks] dark_y on the white's scale): the files hold values on another scale than the config's white. Leave [colour] rgb_scale out for check and watch mode to take the white from the data, or set it to the white's Y (100 by default) over the white standard's Y on the files' scale",
+            c.captures
         ));
     }
     if s.table2.pairs == 0 {

@@ -8,5 +8,6 @@ pub(crate) mod link;
 pub(crate) mod lockstep;
 pub mod replay;
 pub(crate) mod run;
+pub(crate) mod scale;
 pub(crate) mod sinks;
 pub(crate) mod status;

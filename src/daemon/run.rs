@@ -269,8 +269,15 @@ pub(crate) async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
         None => None,
         Some(addr) => Some(bind_status(&opts, addr).await?),
     };
+    let watch_text = match &opts.config {
+        Some(p) => watch_scale(p, &opts),
+        None => None,
+    };
     let given = match (&opts.config, &opts.config_text) {
-        (Some(p), _) => Some(ConfigGiven::File(p)),
+        (Some(p), _) => Some(match &watch_text {
+            Some(text) => ConfigGiven::Text { text, source: p },
+            None => ConfigGiven::File(p),
+        }),
         (None, Some((text, source))) => Some(ConfigGiven::Text { text, source }),
         (None, None) => None,
     };
@@ -285,6 +292,37 @@ pub(crate) async fn run(opts: RunOptions) -> Result<(RunEnd, Summary)> {
     let end = steps(&mut live, &mut ch, opts.keep_running).await?;
     let summary = shutdown(live, ch).await?;
     Ok((end, summary))
+}
+
+/// Watch mode with a config that leaves `[colour] rgb_scale` unset, starting a new session:
+/// the config's text with the white taken from the captures already in the folder (printed).
+/// `None` for anything else (the config is then read as it is, and its errors reported there).
+fn watch_scale(config: &std::path::Path, opts: &RunOptions) -> Option<String> {
+    if opts.finished_set || opts.session_dir.join("config.toml").exists() {
+        return None;
+    }
+    let text = std::fs::read_to_string(config).ok()?;
+    let cfg = crate::config::Config::from_toml_str(&text).ok()?;
+    if cfg.source.kind != crate::archive::SourceKind::Files || cfg.colour.rgb_scale.is_some() {
+        return None;
+    }
+    let root = opts.capture_root.as_deref()?;
+    let found = super::archive::preflight(root, &cfg)
+        .ok()
+        .and_then(|listing| super::scale::from_captures(root, &listing.captures, &cfg));
+    match found {
+        Some(found) => {
+            eprintln!("{}", found.describe());
+            super::scale::with_scale(&text, found.rgb_scale).ok()
+        }
+        None => {
+            eprintln!(
+                "goniowatch: [colour] rgb_scale is not set and the capture folder holds fewer than {} captures with a positive luminance: the files' values are taken as they are (rgb_scale = 1), so the dark level and L*a*b* assume a white of Y = 100 on the files' scale. Set [colour] rgb_scale, or start watch mode once the folder holds captures",
+                crate::measure::stats::WHITE_MIN_CAPTURES
+            );
+            None
+        }
+    }
 }
 
 /// The channels between the run loop and its tasks.

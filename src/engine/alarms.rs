@@ -34,6 +34,8 @@ struct Storm {
 #[derive(Debug, Clone, Default)]
 pub(super) struct AlarmBook {
     counts: BTreeMap<String, u64>,
+    /// Occurrences per code (the summary's own counts are per kind, as its files hold them).
+    codes: BTreeMap<AlarmCode, u64>,
     /// Critical occurrences, emitted in full or held back.
     criticals: u64,
     storms: BTreeMap<AlarmCode, Storm>,
@@ -43,6 +45,7 @@ impl AlarmBook {
     /// Count an occurrence under its kind.
     pub(super) fn count(&mut self, a: &Alarm) {
         *self.counts.entry(a.kind.as_str().to_string()).or_default() += 1;
+        *self.codes.entry(a.code).or_default() += 1;
         if a.severity == Severity::Critical {
             self.criticals += 1;
         }
@@ -106,6 +109,11 @@ impl AlarmBook {
 
     pub(super) fn counts(&self) -> &BTreeMap<String, u64> {
         &self.counts
+    }
+
+    /// Occurrences of one code, emitted in full or held back.
+    pub(super) fn count_of(&self, code: AlarmCode) -> u64 {
+        self.codes.get(&code).copied().unwrap_or(0)
     }
 
     /// Critical occurrences since the session began (the run's exit status).

@@ -159,6 +159,9 @@ pub struct Summary {
     #[serde(default)]
     pub sweeps: Option<crate::detect::sweeps::SweepSummary>,
     pub alarms: BTreeMap<String, u64>,
+    /// Captures that raised `dark-capture` (not in the summary file: its counts are per kind).
+    #[serde(skip)]
+    pub dark_captures: u64,
     pub link: LinkStats,
     pub finished: bool,
 }
@@ -549,6 +552,9 @@ impl Engine {
             sample_off_centre: self.checker.sample_off_centre(),
             sweeps: self.checker.sweeps(),
             alarms: self.alarm_book.counts().clone(),
+            dark_captures: self
+                .alarm_book
+                .count_of(crate::checks::alarm::AlarmCode::DarkCapture),
             link: self.link.stats.clone(),
             finished: self.finished,
         }

@@ -34,6 +34,31 @@ impl SplitMix64 {
 /// The factor that makes the median absolute deviation a consistent estimate of a normal σ.
 pub(crate) const MAD_TO_SIGMA: f64 = 1.4826;
 
+/// The quantile of the captures' luminances taken as the white when the config gives no scale:
+/// high enough that a sample's brightest geometries (a diffuser's normal incidence, a glossy
+/// sample's peak) set it, low enough that a few clipped or stray captures do not.
+pub(crate) const WHITE_QUANTILE: f64 = 0.99;
+
+/// Fewest usable luminances the white is taken from.
+pub(crate) const WHITE_MIN_CAPTURES: usize = 8;
+
+/// The white level of a set of capture luminances (`WHITE_QUANTILE` of the positive, finite
+/// ones, by the nearest rank), or `None` when fewer than `WHITE_MIN_CAPTURES` are usable.
+/// Scaling every luminance by a factor scales the result by the same factor.
+pub(crate) fn white_level(ys: &[f64]) -> Option<f64> {
+    let mut v: Vec<f64> = ys
+        .iter()
+        .copied()
+        .filter(|y| y.is_finite() && *y > 0.0)
+        .collect();
+    if v.len() < WHITE_MIN_CAPTURES {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let rank = ((WHITE_QUANTILE * v.len() as f64).ceil() as usize).clamp(1, v.len());
+    Some(v[rank - 1])
+}
+
 /// Median of a sorted slice (the mean of the middle two for an even length); 0 when empty.
 pub(crate) fn median_sorted(v: &[f64]) -> f64 {
     if v.is_empty() {
@@ -214,5 +239,22 @@ mod tests {
         let h20 = cusum_threshold(1.0, 20.0 * 81.0);
         assert!((h20 - 3.23).abs() < 0.011, "{h20}");
         assert!(cusum_threshold(1.0, 20.0 * 81.0 * 2.0) > h20);
+    }
+
+    #[test]
+    fn the_white_level_is_a_high_quantile_that_ignores_the_unusable_and_follows_the_scale() {
+        let ys: Vec<f64> = (1..=200).map(f64::from).collect();
+        assert_eq!(white_level(&ys), Some(198.0));
+        let mut with_bad = ys.clone();
+        with_bad.extend([f64::NAN, f64::INFINITY, -1.0, 0.0]);
+        assert_eq!(white_level(&with_bad), Some(198.0));
+        for k in [1e-3, 1.0, 1e3] {
+            let scaled: Vec<f64> = ys.iter().map(|y| y * k).collect();
+            let w = white_level(&scaled).unwrap();
+            assert!((w / (198.0 * k) - 1.0).abs() < 1e-12, "{k}: {w}");
+        }
+        assert_eq!(white_level(&[1.0; 7]), None);
+        assert_eq!(white_level(&[f64::NAN; 100]), None);
+        assert_eq!(white_level(&[2.0; 8]), Some(2.0));
     }
 }
