@@ -120,3 +120,43 @@ def test_on_an_anisotropic_sample_the_sentinel_names_a_turn_of_joint_3(hil, tmp_
     assert not [x for x in alarms if x["kind"] == "drift"], alarms
     assert "joint-3 sentinel" in out
     assert_replay_identical(session, tmp_path)
+
+
+def test_auto_probes_run_at_the_designed_cadence_and_a_rig_that_refuses_them_is_watched_without(hil, tmp_path):
+    """`[probes] every = "auto"`: the daemon resolves the cadence `goniowatch plan` designs for
+    the configured sample (every 200 captures for config/sim.toml's plan and walkway), says so
+    with the run time it adds, and asks for probes at it. A rig that refuses PROBE gets one
+    `probes-refused` warning that says what is lost, no more PROBE lines, and the run is checked
+    without probes to the end (exit 0, no drift alarm on a fault-free run)."""
+    needs_simulator()
+    cfg = daemon_config(tmp_path, "auto", every="auto")
+    rig = hil("auto", (), captures=700, speed=7.0 / 0.01)
+    session = tmp_path / "auto-session"
+    code, out, err = run_daemon(rig, session, cfg, timeout=240)
+    assert code == 0, err[-2000:]
+    assert 'every = "auto" → a round every 200 captures' in err, err[-2000:]
+    assert "% of the run)" in err
+    sent, first_round_at, taken = probe_rounds(session)
+    # rounds at 200, 400 and 600 announced (the pose is chosen after 81 checked)
+    assert len(sent) == 3 and first_round_at is not None and first_round_at >= 200, (first_round_at, sent)
+    probes = [c for c in read_jsonl(session / "captures.jsonl") if c["probe"]]
+    assert len(probes) == taken
+    assert not [a for a in read_jsonl(session / "alarms.jsonl") if a["code"] == "probes-refused"]
+    assert_replay_identical(session, tmp_path)
+
+    refusing = hil("refuse", (), captures=700, speed=7.0 / 0.01, allow_actions=False)
+    session = tmp_path / "refuse-session"
+    code, out, err = run_daemon(refusing, session, daemon_config(tmp_path, "auto2", every="auto"), timeout=240)
+    assert code == 0, err[-2000:]
+    alarms = read_jsonl(session / "alarms.jsonl")
+    refused = [a for a in alarms if a["code"] == "probes-refused"]
+    assert len(refused) == 1, refused
+    assert refused[0]["severity"] == "warning"
+    assert refused[0]["evidence"] == {"reason": "refused", "probes_taken": 0}
+    assert "watched from the pairs and the sweeps" in refused[0]["message"]
+    # one round asked for and refused; none after it
+    sent, _, _ = probe_rounds(session)
+    assert len(sent) == 1, sent
+    assert not [c for c in read_jsonl(session / "captures.jsonl") if c["probe"]]
+    assert not [a for a in alarms if a["kind"] == "drift" and a["code"] != "probes-refused"]
+    assert_replay_identical(session, tmp_path)

@@ -659,7 +659,10 @@ impl Config {
                 });
             }
         }
-        if let (true, Some(e)) = (self.probes.every > 0, self.probes.entry) {
+        if let (true, Some(e)) = (
+            self.probes.every != crate::detect::probes::ProbeEvery::Captures(0),
+            self.probes.entry,
+        ) {
             let n = SamplingPlan::new(&self.plan)?.capture_count();
             if e >= n {
                 return Err(ConfigError::Invalid {
@@ -684,7 +687,7 @@ impl Config {
                 }
             })?;
         }
-        if self.probes.every > 0 {
+        if self.probes.every.fixed().is_some_and(|n| n > 0) {
             return Err(ConfigError::Invalid {
                 field: "probes.every",
                 message: "drift probes need a controller that takes them (source.kind = \"protocol\"); set it to 0 for a files source".into(),
@@ -747,7 +750,6 @@ impl Config {
                 c.colour_drift.tolerance_k_per_h,
             ),
             ("checks.colour_drift.z", c.colour_drift.z),
-            ("probes.every", p.every as f64),
             (
                 "probes.rate_tolerance_pct_per_h",
                 p.rate_tolerance_pct_per_h,
@@ -785,6 +787,9 @@ impl Config {
             ),
             ("source.poll_ms", self.source.poll_ms as f64),
         ];
+        if let Some(every) = self.probes.every.fixed() {
+            v.push(("probes.every", every as f64));
+        }
         if let Some(scale) = self.colour.rgb_scale {
             v.push(("colour.rgb_scale", scale));
         }
@@ -879,6 +884,7 @@ mod tests {
         let mut with_entry = c.clone();
         with_entry.probes.entry = Some(3);
         with_entry.colour.rgb_scale = Some(1.0);
+        with_entry.probes.every = crate::detect::probes::ProbeEvery::Captures(1);
         let all: Vec<&str> = with_entry
             .numeric_values()
             .iter()
@@ -1082,5 +1088,29 @@ mod tests {
             let c = Config::from_toml_str(&std::fs::read_to_string(path).unwrap()).unwrap();
             assert_eq!(c.checks.sweeps, Default::default(), "{name}");
         }
+    }
+
+    #[test]
+    fn probes_every_takes_a_count_or_auto_and_names_the_field_otherwise() {
+        use crate::detect::probes::ProbeEvery;
+        let with = |v: &str| Config::from_toml_str(&format!("[probes]\nevery = {v}\n"));
+        assert_eq!(with("\"auto\"").unwrap().probes.every, ProbeEvery::Auto);
+        assert_eq!(with("150").unwrap().probes.every, ProbeEvery::Captures(150));
+        assert_eq!(with("0").unwrap().probes.every, ProbeEvery::Captures(0));
+        assert_eq!(
+            Config::from_toml_str("").unwrap().probes.every,
+            ProbeEvery::Captures(0),
+            "a config that leaves it out takes no probes"
+        );
+        for bad in ["\"often\"", "-5", "2.5", "true"] {
+            let e = with(bad).unwrap_err().to_string();
+            assert!(e.contains("every"), "{bad}: {e}");
+        }
+        // "auto" on a files source resolves to none instead of being refused
+        let files =
+            Config::from_toml_str("[source]\nkind = \"files\"\n[probes]\nevery = \"auto\"\n");
+        assert!(files.is_ok(), "{files:?}");
+        let fixed = Config::from_toml_str("[source]\nkind = \"files\"\n[probes]\nevery = 10\n");
+        assert!(fixed.unwrap_err().to_string().contains("probes.every"));
     }
 }

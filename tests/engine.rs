@@ -656,6 +656,82 @@ fn probes_are_requested_only_when_enabled() {
     assert!(bad.is_err_and(|e| e.to_string().contains("probes.entry")));
 }
 
+/// A controller that refuses `PROBE` (or does not know it) gets one `probes-refused` warning and
+/// no more probe rounds; a refusal of any other command does not touch the probes.
+#[test]
+fn a_refused_probe_withdraws_the_probes_with_one_warning() {
+    let cfg = Config::from_toml_str(
+        &sim_toml()
+            .replace("every = 0", "every = 2")
+            .replace("# entry = 19", "entry = 19"),
+    )
+    .unwrap();
+    for reason in ["refused", "unknown-verb"] {
+        let mut e = Engine::from_config(&cfg).unwrap();
+        let mut c = connected_and_running(&mut e);
+        let mut out = Vec::new();
+        for i in 0..2 {
+            out.extend(e.handle(&c.capture(i)));
+            out.extend(e.handle(&Input::Outcome {
+                idx: i,
+                outcome: ok_outcome(),
+            }));
+        }
+        let probe_seq = out
+            .iter()
+            .find_map(|o| match o {
+                Output::Send(l) if parse(l).unwrap().verb == "PROBE" => Some(parse(l).unwrap().seq),
+                _ => None,
+            })
+            .expect("a probe round at 2 captures");
+        // a NAK of another command leaves the probes on
+        let other = e.handle(&c.line(
+            "NAK",
+            &[
+                ("ref", (probe_seq + 1000).to_string()),
+                ("reason", reason.into()),
+            ],
+        ));
+        assert!(!other.iter().any(|o| matches!(o, Output::Alarm(_))));
+        let refused = e.handle(&c.line(
+            "NAK",
+            &[("ref", probe_seq.to_string()), ("reason", reason.into())],
+        ));
+        let alarms: Vec<_> = refused
+            .iter()
+            .filter_map(|o| match o {
+                Output::Alarm(a) => Some(a),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(alarms.len(), 1, "{reason}");
+        assert_eq!(alarms[0].code, AlarmCode::ProbesRefused);
+        assert_eq!(
+            alarms[0].evidence.to_json(),
+            serde_json::json!({"reason": reason, "probes_taken": 0})
+        );
+        let mut after = Vec::new();
+        for i in 2..12 {
+            after.extend(e.handle(&c.capture(i)));
+            after.extend(e.handle(&Input::Outcome {
+                idx: i,
+                outcome: ok_outcome(),
+            }));
+        }
+        assert!(
+            probes_sent(&after).is_empty(),
+            "{reason}: {:?}",
+            probes_sent(&after)
+        );
+        // said once: a late second refusal of the same round raises nothing
+        let again = e.handle(&c.line(
+            "NAK",
+            &[("ref", probe_seq.to_string()), ("reason", reason.into())],
+        ));
+        assert!(!again.iter().any(|o| matches!(o, Output::Alarm(_))));
+    }
+}
+
 #[test]
 fn without_a_configured_entry_the_probe_pose_is_chosen_after_a_sweep_and_then_probed() {
     let cfg = Config::from_toml_str(&sim_toml().replace("every = 0", "every = 10")).unwrap();

@@ -116,6 +116,8 @@ pub enum AlarmCode {
     PoseOffPlanCleared,
     /// No pose could be chosen for the drift probes.
     ProbePoseUnavailable,
+    /// The controller refused the drift probes; the lamp is watched without them.
+    ProbesRefused,
     /// A reciprocal pair departs beyond the configured limit.
     ReciprocityOutlier,
     /// The sample's surface sits off the arm's rotation centre.
@@ -134,7 +136,7 @@ pub enum AlarmCode {
 
 impl AlarmCode {
     /// Every code.
-    pub(crate) const ALL: [AlarmCode; 44] = [
+    pub(crate) const ALL: [AlarmCode; 45] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
@@ -172,6 +174,7 @@ impl AlarmCode {
         AlarmCode::PoseOffPlan,
         AlarmCode::PoseOffPlanCleared,
         AlarmCode::ProbePoseUnavailable,
+        AlarmCode::ProbesRefused,
         AlarmCode::ReciprocityOutlier,
         AlarmCode::SampleOffCentre,
         AlarmCode::SessionChanged,
@@ -221,6 +224,7 @@ impl AlarmCode {
             AlarmCode::PoseOffPlan => "pose-off-plan",
             AlarmCode::PoseOffPlanCleared => "pose-off-plan-cleared",
             AlarmCode::ProbePoseUnavailable => "probe-pose-unavailable",
+            AlarmCode::ProbesRefused => "probes-refused",
             AlarmCode::ReciprocityOutlier => "reciprocity-outlier",
             AlarmCode::SampleOffCentre => "sample-off-centre",
             AlarmCode::SessionChanged => "session-changed",
@@ -271,6 +275,9 @@ impl AlarmCode {
             AlarmCode::PoseOffPlan => "captures are placed off the plan's pose",
             AlarmCode::PoseOffPlanCleared => "a pose-off-plan episode ended",
             AlarmCode::ProbePoseUnavailable => "no pose could be chosen for the drift probes",
+            AlarmCode::ProbesRefused => {
+                "the controller refused the drift probes; the lamp is watched without them"
+            }
             AlarmCode::ReciprocityOutlier => "a reciprocal pair departs beyond the configured limit",
             AlarmCode::SampleOffCentre => "the sample's surface sits off the arm's rotation centre",
             AlarmCode::SessionChanged => "the controller announced another session",

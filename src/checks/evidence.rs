@@ -104,6 +104,8 @@ pub enum Evidence {
     MountPattern(MountPattern),
     /// `reciprocity-outlier`.
     PairOutlier(PairOutlier),
+    /// `probes-refused`.
+    ProbesRefused(ProbesRefused),
     /// Read from a file, in a shape this version does not know for the alarm's code.
     Unknown(serde_json::Value),
 }
@@ -401,6 +403,13 @@ pub struct PairOutlier {
     pub theta_pair_deg: [f64; 2],
 }
 
+/// The controller's reason for refusing a probe, and how many probes it took before.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProbesRefused {
+    pub reason: String,
+    pub probes_taken: u64,
+}
+
 /// Writes evidence as the result files hold it: the object of its fields, keys in alphabetical
 /// order (through `serde_json::Value`, whose maps are sorted).
 pub(super) fn write_sorted<S: serde::Serializer>(e: &Evidence, s: S) -> Result<S::Ok, S::Error> {
@@ -460,6 +469,7 @@ impl Evidence {
             C::ColourDrift => parse(&v, Evidence::ColourRate),
             C::SampleOffCentre => parse(&v, Evidence::MountPattern),
             C::ReciprocityOutlier => parse(&v, Evidence::PairOutlier),
+            C::ProbesRefused => parse(&v, Evidence::ProbesRefused),
             C::BadAnnouncement
             | C::BadEntry
             | C::BadLine
@@ -517,6 +527,7 @@ impl Evidence {
             Evidence::ColourRate(_) => code == C::ColourDrift,
             Evidence::MountPattern(_) => code == C::SampleOffCentre,
             Evidence::PairOutlier(_) => code == C::ReciprocityOutlier,
+            Evidence::ProbesRefused(_) => code == C::ProbesRefused,
         }
     }
 

@@ -378,6 +378,17 @@ impl Checker {
         self.probes.every()
     }
 
+    /// Whether the sample is checked as isotropic (its isotropy classes watch the lamp).
+    pub(crate) fn watches_isotropy(&self) -> bool {
+        self.isotropy.is_some()
+    }
+
+    /// The controller refused the probes: the lamp is watched without them from now on (the
+    /// sweeps' level test is back on; no new sentinel or probe pose is chosen).
+    pub(crate) fn withdraw_probes(&mut self) {
+        self.probes.withdraw();
+    }
+
     /// The lamp probe's entry, when the configuration names one.
     pub(crate) fn set_probe_entry(&mut self, entry: Option<usize>) {
         self.probes.set_entry(entry);
@@ -637,9 +648,15 @@ fn gain_correction(
     xyz: Xyz,
 ) -> Option<GainCorrected> {
     let probe_colour = probes.colour();
-    let (gain, sigma_rel, source) = if let Some((g, s)) = probes.drift().gain_at(t_h) {
+    // probes the controller refused stop being the lamp's watch: their estimate stands in the
+    // summary, the correction goes on from the isotropy drift model
+    let probe_gain = probes
+        .enabled()
+        .then(|| probes.drift().gain_at(t_h))
+        .flatten();
+    let (gain, sigma_rel, source) = if let Some((g, s)) = probe_gain {
         (g, s, "probes")
-    } else if probes_taken > 0 {
+    } else if probes.enabled() && probes_taken > 0 {
         // probes are in use but their segment is too short to fit (just after a step): the
         // isotropy rate would leave the step out, so nothing rather than a wrong correction
         return None;

@@ -77,9 +77,9 @@ pub(super) struct ProbeStage {
 
 impl ProbeStage {
     pub(super) fn new(isotropic: bool, probes: ProbeSpec, colour: &ColourDriftSpec) -> Self {
-        let enabled = probes.every > 0;
+        let enabled = probes.cadence() > 0;
         ProbeStage {
-            every: probes.every,
+            every: probes.cadence(),
             colour: enabled
                 .then(|| {
                     ColourStage::probes(
@@ -110,6 +110,11 @@ impl ProbeStage {
 
     pub(super) fn enabled(&self) -> bool {
         self.every > 0
+    }
+
+    /// No more probes: the controller refused them. What they measured stays for the summary.
+    pub(super) fn withdraw(&mut self) {
+        self.every = 0;
     }
 
     /// `[probes] every` (0: no probes).

@@ -648,7 +648,7 @@ fn probes_give_the_lamp_colour_drift_on_an_anisotropic_sample() {
     // an anisotropic sample (no isotropy classes) with a probe of entry 50 after every 100
     // captures, the lamp cooling by 40 K/h
     let mut ch = anisotropic_checker(crate::detect::probes::ProbeSpec {
-        every: 100,
+        every: crate::detect::probes::ProbeEvery::Captures(100),
         ..Default::default()
     });
     // the probe's reading at time t is entry 50's reading under the lamp then
@@ -731,7 +731,7 @@ fn a_flickering_lamp_at_the_probes_is_lamp_unstable_with_its_scatter() {
     // gain at the probes scatters by 1.5 % (five times the design's 0.3 %) or by 0.1 %
     for (flicker, want) in [(0.015, 1usize), (0.001, 0)] {
         let mut ch = anisotropic_checker(crate::detect::probes::ProbeSpec {
-            every: 100,
+            every: crate::detect::probes::ProbeEvery::Captures(100),
             ..Default::default()
         });
         let mut rng = crate::measure::stats::SplitMix64(11);

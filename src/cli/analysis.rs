@@ -1,11 +1,12 @@
 //! The commands that read files and print: `average`, `compare`, `report` and `plan`.
 
 use super::args::{AlarmsArgs, AverageArgs, CompareArgs, PlanArgs, ReportArgs};
-use super::commands::{average_file, plan_summary, AverageOutcome, ProbePlanSummary, ProbeScatter};
+use super::commands::{average_file, plan_summary, AverageOutcome, ProbePlanSummary};
 use super::exit::{self, UsageError};
 use crate::config::Config;
 use crate::detect::probe_plan::{CadenceFigures, DetectionTarget, ProbePlan};
 use crate::measure::averaging::Roi;
+use crate::setup::ProbeScatter;
 use anyhow::{Context, Result};
 use std::io::Write;
 use std::path::Path;

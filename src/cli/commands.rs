@@ -5,6 +5,7 @@ use crate::config::Config;
 use crate::decode::{decode, CaptureFormat};
 use crate::measure::averaging::{AverageOptions, CaptureStats};
 use crate::measure::colour::{xyz_to_lab, Lab, Xyz};
+use crate::setup::ProbeScatter;
 use serde::Serialize;
 use std::path::Path;
 
@@ -144,9 +145,6 @@ pub(crate) struct OrderIdentifiability {
     pub pairs: crate::detect::identifiability::PairIdentifiability,
 }
 
-/// The capture interval the identifiability figures assume (the UBO rig's, 7 s).
-const SECONDS_PER_CAPTURE: f64 = 7.0;
-
 /// Identifiability of the drift from the plan's reciprocal pairs under each order: the
 /// config's three and a light-outer order whose camera sweep starts at the light's own
 /// direction (a design that breaks the per-direction form of the pairs' time differences at no
@@ -157,7 +155,7 @@ fn drift_from_pairs(
     use crate::detect::identifiability::pair_identifiability;
     use crate::measure::plan::{AcquisitionOrder, PlanSpec, SamplingPlan};
     let steps = [0.1, 0.25, 0.5, 0.75, 0.9];
-    let t = SECONDS_PER_CAPTURE / 3600.0;
+    let t = crate::setup::SECONDS_PER_CAPTURE / 3600.0;
     let mut orders = vec![spec.order];
     for o in [
         AcquisitionOrder::LightOuter,
@@ -198,74 +196,32 @@ fn drift_from_pairs(
     Ok(out)
 }
 
-/// Whether the daemon follows each probe with a joint-3 sentinel (`detect::sentinel`).
-pub(crate) fn sentinel(cfg: &Config) -> bool {
-    !cfg.sample.isotropic && cfg.probes.sentinel
-}
-
 /// The probe plan: the design over the candidate cadences and the configured cadence's figures.
 fn probe_plan(
     cfg: &Config,
     scatter: ProbeScatter,
     target: &crate::detect::probe_plan::DetectionTarget,
 ) -> anyhow::Result<ProbePlanSummary> {
-    use crate::detect::probe_plan::{cadence_figures, design, ColourProbes, ProbeSession};
+    use crate::detect::probe_plan::{cadence_figures, design};
     use anyhow::Context;
     let plan = crate::setup::plan(cfg)?;
-    let session = ProbeSession {
-        captures: plan.capture_count() as u64,
-        seconds_per_capture: SECONDS_PER_CAPTURE,
-        // on an anisotropic sample each probe round is a lamp probe and a joint-3 sentinel
-        seconds_per_probe: if sentinel(cfg) {
-            2.0 * SECONDS_PER_CAPTURE
-        } else {
-            SECONDS_PER_CAPTURE
-        },
-        // a pose the daemon chooses is among the first sweep's captures: the default pose, or
-        // the middle of the first sweep, stands in for it
-        anchor: match cfg.probes.entry {
-            Some(_) => crate::setup::probe_entry(cfg, &plan)? as u64,
-            None => {
-                crate::setup::probe_entry(cfg, &plan).unwrap_or(plan.direction_count() / 2) as u64
-            }
-        },
-        probes_from: if cfg.probes.entry.is_some() {
-            0
-        } else {
-            plan.direction_count() as u64
-        },
-        scatter_pct: scatter.luminance_pct,
-        // an isotropic sample's colour is watched by its isotropy classes without probes
-        // (BENCHMARKS.md, "The lamp's colour drift"): the probes are not designed for it
-        colour: (!cfg.sample.isotropic).then_some(ColourProbes {
-            lamp_cct_k: cfg.checks.colour_drift.lamp_cct_k,
-            tolerance_k_per_h: cfg.checks.colour_drift.tolerance_k_per_h,
-            z: cfg.checks.colour_drift.z,
-            scatter_pct: scatter.chromaticity_pct,
-        }),
-    };
+    let session = crate::setup::probe_session(cfg, &plan, scatter)?;
     let design = design(&session, &cfg.probes, target)
         .context("cannot design the drift probes (--probe-scatter-pct, --target-…)")?;
-    let every = cfg.probes.every;
-    let configured = (every > 0 && every < session.captures)
-        .then(|| cadence_figures(&session, &cfg.probes, target, every));
+    let configured = cfg
+        .probes
+        .every
+        .fixed()
+        .filter(|&every| every > 0 && every < session.captures)
+        .map(|every| cadence_figures(&session, &cfg.probes, target, every));
     Ok(ProbePlanSummary {
         isotropic_sample: cfg.sample.isotropic,
-        sentinel: sentinel(cfg),
+        sentinel: crate::setup::sentinel(cfg),
         session,
         target: *target,
         configured,
         design,
     })
-}
-
-/// The probes' scatter against their original capture that `plan` designs for (% SD).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct ProbeScatter {
-    /// Of the luminance ratio.
-    pub luminance_pct: f64,
-    /// Of ln X/Y and of ln Z/Y, each.
-    pub chromaticity_pct: f64,
 }
 
 pub(crate) fn plan_summary(

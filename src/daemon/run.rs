@@ -396,6 +396,14 @@ async fn start(
     } else {
         crate::engine::Engine::from_config(cfg)?
     };
+    // the probe cadence and the run time it costs, before the run
+    if cfg.source.kind == crate::archive::SourceKind::Protocol
+        || cfg.probes.every == crate::detect::probes::ProbeEvery::Auto
+    {
+        let cadence = crate::setup::probe_cadence(cfg)?.describe();
+        tracing::info!("{cadence}");
+        eprintln!("goniowatch: {cadence}");
+    }
     // what no detector of this session looks at, said before the run, not after it
     for b in engine.summary().observability.blind {
         tracing::warn!(what = %b.what, "not observable in this session: {}; {}", b.why, b.remedy);

@@ -188,6 +188,9 @@ pub struct Engine {
     captures_planned: u64,
     /// When a probe round is asked for (what it holds is the checker's).
     probes: probes::ProbeCadence,
+    /// The sequence numbers of the last probe round's `PROBE` commands: a `NAK` of one of them
+    /// that refuses it withdraws the probes.
+    probe_requests: Vec<u32>,
     /// Inputs handled so far (the alarm aggregation's clock).
     inputs: u64,
 }
@@ -363,9 +366,9 @@ impl Engine {
             setup.colour,
             cfg.checks.clone(),
             cfg.sample.isotropic,
-            cfg.probes.clone(),
+            setup.probes.clone(),
         );
-        if cfg.probes.every > 0 {
+        if setup.probes.cadence() > 0 {
             checker.set_probe_entry(setup.probe_entry);
         }
         Ok(Engine::new(checker, cfg.alarms.clone()))
@@ -390,6 +393,7 @@ impl Engine {
             paused_for: BTreeSet::new(),
             captures_planned,
             probes: probes::ProbeCadence::new(checker_every),
+            probe_requests: Vec::new(),
             inputs: 0,
         }
     }
@@ -412,9 +416,12 @@ impl Engine {
         {
             return;
         }
-        self.send(out, ToController::Probe { entry: lamp });
+        self.probe_requests.clear();
+        let seq = self.send(out, ToController::Probe { entry: lamp });
+        self.probe_requests.push(seq);
         if let Some(entry) = sentinel {
-            self.send(out, ToController::Probe { entry });
+            let seq = self.send(out, ToController::Probe { entry });
+            self.probe_requests.push(seq);
         }
         self.probes.handle_asked();
     }
@@ -1072,8 +1079,46 @@ impl Engine {
                 self.link.subscribed();
                 self.request_resync(out);
             }
+            // a rig that does not allow probes, or does not know them: watch without them
+            Some(reason @ ("refused" | "unknown-verb"))
+                if n.reference
+                    .is_some_and(|r| self.probe_requests.contains(&r)) =>
+            {
+                let reason = reason.to_string();
+                self.probes_refused(out, &reason);
+            }
             _ => {}
         }
+    }
+
+    /// The controller refused a probe: no more rounds, and the checks watch the lamp without
+    /// them (the pairs, the isotropy classes and the sweeps).
+    fn probes_refused(&mut self, out: &mut Vec<Output>, reason: &str) {
+        self.probe_requests.clear();
+        self.probes = probes::ProbeCadence::new(0);
+        self.checker.withdraw_probes();
+        let probes_taken = self.checker.counts().probes;
+        let lost = if self.checker.watches_isotropy() {
+            "a lamp step is flagged later (by the sweeps, not within a probe interval)"
+        } else {
+            "a lamp step is flagged later, the lamp's colour and arm joint 3 go unwatched"
+        };
+        self.alarm(
+            out,
+            Alarm::new(
+                AlarmKind::Drift,
+                Severity::Warning,
+                AlarmCode::ProbesRefused,
+                format!(
+                    "the controller refused the drift probes (NAK reason={reason}) after {probes_taken} probes; the lamp is watched from the pairs and the sweeps from now on: {lost}. Enable remote actions at the rig to get them back"
+                ),
+            )
+            .at(None, Some(self.last_t))
+            .with(Evidence::ProbesRefused(evidence::ProbesRefused {
+                reason: reason.to_string(),
+                probes_taken,
+            })),
+        );
     }
 
     fn status(&mut self, out: &mut Vec<Output>, s: &Status) {

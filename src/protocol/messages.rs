@@ -47,6 +47,8 @@ pub struct Ack {
 
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Nak {
+    /// The sequence number of the command refused (absent or -1: a line that failed its CRC).
+    pub reference: Option<u32>,
     pub reason: Option<String>,
     pub supported: Option<String>,
 }
@@ -98,6 +100,7 @@ pub fn parse_message(line: &str) -> Result<Line, LineError> {
             state: m.get("state").map(str::to_string),
         }),
         "NAK" => FromController::Nak(Nak {
+            reference: m.get("ref").and_then(|r| r.parse::<u32>().ok()),
             reason: m.get("reason").map(str::to_string),
             supported: m.get("supported").map(str::to_string),
         }),

@@ -35,7 +35,7 @@ pub(super) fn simulate(
         }
     };
     let mut det = ProbeDrift::new(ProbeSpec {
-        every,
+        every: crate::detect::probes::ProbeEvery::Captures(every),
         ..spec.clone()
     });
     let mut out = Vec::new();

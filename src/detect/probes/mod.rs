@@ -13,12 +13,71 @@ use super::drift::{DriftEstimate, DriftEvent, DriftSpec};
 use crate::measure::geometry::{angle_between, mirror, Vec3};
 use serde::{Deserialize, Serialize};
 
+/// How often the lamp probe is asked for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ProbeEvery {
+    /// The cadence `goniowatch plan` designs for the session's sample and the default target
+    /// (resolved once by `setup`; none on a files source, which cannot take probes).
+    Auto,
+    /// Every this many checked captures; 0 = never.
+    Captures(u64),
+}
+
+impl ProbeEvery {
+    /// The configured cadence, or `None` for one left to the design.
+    pub fn fixed(self) -> Option<u64> {
+        match self {
+            ProbeEvery::Auto => None,
+            ProbeEvery::Captures(n) => Some(n),
+        }
+    }
+}
+
+impl Serialize for ProbeEvery {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            ProbeEvery::Auto => s.serialize_str("auto"),
+            ProbeEvery::Captures(n) => s.serialize_u64(*n),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for ProbeEvery {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl serde::de::Visitor<'_> for V {
+            type Value = ProbeEvery;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a number of captures (0 = never) or \"auto\"")
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<ProbeEvery, E> {
+                Ok(ProbeEvery::Captures(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<ProbeEvery, E> {
+                u64::try_from(v)
+                    .map(ProbeEvery::Captures)
+                    .map_err(|_| E::custom(format!("{v} is not a number of captures")))
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<ProbeEvery, E> {
+                match v {
+                    "auto" => Ok(ProbeEvery::Auto),
+                    _ => Err(E::custom(format!(
+                        "{v:?}: give a number of captures (0 = never) or \"auto\""
+                    ))),
+                }
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ProbeSpec {
-    /// Ask for a probe every this many checked captures; 0 = never (the default: probes move the
-    /// rig, so the operator must enable them, and the rig may refuse).
-    pub every: u64,
+    /// Ask for a probe every this many checked captures; 0 = never (the default of a config
+    /// that leaves it out: probes move the rig); "auto" = the cadence `goniowatch plan`
+    /// designs (the shipped protocol configs).
+    pub every: ProbeEvery,
     /// The plan entry to re-capture; unset, the daemon chooses it (`choose_probe_pose`) once a
     /// light sweep's worth of captures is checked.
     pub entry: Option<usize>,
@@ -40,10 +99,18 @@ pub struct ProbeSpec {
     pub sentinel_min_deg: f64,
 }
 
+impl ProbeSpec {
+    /// The cadence in captures: the configured one, 0 for one left to the design that nothing
+    /// resolved (`setup::probe_cadence` resolves it before a session starts).
+    pub fn cadence(&self) -> u64 {
+        self.every.fixed().unwrap_or(0)
+    }
+}
+
 impl Default for ProbeSpec {
     fn default() -> Self {
         ProbeSpec {
-            every: 0,
+            every: ProbeEvery::Captures(0),
             entry: None,
             rate_tolerance_pct_per_h: 0.25,
             z: 4.0,

@@ -13,7 +13,7 @@ fn run(rate_pct_h: f64, step: Option<(f64, f64)>, noise: f64, seed: u64) -> Vec<
         v
     };
     let mut p = ProbeDrift::new(ProbeSpec {
-        every: 100,
+        every: crate::detect::probes::ProbeEvery::Captures(100),
         ..ProbeSpec::default()
     });
     let y0 = 40.0 * gain(0.1) * (1.0 + g());
@@ -38,7 +38,7 @@ fn run(rate_pct_h: f64, step: Option<(f64, f64)>, noise: f64, seed: u64) -> Vec<
 #[test]
 fn a_flicker_that_starts_late_in_a_long_steady_segment_is_found() {
     let mut p = ProbeDrift::new(ProbeSpec {
-        every: 100,
+        every: crate::detect::probes::ProbeEvery::Captures(100),
         ..ProbeSpec::default()
     });
     let mut rng = crate::measure::stats::SplitMix64(5);
