@@ -251,7 +251,7 @@ def catches(records) -> str:
                       share(lambda r: r in aniso and r["fault"]["kind"] == "joint", lambda r: named(r) and delay(r, "joint_after") <= JOINT_WITHIN)])
         free = [r for r in aniso if r["fault"] is None]
         lines.append(["anisotropic: no fault (false alarms)", "every 75", of(sum(1 for r in free if false_alarm(r)), len(free))])
-    return table(["fault (simulated, 4 isotropic materials, 2 nuisance models)", "probes", "runs right"], lines)
+    return table(["fault (simulated rig: 4 isotropic materials, 2 models of rig imperfection)", "probes", "runs right"], lines)
 
 
 def tables(records: list[dict]) -> dict[str, str]:

@@ -60,9 +60,10 @@ def write_scenario(tmp, name, faults, capture_root, **session):
     return path, sc["id"]
 
 
-def write_archive(tmp, name, faults=(), naming="bonn", captures=None, speed=0.0, ldr=None, **session):
+def write_archive(tmp, name, faults=(), naming="bonn", captures=None, speed=0.0, ldr=None, name_format=None, **session):
     """The capture set of a scenario, written by `goniosim archive` into tmp/<name>-cap/<name>/
-    (run to completion unless `speed` > 0, then returned running); returns (folder, process)."""
+    (run to completion unless `speed` > 0, then returned running); returns (folder, process).
+    `name_format` names the files as a rig of its own would (`goniosim archive --name-format`)."""
     root = str(tmp / f"{name}-cap")
     scenario, sid = write_scenario(tmp, name, faults, root, **session)
     cmd = [sys.executable, "-m", "goniosim", "archive", str(scenario), "--out", root, "--naming", naming, "--speed", str(speed)]
@@ -70,6 +71,8 @@ def write_archive(tmp, name, faults=(), naming="bonn", captures=None, speed=0.0,
         cmd += ["--captures", str(captures)]
     if ldr is not None:
         cmd += ["--ldr", ldr]
+    if name_format is not None:
+        cmd += ["--name-format", name_format]
     p = subprocess.Popen(cmd, cwd=os.path.join(REPO, "sim"), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if speed == 0:
         out, _ = p.communicate(timeout=600)

@@ -389,8 +389,8 @@ def test_a_finished_check_of_a_folder_that_has_grown_is_refused_not_reported_sta
 
 
 def test_a_sidecar_that_does_not_parse_is_a_configuration_error(tmp_path):
-    """A sidecar row with a value that is not a number: exit 2, as the README's table says for
-    the configuration's input, with the sidecar's line named; nothing is written."""
+    """A sidecar row with a value that is not a number: exit 2, as the exit-code table
+    (docs/commands.md) says for the configuration's input, with the sidecar's line named; nothing is written."""
     needs_simulator()
     folder, _ = write_archive(tmp_path, "badcar", naming="sidecar", captures=50, id="badcar")
     table = folder / "captures.csv"

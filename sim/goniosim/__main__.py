@@ -1,7 +1,7 @@
 """Command line:
 
 - `python -m goniosim run SCENARIO ...`: run a simulated session;
-- `python -m goniosim archive SCENARIO --out DIR --naming bonn|bonn-indexed|sidecar ...`: write the
+- `python -m goniosim archive SCENARIO --out DIR --naming bonn|bonn-indexed|sidecar [--name-format F] ...`: write the
   scenario's capture set, faults included, without a serial link, into DIR/<session id>/ with
   Bonn-style names (`tl015_pl060_tv030_pv000.hdr`, optionally after the capture index) or with a
   captures.csv sidecar (file, angles, time) beside `cap_…` names: what `goniowatch check` and the
@@ -44,6 +44,7 @@ def main(argv=None) -> int:
     ar.add_argument("scenario")
     ar.add_argument("--out", required=True, help="capture root; the set goes to OUT/<session id>/")
     ar.add_argument("--naming", choices=["bonn", "bonn-indexed", "sidecar"], default="bonn")
+    ar.add_argument("--name-format", help="the rig's own file names instead: a Python format string over idx, entry, tl, pl, tv, pv (nominal angles, degrees) and ext, e.g. '{idx:05d}_L{tl:02.0f}-{pl:03.0f}_C{tv:02.0f}-{pv:03.0f}.{ext}'")
     ar.add_argument("--ldr", choices=["png8", "png16"], help="write sRGB PNG captures (auto-exposed per capture, recorded in the sidecar, with --naming sidecar)")
     ar.add_argument("--truth", help="ground-truth JSON lines file")
     ar.add_argument("--captures", type=int, help="stop after this many captures")
@@ -137,8 +138,15 @@ def _archive(a) -> int:
         print(f"goniosim: {', '.join(link_faults)}: a serial-link fault has no effect on a capture set without a link", file=sys.stderr)
     from .controller import Controller
 
-    ctl = Controller(sc, naming=a.naming, ldr=a.ldr)
-    print(f"goniosim: writing {sc.capture_count} captures to {sc.capture_root}/{sc.session_id}/ ({a.naming} names)", file=sys.stderr, flush=True)
+    if a.name_format is not None:
+        try:
+            a.name_format.format(idx=0, entry=0, tl=0.0, pl=0.0, tv=0.0, pv=0.0, ext="hdr")
+        except (KeyError, IndexError, ValueError) as e:
+            print(f"goniosim: --name-format {a.name_format!r}: {e!r} (fields: idx, entry, tl, pl, tv, pv, ext)", file=sys.stderr)
+            return 2
+    ctl = Controller(sc, naming=a.naming, ldr=a.ldr, name_format=a.name_format)
+    names = f"names {a.name_format!r}" if a.name_format else f"{a.naming} names"
+    print(f"goniosim: writing {sc.capture_count} captures to {sc.capture_root}/{sc.session_id}/ ({names})", file=sys.stderr, flush=True)
     try:
         ctl.run()
     except KeyboardInterrupt:

@@ -65,6 +65,7 @@ class Controller:
         naming: str | None = None,
         ldr: str | None = None,
         link=None,
+        name_format: str | None = None,
     ) -> None:
         """`naming` set: no serial link; the captures are named by `naming` (NAMINGS), and with
         "sidecar" a captures.csv beside them maps each file to its angles and time. `link` set
@@ -72,6 +73,9 @@ class Controller:
         over a serial port, and writes its captures without fsync."""
         self.sc = sc
         self.naming = naming
+        # archive only: a rig's own file names, a Python format string over idx, entry, tl, pl,
+        # tv, pv (the plan's nominal angles in degrees) and ext, under the session's folder
+        self.name_format = name_format
         # archive only: captures as sRGB PNG ("png8", "png16"), auto-exposed per capture when a
         # sidecar records the exposure, else at the fixed LDR_EXPOSURE
         self.ldr = ldr
@@ -407,6 +411,9 @@ class Controller:
     def file_name(self, idx: int, entry: int, fmt: str, nominal: tuple) -> str:
         """The capture's path under the capture root."""
         ti, pi, to, po = nominal
+        if self.name_format is not None:
+            name = self.name_format.format(idx=idx, entry=entry, tl=ti, pl=pi, tv=to, pv=po, ext=fmt)
+            return f"{self.sc.session_id}/{name}"
         bonn = f"tl{ti:03.0f}_pl{pi:03.0f}_tv{to:03.0f}_pv{po:03.0f}.{fmt}"
         if self.naming == "bonn":
             return f"{self.sc.session_id}/{bonn}"

@@ -147,7 +147,7 @@ pub struct ArchiveCapture {
 }
 
 /// Which of several files placed on one plan entry stands for it, in both `check` and watch
-/// mode (said in the README and the alarm).
+/// mode (said in docs/commands.md and the alarm).
 pub(crate) const DUPLICATE_RULE: &str = "the file fewest folders deep, then the one with the shortest name (copies add \" copy\" or \" (1)\"), then the one whose extension is written as in source.extensions, then the earliest in the capture order, then the first by name";
 
 /// Files placed on the same plan entry: the one kept by [`DUPLICATE_RULE`] and the others.

@@ -1,4 +1,4 @@
-//! Exit codes (README.md's table) and how an error maps to one.
+//! Exit codes (docs/commands.md's table) and how an error maps to one.
 
 use std::process::ExitCode;
 
