@@ -1090,6 +1090,58 @@ mod tests {
         }
     }
 
+    /// config/ubo.toml is the documented default a real rig starts from: it shows every section
+    /// and every key the configuration has (set, or as a commented-out `# key =` line for a key
+    /// whose default is "unset"), so that a key added to the code cannot ship undocumented there.
+    #[test]
+    fn the_real_rigs_config_shows_every_section_and_key() {
+        fn keys(prefix: &str, t: &toml::Table, out: &mut Vec<String>) {
+            for (k, v) in t {
+                let path = if prefix.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{prefix}.{k}")
+                };
+                if let toml::Value::Table(inner) = v {
+                    keys(&path, inner, out);
+                }
+                out.push(path);
+            }
+        }
+        let read = |name: &str| {
+            std::fs::read_to_string(format!("{}/config/{name}", env!("CARGO_MANIFEST_DIR")))
+                .unwrap()
+        };
+        let shows = |text: &str, key: &str| {
+            let mut documented = Vec::new();
+            keys("", &text.parse::<toml::Table>().unwrap(), &mut documented);
+            let leaf = key.rsplit('.').next().unwrap_or(key);
+            documented.iter().any(|k| k == key)
+                || text
+                    .lines()
+                    .any(|l| l.trim_start().starts_with(&format!("# {leaf} =")))
+        };
+        let (ubo, files) = (read("ubo.toml"), read("archive.toml"));
+        let defaults = toml::Table::try_from(Config::default()).unwrap();
+        let mut all = Vec::new();
+        keys("", &defaults, &mut all);
+        // keys whose default is unset do not serialise: these are shown commented out
+        all.extend(["colour.rgb_scale", "probes.entry", "source.sidecar"].map(String::from));
+        for key in all {
+            // a table's inner keys of another variant (roi, white) are compared by their table
+            if key.starts_with("capture.roi.") || key.starts_with("colour.white.") {
+                continue;
+            }
+            // a files source's keys are shown by the config a watched folder starts from
+            let (name, text) = if key.starts_with("source.") && key != "source.kind" {
+                ("archive.toml", &files)
+            } else {
+                ("ubo.toml", &ubo)
+            };
+            assert!(shows(text, &key), "config/{name} does not show `{key}`");
+        }
+    }
+
     #[test]
     fn probes_every_takes_a_count_or_auto_and_names_the_field_otherwise() {
         use crate::detect::probes::ProbeEvery;
