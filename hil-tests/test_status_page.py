@@ -1,7 +1,8 @@
 """The live status page of `run --http` in a real headless browser (Debian's chromium driven by
 Playwright): the page loads, its progress advances, an injected fault shows up as an alarm, it
-comes back after the browser is closed and reopened; /status.json and /metrics answer; a
-non-loopback address is refused. A screenshot is left in the test's temporary folder (or in
+comes back after the browser is closed and reopened; each alarm's code links to its entry in the
+alarm catalogue at /alarms; /status.json, /metrics and /alarms answer; a non-loopback address is
+refused. A screenshot is left in the test's temporary folder (or in
 $GONIOWATCH_SCREENSHOT_DIR)."""
 
 import json
@@ -115,6 +116,17 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
             page.wait_for_selector('#alarms li[data-code="dark-capture"]', timeout=60000)
             text = page.text_content('#alarms li[data-code="dark-capture"]')
             assert "capture 400" in text and "dark" in text, text
+            # its code links to its catalogue entry, opened beside the live page
+            link = page.locator('#alarms li[data-code="dark-capture"] a')
+            assert page.evaluate("(a) => { const u = new URL(a.href); return u.pathname + u.hash; }", link.element_handle()) == "/alarms#alarm-dark-capture"
+            with page.expect_popup() as opened:
+                link.click()
+            entry_page = opened.value
+            entry_page.wait_for_load_state()
+            assert entry_page.evaluate("document.querySelector(':target') && document.querySelector(':target').id") == "alarm-dark-capture"
+            entry = entry_page.text_content("#alarm-dark-capture")
+            assert "what to do" in entry and "capture-quality" in entry, entry
+            entry_page.close()
             shots = os.environ.get("GONIOWATCH_SCREENSHOT_DIR") or str(tmp_path)
             page.screenshot(path=os.path.join(shots, "status-page.png"), full_page=True)
             browser.close()
@@ -144,6 +156,18 @@ def test_status_page_in_a_headless_browser(hil, tmp_path):
         try:
             urllib.request.urlopen(urllib.request.Request(url + "status.json", headers={"Host": "evil.example"}), timeout=10)
             raise AssertionError("a foreign Host header was served")
+        except urllib.error.HTTPError as e:
+            assert e.code == 403
+        # the alarm catalogue: an entry for every code `goniowatch alarms --json` lists, each once
+        listed = subprocess.run([binary(), "alarms", "--json"], capture_output=True, text=True, timeout=30, check=True).stdout
+        codes = [json.loads(line)["code"] for line in listed.splitlines() if line.strip()]
+        answer = urllib.request.urlopen(url + "alarms", timeout=10)
+        assert answer.status == 200 and answer.headers.get_content_type() == "text/html"
+        catalogue = answer.read().decode()
+        assert sorted(re.findall(r' id="(alarm-[^"]+)"', catalogue)) == sorted(f"alarm-{c}" for c in codes) and len(codes) > 40
+        try:
+            urllib.request.urlopen(urllib.request.Request(url + "alarms", headers={"Host": "evil.example"}), timeout=10)
+            raise AssertionError("the alarm catalogue was served to a foreign Host header")
         except urllib.error.HTTPError as e:
             assert e.code == 403
         metrics = urllib.request.urlopen(url + "metrics", timeout=10).read().decode()

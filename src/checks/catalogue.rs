@@ -139,9 +139,249 @@ pub fn markdown() -> String {
     s
 }
 
+/// The anchor of `code`'s entry, `alarm-<code>`: the report's alarm table links to it within the
+/// report, and the status page to `/alarms#alarm-<code>`, so its form is part of the contract.
+/// Codes are kebab-case ASCII, so the anchor is a valid id and URL fragment as it stands.
+pub(crate) fn anchor(code: AlarmCode) -> String {
+    format!("alarm-{code}")
+}
+
+/// The style of the entries [`entry_html`] writes, for the pages that show them (the report's
+/// appendix and the status server's `/alarms`), so that both read alike; a page adds it to its
+/// own style sheet.
+pub(crate) const ENTRY_STYLE: &str = "\
+.alarm-entry{margin:10px 0 14px;break-inside:avoid;scroll-margin-top:12px}
+.alarm-entry h3{font-size:15px;margin:0 0 4px}
+.alarm-entry:target{outline:2px solid #1f5fa8;outline-offset:4px}
+.alarm-entry dl{display:grid;grid-template-columns:9em minmax(0,1fr);gap:2px 12px;margin:0}
+.alarm-entry dt{color:#5d6b78} .alarm-entry dd{margin:0;overflow-wrap:anywhere}
+.alarm-entry .sev-critical{color:#c62828;font-weight:600}
+.alarm-entry .sev-warning{color:#b86e00;font-weight:600} .alarm-entry .sev-info{color:#5d6b78}
+";
+
+/// `s` escaped for HTML text and for a double-quoted attribute value.
+fn escape_html(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for ch in s.chars() {
+        match ch {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&#39;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// The catalogue's words as HTML: escaped, each `backquoted` run (a config key or a command, as
+/// docs/alarms.md shows it) in `<code>`; an unpaired backquote stays as it is.
+fn words_html(s: &str) -> String {
+    let parts: Vec<&str> = s.split('`').collect();
+    // an even number of parts means an odd number of backquotes: the last one is unpaired
+    let paired = parts.len() - (1 - parts.len() % 2);
+    let mut out = String::with_capacity(s.len() + 16);
+    for (i, part) in parts.iter().enumerate() {
+        if i >= paired {
+            out.push('`');
+            out.push_str(&escape_html(part));
+        } else if i % 2 == 1 {
+            out.push_str("<code>");
+            out.push_str(&escape_html(part));
+            out.push_str("</code>");
+        } else {
+            out.push_str(&escape_html(part));
+        }
+    }
+    out
+}
+
+fn severity_name(s: Severity) -> &'static str {
+    match s {
+        Severity::Info => "info",
+        Severity::Warning => "warning",
+        Severity::Critical => "critical",
+    }
+}
+
+/// One code's entry as HTML: a `<section class="alarm-entry" id="alarm-<code>">` with the code
+/// as its `<h3>` and a definition list of its severities, kind, meaning, evidence fields, what
+/// to do and whether it can be critical. Every word from the catalogue is escaped.
+pub(crate) fn entry_html(e: &CodeEntry) -> String {
+    let code = escape_html(e.code.as_str());
+    let severities = e
+        .severities
+        .iter()
+        .map(|s| {
+            let name = severity_name(*s);
+            format!("<span class=\"sev-{name}\">{name}</span>")
+        })
+        .collect::<Vec<_>>()
+        .join(", ");
+    let evidence = if e.evidence.is_empty() {
+        "none".to_string()
+    } else {
+        e.evidence
+            .iter()
+            .map(|f| format!("<code>{}</code>", escape_html(f)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let critical = if e.can_be_critical() {
+        "yes: a critical alarm ends the run with exit status 4 and, with <code>[alarms] pause_on_critical</code>, asks the rig to PAUSE"
+    } else {
+        "no"
+    };
+    format!(
+        "<section class=\"alarm-entry\" id=\"{id}\"><h3><code>{code}</code></h3><dl>\
+         <dt>severity</dt><dd>{severities}</dd>\
+         <dt>kind</dt><dd>{kind}</dd>\
+         <dt>meaning</dt><dd>{meaning}</dd>\
+         <dt>evidence</dt><dd>{evidence}</dd>\
+         <dt>what to do</dt><dd>{action}</dd>\
+         <dt>can be critical</dt><dd>{critical}</dd>\
+         </dl></section>\n",
+        id = escape_html(&anchor(e.code)),
+        kind = escape_html(e.kind.as_str()),
+        meaning = words_html(e.meaning),
+        action = words_html(e.action),
+    )
+}
+
+/// The entries of `codes` as HTML, each code once and in name order (the catalogue's order),
+/// so that each anchor occurs once on a page that shows them.
+pub(crate) fn entries_html(codes: impl IntoIterator<Item = AlarmCode>) -> String {
+    let codes: std::collections::BTreeSet<AlarmCode> = codes.into_iter().collect();
+    codes.into_iter().map(|c| entry_html(&entry(c))).collect()
+}
+
+/// Every code's entry as HTML (the status server's `/alarms`).
+pub(crate) fn catalogue_html() -> String {
+    entries_html(AlarmCode::ALL)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The values of every `id="…"` in `html`.
+    fn ids(html: &str) -> Vec<&str> {
+        html.split(" id=\"")
+            .skip(1)
+            .filter_map(|rest| rest.split('"').next())
+            .collect()
+    }
+
+    #[test]
+    fn every_code_renders_with_one_unique_anchor() {
+        let html = catalogue_html();
+        let anchors = ids(&html);
+        assert_eq!(anchors.len(), AlarmCode::ALL.len());
+        let unique: std::collections::BTreeSet<&str> = anchors.iter().copied().collect();
+        assert_eq!(unique.len(), anchors.len(), "an anchor occurs twice");
+        for code in AlarmCode::ALL {
+            let e = entry(code);
+            let one = entry_html(&e);
+            assert_eq!(ids(&one), [anchor(code).as_str()]);
+            assert!(html.contains(&one), "{code} is not in the catalogue's HTML");
+            // each of the entry's parts is there, escaped as HTML text
+            assert!(
+                one.contains(&format!("<h3><code>{code}</code></h3>")),
+                "{one}"
+            );
+            assert!(one.contains(&escape_html(e.kind.as_str())), "{one}");
+            for field in e.evidence {
+                assert!(one.contains(&format!("<code>{field}</code>")), "{one}");
+            }
+            for s in e.severities {
+                assert!(
+                    one.contains(&format!(">{}</span>", severity_name(*s))),
+                    "{one}"
+                );
+            }
+            assert_eq!(
+                one.contains("yes: a critical alarm"),
+                e.can_be_critical(),
+                "{code}"
+            );
+            assert!(one.contains(&words_html(e.meaning)) && one.contains(&words_html(e.action)));
+            // no raw quote or angle bracket of the words survives: the only markup is ours
+            let text_only = strip_known_markup(&one);
+            assert!(
+                !text_only.contains(['<', '>', '"']),
+                "{code}: unescaped markup in {text_only}"
+            );
+        }
+        // a set renders each code once, in name order, whatever order and repeats it is given
+        let some = entries_html([
+            AlarmCode::GainStep,
+            AlarmCode::DarkCapture,
+            AlarmCode::GainStep,
+        ]);
+        assert_eq!(ids(&some), ["alarm-dark-capture", "alarm-gain-step"]);
+        assert!(entries_html([]).is_empty());
+    }
+
+    /// `html` with the tags [`entry_html`] writes removed (and their attributes with them).
+    fn strip_known_markup(html: &str) -> String {
+        let mut out = String::new();
+        let mut rest = html;
+        while let Some(start) = rest.find('<') {
+            out.push_str(&rest[..start]);
+            let tag_end = rest[start..].find('>').map(|k| start + k + 1);
+            let Some(end) = tag_end else {
+                out.push_str(&rest[start..]);
+                return out;
+            };
+            let tag = &rest[start + 1..end - 1];
+            let name = tag
+                .trim_start_matches('/')
+                .split([' ', '>'])
+                .next()
+                .unwrap_or("");
+            if ["section", "h3", "code", "dl", "dt", "dd", "span"].contains(&name) {
+                rest = &rest[end..];
+            } else {
+                out.push_str(&rest[start..end]);
+                rest = &rest[end..];
+            }
+        }
+        out.push_str(rest);
+        out
+    }
+
+    #[test]
+    fn entries_escape_their_words() {
+        let e = CodeEntry {
+            code: AlarmCode::DarkCapture,
+            kind: AlarmKind::CaptureQuality,
+            severities: &[Severity::Warning],
+            meaning: "<script>alert(\"x\")</script> & 'more'",
+            evidence: &["a<b"],
+            action: "set `[x] y = \"<z>\"` then `unpaired",
+        };
+        let html = entry_html(&e);
+        assert!(
+            !html.contains("<script>") && !html.contains("a<b"),
+            "{html}"
+        );
+        assert!(
+            html.contains("&lt;script&gt;alert(&quot;x&quot;)&lt;/script&gt; &amp; &#39;more&#39;"),
+            "{html}"
+        );
+        assert!(html.contains("<code>a&lt;b</code>"), "{html}");
+        assert!(
+            html.contains("set <code>[x] y = &quot;&lt;z&gt;&quot;</code> then `unpaired"),
+            "{html}"
+        );
+        assert_eq!(words_html("no quotes"), "no quotes");
+        assert_eq!(
+            words_html("`a` and `b`"),
+            "<code>a</code> and <code>b</code>"
+        );
+        assert_eq!(words_html("`"), "`");
+    }
 
     #[test]
     fn every_code_has_an_entry_with_words() {

@@ -4,7 +4,7 @@
 //! session's report, byte for byte (no dates, no paths).
 
 use super::compare::CompareReport;
-use crate::checks::alarm::{Affects, Alarm, Severity};
+use crate::checks::alarm::{Affects, Alarm, AlarmCode, Severity};
 use crate::checks::evidence::Evidence;
 use crate::checks::{CaptureRecord, PairRecord, Table2};
 use crate::config::Config;
@@ -721,11 +721,11 @@ fn histogram(inp: &ReportInputs) -> String {
 }
 
 fn table2_rows(sets: &[(&str, &Table2)]) -> String {
-    let mut s = String::from("<table><tr><th></th><th>pairs</th><th>|ΔX|</th><th>|ΔY|</th><th>|ΔZ|</th><th>ΔE*ab</th><th>ΔC*ab</th><th>ΔH*ab</th><th>ΔE00</th></tr>");
+    let mut s = String::from("<table><thead><tr><th></th><th>pairs</th><th>|ΔX|</th><th>|ΔY|</th><th>|ΔZ|</th><th>ΔE*ab</th><th>ΔC*ab</th><th>ΔH*ab</th><th>ΔE00</th></tr></thead><tbody>");
     for (name, t) in sets {
         let _ = write!(s, "<tr><td>{}</td><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td></tr>", esc(name), t.pairs, t.abs_dx, t.abs_dy, t.abs_dz, t.de76, t.dc, t.dh, t.de2000);
     }
-    s.push_str("</table>");
+    s.push_str("</tbody></table>");
     s
 }
 
@@ -746,7 +746,7 @@ fn table3_html(c: &CompareReport) -> String {
             t,
         ));
     }
-    s.push_str("<table><tr><th></th><th>metric</th><th>max</th><th>avg</th><th>median</th><th>κ(T), columns scaled</th></tr>");
+    s.push_str("<table><thead><tr><th></th><th>metric</th><th>max</th><th>avg</th><th>median</th><th>κ(T), columns scaled</th></tr></thead><tbody>");
     for (name, t) in &tables {
         let flag = if t.transform.ill_conditioned {
             " (ill-conditioned)"
@@ -756,7 +756,7 @@ fn table3_html(c: &CompareReport) -> String {
         let _ = write!(s, "<tr><td rowspan=2>{}</td><td>ΔE*ab</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td rowspan=2>{:.0}{flag}</td></tr><tr><td>CIEDE2000</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td></tr>",
             esc(name), t.de76.max, t.de76.avg, t.de76.median, t.transform.condition_scaled, t.de2000.max, t.de2000.avg, t.de2000.median);
     }
-    s.push_str("</table>");
+    s.push_str("</tbody></table>");
     if let Some(w) = x.table3.worst.first() {
         let _ = write!(s, "<p>Largest deviation: capture {} (θi {:.1}°, φi {:.1}°, θo {:.1}°, φo {:.1}°) at ΔE00 {:.2}.</p>", w.idx, w.angles_deg[0], w.angles_deg[1], w.angles_deg[2], w.angles_deg[3], w.de2000);
     }
@@ -823,12 +823,12 @@ fn files_section(inp: &ReportInputs) -> String {
         rows.dedup();
         let _ = write!(
             h,
-            "<table class=alarms><tr><th>file not placed</th><th>why</th></tr>"
+            "<table class=alarms><thead><tr><th>file not placed</th><th>why</th></tr></thead><tbody>"
         );
         for (f, why) in rows.iter().take(SHOWN) {
             let _ = write!(h, "<tr><td>{}</td><td>{}</td></tr>", esc(f), esc(why));
         }
-        h.push_str("</table>");
+        h.push_str("</tbody></table>");
         if rows.len() > SHOWN {
             let _ = write!(
                 h,
@@ -838,6 +838,35 @@ fn files_section(inp: &ReportInputs) -> String {
         }
     }
     h
+}
+
+/// The report on paper (A4; the margins suit Letter too): one column the page's width, every plot
+/// scaled to it (an SVG keeps its aspect ratio through its viewBox) and kept whole on one page
+/// with its caption, headings (and the paragraph that introduces a plot) kept with what follows
+/// them, long tables broken between rows with their header repeated on the next page, the
+/// configuration wrapped instead of clipped, links as plain text (the alarm codes stay links
+/// inside a PDF), no background tint. A small multiple of the residual maps is a plot of its own:
+/// the grid of them may break between its rows. Nothing may be wider than the page: a browser
+/// shrinks the whole report to fit its widest block.
+const PRINT_STYLE: &str = "\
+@page{size:A4;margin:14mm 12mm 16mm}
+@media print{
+body{font-size:10pt;line-height:1.35;max-width:none;margin:0;padding:0;color:#000;background:#fff}
+h1{font-size:16pt} h2{font-size:13pt;margin-top:16pt} h3{font-size:11pt}
+h1,h2,h3,p:has(+ figure,+ .maps){break-after:avoid;page-break-after:avoid}
+figure,figcaption,.maps,.alarm-entry{break-inside:avoid;page-break-inside:avoid}
+.multiples{grid-template-columns:repeat(9,minmax(0,1fr))}
+table{max-width:100%} thead{display:table-header-group}
+tr{break-inside:avoid;page-break-inside:avoid}
+table.alarms td{overflow-wrap:anywhere}
+pre{white-space:pre-wrap;overflow-wrap:anywhere;overflow:visible;background:none;border:1px solid #c5ccd3;font-size:8pt}
+a,td a{color:inherit;text-decoration:none}
+}
+";
+
+/// A plot as a figure of the report: what the print style keeps whole on one page.
+fn figure(svg: &str) -> String {
+    format!("<figure>{svg}</figure>")
 }
 
 /// The report's HTML.
@@ -861,8 +890,11 @@ table{{border-collapse:collapse;margin:8px 0}} td,th{{padding:3px 10px;border-bo
 svg text{{font:11px system-ui,sans-serif;fill:#5d6b78}} pre{{background:#f5f7f9;padding:10px;overflow:auto;font-size:12px}}
 table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){{white-space:nowrap}}
 .sev-critical{{color:#c62828;font-weight:600}} .sev-warning{{color:#b86e00;font-weight:600}} .sev-info{{color:#5d6b78}}
-</style></head><body>"##,
-        esc(&title)
+figure svg{{max-width:100%;height:auto}} td a{{color:inherit;text-decoration:underline dotted}}
+{entry_style}{print_style}</style></head><body>"##,
+        esc(&title),
+        entry_style = crate::checks::catalogue::ENTRY_STYLE,
+        print_style = PRINT_STYLE,
     );
     let _ = write!(
         h,
@@ -902,7 +934,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
     h.push_str("<h3>Residual per light direction</h3><p class=muted>Centre: θ = 0°, rim: θ = 90°, φ counter-clockwise from the right. The small discs show, for each light direction (ringed), the residual of every camera direction's pair.</p>");
     h.push_str(&hemisphere_maps(inp, &plan));
     h.push_str("<h3>Distribution</h3><p class=muted>Bars: exact pairs; orange marks: substitutes against their interpolated partner.</p>");
-    h.push_str(&histogram(inp));
+    h.push_str(&figure(&histogram(inp)));
 
     if !s.observability.blind.is_empty() {
         h.push_str("<h2>What this session could not see</h2><ul>");
@@ -928,12 +960,12 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
         None if isotropy_curve(inp).len() >= 2 => h.push_str("<p>No probe estimate: drift probes were off (`[probes] every`) or too few. The green line is the isotropy-class gain estimate as it was known at each capture's time (the gain divided out of that capture), the band a factor exp(± 2σ) with σ the standard uncertainty of its logarithm; ticks on the time axis are the alarms.</p>"),
         None => h.push_str("<p>No gain estimate: drift probes were off (`[probes] every`) or too few, and the isotropy classes gave none (they need an isotropic sample and repeated geometries). Ticks on the time axis are the alarms.</p>"),
     }
-    h.push_str(&drift_plot(inp));
+    h.push_str(&figure(&drift_plot(inp)));
 
     if let Some(c) = &s.colour_drift {
         let _ = write!(h, "<h2>Lamp colour</h2><p>From {} observations ({}: the same geometry at other times), the chromaticity over time (ln X/Y and ln Z/Y, each a rate fit like the gain's), read through a black-body lamp at {:.0} K: <b>{:+.1} ± {:.1} K/h</b> (standard error; negative is redder), ΔE00 {:.3} per hour on a white. The corrected colours in captures.csv have this drift divided out of X and Z. The lines are the chromaticity change as known at each capture's time (red ln X/Y, blue ln Z/Y); ticks are the alarms.</p>",
             c.observations, esc(c.source.as_str()), c.lamp_cct_k, c.k_per_h, c.se_k_per_h, c.de00_per_h);
-        h.push_str(&colour_plot(inp));
+        h.push_str(&figure(&colour_plot(inp)));
     }
 
     if !inp.sweeps.is_empty() {
@@ -941,8 +973,8 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
         let _ = write!(h, "<h2>Light sweeps</h2><p>{} completed light directions were each compared with the earlier ones (isotropy classes; ARCHITECTURE.md). The first plot is each sweep's gain level less what its θ layer's earlier lights predict (± 2 standard errors): a lamp step moves every later sweep. In the second, a slipped arm joint shows as a run of sweeps whose fitted offset (dots ± 1 standard error; blue joint 1, orange joint 2) leaves zero; these per-sweep fits are biased towards zero, so read them as a lower bound; a joint alarm's own size is fitted afresh against the captures before the slip with a smooth model of the BRDF, and is not. Joint 3 cannot be seen on an isotropic sample. Ticks are drift and positioning alarms. The last sweep's gain level against the earlier ones: {}. sweeps.csv has every sweep.</p>",
             inp.sweeps.len(),
             last.map(|r| format!("{:+.2} % ± {:.2}", r.level_pct, r.level_se_pct)).unwrap_or_default());
-        h.push_str(&sweep_levels_plot(inp));
-        h.push_str(&sweeps_plot(inp));
+        h.push_str(&figure(&sweep_levels_plot(inp)));
+        h.push_str(&figure(&sweeps_plot(inp)));
     }
 
     if let Some(cv) = &inp.crossval {
@@ -985,19 +1017,25 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
     if inp.alarms.is_empty() {
         h.push_str("<p>None.</p>");
     } else {
-        let mut by_code: BTreeMap<&str, usize> = BTreeMap::new();
+        let mut by_code: BTreeMap<AlarmCode, usize> = BTreeMap::new();
         for a in &inp.alarms {
-            *by_code.entry(a.code.as_str()).or_default() += 1;
+            *by_code.entry(a.code).or_default() += 1;
         }
         h.push_str("<p>");
         h.push_str(
             &by_code
                 .iter()
-                .map(|(k, v)| format!("{} × {}", v, esc(k)))
+                .map(|(code, n)| {
+                    format!(
+                        "{n} × <a href=\"#{}\">{}</a>",
+                        esc(&crate::checks::catalogue::anchor(*code)),
+                        esc(code.as_str())
+                    )
+                })
                 .collect::<Vec<_>>()
                 .join(", "),
         );
-        h.push_str("</p><table class=alarms><tr><th>capture</th><th>time [h]</th><th>alarm</th><th>message</th><th>what to do</th><th>captures affected</th></tr>");
+        h.push_str("</p><table class=alarms><thead><tr><th>capture</th><th>time [h]</th><th>alarm</th><th>message</th><th>what to do</th><th>captures affected</th></tr></thead><tbody>");
         for a in inp.alarms.iter().take(300) {
             let sev = serde_json::to_value(a.severity)
                 .ok()
@@ -1005,17 +1043,18 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
                 .unwrap_or_default();
             let _ = write!(
                 h,
-                "<tr><td>{}</td><td>{}</td><td class=\"sev-{sev}\">{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                "<tr><td>{}</td><td>{}</td><td class=\"sev-{sev}\"><a href=\"#{}\">{}</a></td><td>{}</td><td>{}</td><td>{}</td></tr>",
                 a.idx.map(|i| i.to_string()).unwrap_or_default(),
                 a.t.map(|t| format!("{:.2}", t / 3600.0))
                     .unwrap_or_default(),
+                esc(&crate::checks::catalogue::anchor(a.code)),
                 esc(a.code.as_str()),
                 esc(&a.message),
                 esc(a.action.as_deref().unwrap_or("")),
                 esc(&a.affects.as_ref().map(Affects::describe).unwrap_or_default())
             );
         }
-        h.push_str("</table>");
+        h.push_str("</tbody></table>");
         if inp.alarms.len() > 300 {
             let _ = write!(
                 h,
@@ -1029,14 +1068,14 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
         "<h2>Configuration</h2><pre>{}</pre>",
         esc(&inp.config_text)
     );
-    // the retake list ends the report: what to take again, and why
+    // the retake list ends the report's body: what to take again, and why
     let retakes = session_retakes(inp);
     h.push_str("<h2>Retake list</h2>");
     if retakes.is_empty() {
         h.push_str("<p>No capture needs taking again: none failed, went missing, was dark or had bad pixels, was taken off the plan, or came after a slipped joint. (Lamp drift is not a reason: the corrected colours divide it out.)</p>");
     } else {
         let plan = crate::setup::plan(&inp.config).ok();
-        let _ = write!(h, "<p><b>{} captures</b> should be taken again (retakes.csv has them all; lamp drift is not a reason, the corrected colours divide it out):</p><table><tr><th>capture</th><th>plan entry</th><th>light (θ, φ)</th><th>camera (θ, φ)</th><th>why</th></tr>", retakes.len());
+        let _ = write!(h, "<p><b>{} captures</b> should be taken again (retakes.csv has them all; lamp drift is not a reason, the corrected colours divide it out):</p><table><thead><tr><th>capture</th><th>plan entry</th><th>light (θ, φ)</th><th>camera (θ, φ)</th><th>why</th></tr></thead><tbody>", retakes.len());
         let dir = |k: usize| {
             plan.as_ref()
                 .and_then(|p| {
@@ -1057,7 +1096,7 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
                 esc(&r.why)
             );
         }
-        h.push_str("</table>");
+        h.push_str("</tbody></table>");
         if retakes.len() > 300 {
             let _ = write!(
                 h,
@@ -1066,8 +1105,28 @@ table.alarms td,table.alarms th{{text-align:left}} table.alarms td:nth-child(3){
             );
         }
     }
+    h.push_str(&alarm_appendix(inp));
     h.push_str("<p class=muted>Tables as CSV beside this file: captures.csv, pairs.csv, alarms.csv, table2.csv, light_residuals.csv, retakes.csv, sweeps.csv (isotropic samples) and table3.csv (after a cross-validation).</p></body></html>\n");
     Ok(h)
+}
+
+/// The appendix after the retake list: the catalogue's entry of every alarm code the session
+/// raised (those in alarms.jsonl and those the summary counts), each under its anchor
+/// `alarm-<code>` that the alarm table links to. Empty for a session without alarms.
+fn alarm_appendix(inp: &ReportInputs) -> String {
+    let codes: std::collections::BTreeSet<AlarmCode> = inp
+        .alarms
+        .iter()
+        .map(|a| a.code)
+        .chain(inp.summary.alarms.keys().filter_map(|k| k.parse().ok()))
+        .collect();
+    if codes.is_empty() {
+        return String::new();
+    }
+    format!(
+        "<h2 id=\"appendix-alarms\">Appendix: the alarm codes of this session</h2><p class=muted>Each code's entry in goniowatch's alarm catalogue (<code>goniowatch alarms</code>; docs/alarms.md).</p>{}",
+        crate::checks::catalogue::entries_html(codes)
+    )
 }
 
 fn csv_field(s: &str) -> String {

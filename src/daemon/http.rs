@@ -4,6 +4,8 @@
 //! - `GET /events`       server-sent events: the snapshot now, then on every change
 //! - `GET /status.json`  the latest snapshot
 //! - `GET /metrics`      Prometheus text exposition
+//! - `GET /alarms`       the alarm catalogue, one entry per code under its anchor `alarm-<code>`
+//!   (the status page links each alarm's code to its entry)
 //!
 //! Readers take snapshots from a `watch` channel: the run loop never waits for them, and a slow
 //! reader skips to the latest snapshot instead of queueing old ones. At most `MAX_STREAMS`
@@ -18,13 +20,15 @@ use axum::response::{Html, IntoResponse, Response};
 use axum::routing::get;
 use axum::Router;
 use std::net::SocketAddr;
-use std::sync::Arc;
+use std::sync::{Arc, LazyLock};
 use std::time::Duration;
 use tokio::sync::{watch, Semaphore};
 
 pub(crate) type SnapshotRx = watch::Receiver<Option<Arc<Published>>>;
 
 const PAGE: &str = include_str!("status.html");
+/// The catalogue is fixed when goniowatch is built: its page is rendered once, on first request.
+static ALARMS_PAGE: LazyLock<String> = LazyLock::new(alarms_page);
 const MAX_STREAMS: usize = 32;
 
 #[derive(Clone)]
@@ -106,6 +110,7 @@ pub(crate) async fn serve(
         .route("/events", get(events))
         .route("/status.json", get(status_json))
         .route("/metrics", get(prometheus))
+        .route("/alarms", get(alarms))
         .with_state(state)
         .layer(axum::middleware::from_fn_with_state(loopback, host_guard));
     let handle = tokio::spawn(async move {
@@ -118,6 +123,29 @@ pub(crate) async fn serve(
 
 async fn page() -> Html<&'static str> {
     Html(PAGE)
+}
+
+/// The whole alarm catalogue as one self-contained page, rendered by the catalogue itself (as
+/// the report's appendix is), so an entry reads the same in both.
+fn alarms_page() -> String {
+    use crate::checks::catalogue::{catalogue_html, ENTRY_STYLE};
+    format!(
+        r##"<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width, initial-scale=1">
+<title>goniowatch: alarm codes</title><style>
+body{{font:14px/1.45 system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;color:#1d232a;max-width:960px;margin:24px auto;padding:0 18px}}
+h1{{font-size:20px}} code{{font-size:0.95em}} .muted{{color:#5d6b78}} a{{color:#1f5fa8}}
+{ENTRY_STYLE}</style></head><body>
+<h1>goniowatch alarm codes</h1>
+<p class="muted">Every alarm has a code, a kind and a severity. <b>info</b>: said for the record; <b>warning</b>: look at it, the run goes on; <b>critical</b>: the run cannot be trusted as it goes. The same catalogue is printed by <code>goniowatch alarms</code> and kept in docs/alarms.md. <a href="./">Back to the status page</a>.</p>
+{}</body></html>
+"##,
+        catalogue_html()
+    )
+}
+
+async fn alarms() -> Html<&'static str> {
+    Html(ALARMS_PAGE.as_str())
 }
 
 fn latest(rx: &SnapshotRx) -> Option<Arc<Published>> {
@@ -198,5 +226,42 @@ mod tests {
         assert!(check_address(&"[::ffff:127.0.0.1]:0".parse().unwrap(), false).is_ok());
         assert!(check_address(&"0.0.0.0:0".parse().unwrap(), false).is_err());
         assert!(check_address(&"0.0.0.0:0".parse().unwrap(), true).is_ok());
+    }
+
+    /// One HTTP/1.1 request to `addr` with `host` as its Host header; returns the whole answer.
+    async fn get_raw(addr: SocketAddr, path: &str, host: &str) -> String {
+        use tokio::io::{AsyncReadExt, AsyncWriteExt};
+        let mut stream = tokio::net::TcpStream::connect(addr).await.unwrap();
+        let request = format!("GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n");
+        stream.write_all(request.as_bytes()).await.unwrap();
+        let mut answer = Vec::new();
+        stream.read_to_end(&mut answer).await.unwrap();
+        String::from_utf8(answer).unwrap()
+    }
+
+    #[tokio::test]
+    async fn alarms_page_has_every_code_behind_the_host_guard() {
+        let listener = bind("127.0.0.1:0".parse().unwrap()).await.unwrap();
+        let (_tx, rx) = watch::channel(None);
+        let (addr, server) = serve(listener, rx).await.unwrap();
+
+        let answer = get_raw(addr, "/alarms", &format!("localhost:{}", addr.port())).await;
+        let (head, body) = answer.split_once("\r\n\r\n").unwrap();
+        assert!(head.starts_with("HTTP/1.1 200"), "{head}");
+        assert!(
+            head.to_ascii_lowercase()
+                .contains("content-type: text/html"),
+            "{head}"
+        );
+        for code in crate::checks::alarm::AlarmCode::ALL {
+            let id = format!("id=\"alarm-{code}\"");
+            assert_eq!(body.matches(&id).count(), 1, "{code}");
+        }
+        assert!(body.contains(crate::checks::catalogue::catalogue_html().as_str()));
+
+        // the host guard covers it as it covers the other routes
+        let answer = get_raw(addr, "/alarms", "evil.example").await;
+        assert!(answer.starts_with("HTTP/1.1 403"), "{answer}");
+        server.abort();
     }
 }
