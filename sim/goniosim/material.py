@@ -162,6 +162,8 @@ class Realism:
     # every term a smooth function of the pixel position, so the mean does not depend on the
     # image size
     b: "RealismB | None" = None
+    # the third nuisance model ("realistic-c"), in image-width units like the second
+    c: "RealismC | None" = None
 
 
 @dataclass(frozen=True)
@@ -193,10 +195,57 @@ class RealismB:
     stray_rgb: tuple[float, float, float] = (1.0, 0.93, 0.80)
 
 
+@dataclass(frozen=True)
+class RealismC:
+    """A third model of what makes averaged BTF data non-reciprocal, different in form from the
+    footprint/bleed one and from the vignette/mount/stray one, with nothing of goniowatch tuned
+    on it:
+
+    recess, rim_radius, rim_rotation_deg: the sample lies `recess` (fraction of the image width)
+      below the rim of its holder, whose opening is a regular hexagon of circumradius
+      `rim_radius` turned by `rim_rotation_deg`, centred on the sample. The rim shadows the
+      sample where the ray towards the lamp crosses the rim's height outside the opening (a band
+      recess * tan(theta_i) wide along the edges facing the lamp), and hides it from the camera
+      where the ray towards the camera does (recess * tan(theta_o)): a light-side and a
+      camera-side pattern of the directions in the sample frame, with the hexagon's six-fold
+      symmetry, under a penumbra of `penumbra` + `penumbra_growth` * the band's width. A shadowed
+      point keeps `ambient` of its light; a hidden one shows the rim's inner wall.
+    beam_sigma, beam_offset: the lamp's beam is a Gaussian of width beam_sigma across its axis,
+      aimed beam_offset (y, z in the world frame: along the arc's plane across the beam, and
+      out of it) beside the arm's rotation centre. The arm turns the sample under the fixed
+      beam, so a point's irradiance follows the whole pose: in the sample frame the world's y
+      and z axes are n × omega_i and n = omega_i × omega_o / |.|, and the pattern mixes the
+      light and camera directions and is not reciprocal.
+    lamp_distance: the lamp is this many image widths away, so the sample's side towards it is
+      lit more, by 1 - 2 (p . s) sin(theta_i) / lamp_distance (p the point, s the light's
+      azimuth): a light-side pattern through the texture under it.
+    response_gamma: the HDR merge's response is not exactly linear: a value v (1 = a white at
+      normal incidence) is recorded as v^(1 + response_gamma), so a pair's two captures, whose
+      values differ by their cosines, disagree after the cosine re-correction.
+    Every length is a fraction of the image width, and the rim is supersampled, so the mean does
+    not depend on the image size.
+    """
+
+    recess: float = 0.0
+    rim_radius: float = 0.42
+    rim_rotation_deg: float = 10.0
+    penumbra: float = 0.004
+    penumbra_growth: float = 0.25
+    ambient: float = 0.03
+    wall_albedo: float = 0.05
+    beam_sigma: float = 0.0
+    beam_offset: tuple[float, float] = (0.0, 0.0)
+    lamp_distance: float = 0.0
+    response_gamma: float = 0.0
+
+
 REALISM = {
     "clean": Realism(),
     "realistic": Realism(footprint=1.6, bleed_px=3.2, footprint_rgb=(0.96, 1.0, 1.07)),
     "realistic-b": Realism(
         b=RealismB(vignette=1.0, vignette_theta=4.0, mount_height=0.06, mount_offset=(0.08, 0.03), spot_sigma=0.3, stray=0.02)
+    ),
+    "realistic-c": Realism(
+        c=RealismC(recess=0.012, beam_sigma=0.35, beam_offset=(0.05, -0.07), lamp_distance=20.0, response_gamma=0.008)
     ),
 }

@@ -69,6 +69,81 @@ def render(
     if realism.b is not None:
         # realism_b works in image-width units on both axes (u already is)
         out = realism_b(out, u, v * (h / w), wi, wo, realism.b, gain)
+    if realism.c is not None:
+        out = realism_c(out, w, h, wi, wo, realism.c, gain, ci)
+    return out
+
+
+# the rim's supersampling: SUB × SUB points a pixel
+SUB = 4
+
+
+@functools.lru_cache(maxsize=8)
+def _subpixel_grid(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """SUB × SUB sample points per pixel, in image-width units from the image centre, shaped
+    (h, w, SUB²); read-only because shared."""
+    off = (np.arange(SUB) + 0.5) / SUB
+    y, x = np.mgrid[0:h, 0:w]
+    ox, oy = np.meshgrid(off, off)
+    u = (x[..., None] + ox.ravel()) / w - 0.5
+    v = ((y[..., None] + oy.ravel()) / h - 0.5) * (h / w)
+    for a in (u, v):
+        a.setflags(write=False)
+    return u, v
+
+
+def _outside_rim(u: np.ndarray, v: np.ndarray, c) -> np.ndarray:
+    """Signed distance beyond the rim's hexagonal opening (negative inside), image widths."""
+    r_in = c.rim_radius * math.cos(math.pi / 6.0)
+    d = np.full(u.shape, -np.inf)
+    for k in range(6):
+        a = math.radians(c.rim_rotation_deg) + k * math.pi / 3.0 + math.pi / 6.0
+        d = np.maximum(d, u * math.cos(a) + v * math.sin(a))
+    return d - r_in
+
+
+def _through_rim(u: np.ndarray, v: np.ndarray, w: np.ndarray, c) -> np.ndarray:
+    """The share of each point's view along direction `w` (sample frame) that clears the rim:
+    the ray crosses the rim's height recess * tan(theta) from the point, towards w's azimuth,
+    and clears it inside the opening, under a penumbra that widens with that distance."""
+    cw = max(float(w[2]), 1e-6)
+    shift = c.recess * min(math.sqrt(max(1.0 - cw * cw, 0.0)) / cw, 10.0)
+    az = math.atan2(w[1], w[0])
+    d = _outside_rim(u + shift * math.cos(az), v + shift * math.sin(az), c)
+    pen = c.penumbra + c.penumbra_growth * shift
+    return 0.5 * (1.0 - np.tanh(d / pen))
+
+
+def realism_c(img: np.ndarray, w: int, h: int, wi: np.ndarray, wo: np.ndarray, c, gain: float, ci: float) -> np.ndarray:
+    """The third nuisance model (`RealismC`) applied to a rendered image."""
+    us, vs = _subpixel_grid(h, w)
+    out = img
+    if c.recess > 0.0:
+        lit = _through_rim(us, vs, wi, c)
+        seen = _through_rim(us, vs, wo, c)
+        # per pixel: the sample where seen (lit or in the shadow's ambient), else the rim's wall
+        light = (seen * (c.ambient + (1.0 - c.ambient) * lit)).mean(axis=-1)
+        wall = (1.0 - seen).mean(axis=-1)
+        out = out * light[..., None] + (gain * ci * c.wall_albedo) * wall[..., None]
+    u = us.mean(axis=-1)
+    v = vs.mean(axis=-1)
+    if c.beam_sigma > 0.0:
+        n = np.cross(wi, wo)
+        norm = float(np.linalg.norm(n))
+        if norm > 1e-9:
+            n = n / norm
+            t = np.cross(n, wi)
+            wy = u * t[0] + v * t[1] - c.beam_offset[0]
+            wz = u * n[0] + v * n[1] - c.beam_offset[1]
+            beam = np.exp(-(wy * wy + wz * wz) / (2.0 * c.beam_sigma**2))
+            out = out * beam[..., None]
+    if c.lamp_distance > 0.0:
+        sin_i = math.sqrt(max(1.0 - ci * ci, 0.0))
+        az = math.atan2(wi[1], wi[0])
+        near = 1.0 - 2.0 * (u * math.cos(az) + v * math.sin(az)) * sin_i / c.lamp_distance
+        out = out * near[..., None]
+    if c.response_gamma != 0.0:
+        out = np.power(np.clip(out, 0.0, None), 1.0 + c.response_gamma)
     return out
 
 

@@ -236,3 +236,34 @@ def test_rgbe_stores_non_finite_pixels_as_the_format_allows():
     assert back[0, 0, 0] < 0.005 and back[0, 1, 1] < 0.005 and back[1, 1, 0] < 0.005
     assert back[1, 0, 2] > 1e37  # +Inf as the largest value
     assert np.allclose(back[0, 0, 1:], 0.5, rtol=0.01)
+
+
+def test_the_third_nuisance_model_has_a_light_side_pattern_is_non_reciprocal_and_does_not_depend_on_image_size():
+    from goniosim.material import Material
+
+    white = Material("white", (1.0, 1.0, 1.0), 0.0, 1.0, 0.0, 0.5, 0.04)
+    rc = REALISM["realistic-c"]
+
+    def roi_mean(n, wi, wo):
+        img = render(np.ones((n, n, 3)), wi, wo, white, rc, 1.0, max(1, round(0.08 * n)))
+        assert (img >= 0).all() and np.isfinite(img).all()
+        m = int(n * 0.1)
+        return img[m : n - m, m : n - m].reshape(-1, 3).mean(axis=0)
+
+    for wi, wo in [(sph_to_vec(75, 0), sph_to_vec(15, 120)), (sph_to_vec(45, 200), sph_to_vec(60, 20))]:
+        a20, a80 = roi_mean(20, wi, wo), roi_mean(80, wi, wo)
+        assert np.allclose(a20, a80, rtol=0.01), (a20, a80)
+        a64, b = roi_mean(64, wi, wo), roi_mean(64, wo, wi)
+        assert abs(a64[1] / wi[2] / (b[1] / wo[2]) - 1) > 0.002
+    # a light-side pattern: with the camera fixed, the level moves with the light's azimuth,
+    # more at grazing light than at 30°, and not at all at normal incidence
+    def swing(theta):
+        v = [roi_mean(40, sph_to_vec(theta, p), sph_to_vec(30, 200))[1] for p in range(0, 360, 15)]
+        return (max(v) - min(v)) / np.mean(v)
+
+    assert swing(0) < 1e-12
+    assert swing(75) > swing(30) > 0.005
+    # stationary: the same geometry renders the same image
+    wi, wo = sph_to_vec(60, 40), sph_to_vec(45, 300)
+    assert np.array_equal(render(np.ones((16, 16, 3)), wi, wo, white, rc, 1.0, 1),
+                          render(np.ones((16, 16, 3)), wi, wo, white, rc, 1.0, 1))
