@@ -246,6 +246,6 @@ REALISM = {
         b=RealismB(vignette=1.0, vignette_theta=4.0, mount_height=0.06, mount_offset=(0.08, 0.03), spot_sigma=0.3, stray=0.02)
     ),
     "realistic-c": Realism(
-        c=RealismC(recess=0.012, beam_sigma=0.35, beam_offset=(0.05, -0.07), lamp_distance=20.0, response_gamma=0.008)
+        c=RealismC(recess=0.012, beam_sigma=0.25, beam_offset=(0.07, -0.10), lamp_distance=20.0, response_gamma=0.008)
     ),
 }
