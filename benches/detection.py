@@ -121,7 +121,7 @@ def score(run: M.Run, session: str) -> dict:
     pd = summary.get(key) or {}
     joint = next((x for x in geo if x["idx"] >= onset and x["code"] == "joint-offset-suspected"), None)
     ch = summary.get("checked") or {}
-    rec = {"id": run.id, "row": run.row.name, "material": run.material, "model": run.model, "seed": run.seed,
+    rec = {"id": run.id, "row": run.row.name, "material": run.material, "model": run.label, "seed": run.seed,
            "every": run.every,
            "fault": None if t is None else {"kind": t.kind, "onset": t.onset, "size": t.size, "axis": t.axis},
            "captures": ch.get("captures"), "probes": ch.get("probes"),

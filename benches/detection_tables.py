@@ -106,6 +106,11 @@ def models(records):
     return sorted({r["model"] for r in records})
 
 
+def fault_models(records):
+    """The models the fault rows run on (the fault-free-only image sizes have no column)."""
+    return models([r for r in records if r["fault"]])
+
+
 def false_alarm_table(records) -> str:
     rows = []
     for every in sorted({r["every"] for r in records}):
@@ -131,7 +136,7 @@ def step_table(records) -> str:
         if not g[0]["fault"] or g[0]["fault"]["kind"] != "step":
             continue
         cells = [name, f"every {every}" if every else "none"] + (["anisotropic"] if aniso else ["isotropic"])
-        for p in models(records):
+        for p in fault_models(records):
             h = [r for r in g if r["model"] == p]
             d = [x for x in (delay(r, "drift_after") for r in h) if x is not None]
             cells.append(of(sum(1 for x in d if x <= STEP_WITHIN), len(h)) if h else "–")
@@ -142,7 +147,7 @@ def step_table(records) -> str:
         as_joint = sum(1 for r in g if r["joint_after"])
         cells += [of(len(d), len(g)), wrong, as_joint, median_max(d), span(fitted) + (" %" if fitted else "")]
         rows.append(cells)
-    return table(["row", "probes", "sample"] + [f"within {STEP_WITHIN}, {p}" for p in models(records)]
+    return table(["row", "probes", "sample"] + [f"within {STEP_WITHIN}, {p}" for p in fault_models(records)]
                  + ["caught at all", "first alarm of the wrong sign", "taken for a joint", "delay (captures): median (max)",
                     "fitted step"], rows)
 
@@ -170,7 +175,7 @@ def positioning_table(records) -> str:
         if not f or f["kind"] != "joint":
             continue
         cells = [name, f"every {every}" if every else "none"]
-        for p in models(records):
+        for p in fault_models(records):
             h = [r for r in g if r["model"] == p]
             cells.append(of(sum(1 for r in h if named(r) and delay(r, "joint_after") <= JOINT_WITHIN), len(h)) if h else "–")
         right = [r for r in g if named(r) and delay(r, "joint_after") <= JOINT_WITHIN]
@@ -179,7 +184,7 @@ def positioning_table(records) -> str:
         q = sorted(r["joint_after"]["offset_deg"] / f["size"] for r in g if named(r))
         est = f"{statistics.median(q):.2f} ({q[0]:.2f} … {q[-1]:.2f})" if q else "–"
         rows.append(cells + [of(len(right), len(g)), len(wrong_axis), len(silent), est])
-    return table(["row", "probes"] + [f"named right within {JOINT_WITHIN}, {p}" for p in models(records)]
+    return table(["row", "probes"] + [f"named right within {JOINT_WITHIN}, {p}" for p in fault_models(records)]
                  + ["named right", "named as another axis", "not named", "estimate / truth: median (range)"], rows)
 
 
@@ -251,7 +256,10 @@ def catches(records) -> str:
                       share(lambda r: r in aniso and r["fault"]["kind"] == "joint", lambda r: named(r) and delay(r, "joint_after") <= JOINT_WITHIN)])
         free = [r for r in aniso if r["fault"] is None]
         lines.append(["anisotropic: no fault (false alarms)", "every 75", of(sum(1 for r in free if false_alarm(r)), len(free))])
-    return table(["fault (simulated rig: 4 isotropic materials, 2 models of rig imperfection)", "probes", "runs right"], lines)
+    # a label names the model, with the image size after a comma when not the lab's
+    n = len({r["model"].split(",")[0] for r in iso})
+    return table([f"fault (simulated rig: {len({r['material'] for r in iso})} isotropic materials, {n} models of rig imperfection)",
+                  "probes", "runs right"], lines)
 
 
 def tables(records: list[dict]) -> dict[str, str]:

@@ -19,8 +19,11 @@ pub(super) const HELD_MAX: usize = 8;
 pub(super) const OWN_SCALE_SWEEPS: usize = 4;
 /// Sweeps a lower layer needs before its scale is lent to the layer above.
 pub(super) const PRIOR_MIN_SWEEPS: usize = 4;
-/// The lent scale's margin over the tan² growth (the footprint's pattern is not exactly tan²).
+/// The lent scale's margin over the growth towards grazing (the footprint's pattern is not
+/// exactly tan², and one lower layer's growth is a rough measure of the next one's).
 pub(super) const PRIOR_SAFETY: f64 = 2.0;
+/// The largest growth power the lent scale takes: the lamp footprint's tan²θi.
+pub(super) const PRIOR_MAX_POWER: f64 = 2.0;
 
 impl ScaleHistory {
     pub(super) fn len(&self) -> usize {
@@ -49,18 +52,20 @@ impl SweepMonitor {
     /// The level against the earlier sweeps of the same θi layer: its CUSUM, and a gain step
     /// (once per sign and layer) when it crosses with a large enough mean and no joint's
     /// pattern explains it. `level` is the sweep's level less the layer pattern's prediction
-    /// (ln units), with the level's standard error and the prediction's SD.
+    /// (ln units), with the level's standard error and the prediction's SD (`None` while the
+    /// layer has no pattern model: `level` is then the raw level); `raw` is the level itself.
     pub(super) fn test_level(
         &mut self,
         sweep: &Sweep,
-        (level, level_se, pattern_sd): (f64, f64, f64),
+        (level, raw, level_se, pattern_sd): (f64, f64, f64, Option<f64>),
         known: &Known,
         rec: &mut SweepRecord,
         findings: &mut Vec<SweepFinding>,
     ) -> LevelStep {
         let (k, clip, layer) = (self.spec.cusum_k, self.spec.clip, sweep.layer);
         let mut step = LevelStep::default();
-        let prior = self.prior_level_scale(layer);
+        let prior = self.prior_level_scale(layer, pattern_sd.is_some());
+        let pattern_sd = pattern_sd.unwrap_or(0.0);
         let hist = self.level_history.entry(layer).or_default();
         let own = hist.len();
         // a layer's own scale once it has `OWN_SCALE_SWEEPS` sweeps; before, the smaller of its
@@ -157,22 +162,46 @@ impl SweepMonitor {
         if let Some(hist) = self.level_history.get_mut(&layer) {
             hist.record(level, active, step.alarmed);
         }
+        self.raw_level_history
+            .entry(layer)
+            .or_default()
+            .record(raw, active, step.alarmed);
         step
     }
 
     /// The level scale a θi layer with fewer than `OWN_SCALE_SWEEPS` sweeps is judged by: the
-    /// robust scale of the nearest lower layer (θi ≥ 5°) with `PRIOR_MIN_SWEEPS` sweeps, times
-    /// tan²θi / tan²θ_below (the lamp footprint's effect on a sweep's level grows towards
-    /// grazing) and `PRIOR_SAFETY`. `None` without such a layer.
-    pub(super) fn prior_level_scale(&self, layer: i64) -> Option<f64> {
-        let (&below, hist) = self
-            .level_history
+    /// robust scale of the nearest lower layer (θi ≥ 5°) with `PRIOR_MIN_SWEEPS` sweeps, grown
+    /// to this θi and times `PRIOR_SAFETY`. The growth is (tan θi / tan θ_below)^p: p is
+    /// measured from the two nearest such layers (how the session's own light-side effects grow
+    /// towards grazing), at most `PRIOR_MAX_POWER` (the lamp footprint's tan² law), and the law
+    /// itself while only one lower layer has a scale. `None` without such a layer.
+    ///
+    /// Like is judged by like: a layer whose levels are taken about its pattern model
+    /// (`modelled`) by the lower layers' levels about theirs; a layer without one yet, whose
+    /// levels still carry the light-side pattern's whole swing, by the lower layers' raw levels,
+    /// pattern and all. (A pattern the lower layer's model removes would otherwise be missing
+    /// from the scale of a layer where it is not yet removed, and its swing read as a step.)
+    pub(super) fn prior_level_scale(&self, layer: i64, modelled: bool) -> Option<f64> {
+        let histories = if modelled {
+            &self.level_history
+        } else {
+            &self.raw_level_history
+        };
+        let mut lower: Vec<(i64, f64)> = histories
             .iter()
             .filter(|(&l, h)| l < layer && l >= 5000 && h.len() >= PRIOR_MIN_SWEEPS)
-            .max_by_key(|(&l, _)| l)?;
-        let tan2 = |l: i64| (l as f64 / 1000.0).to_radians().tan().powi(2);
-        let growth = tan2(layer) / tan2(below);
-        let s = hist.scale() * growth * PRIOR_SAFETY;
+            .map(|(&l, h)| (l, h.scale()))
+            .collect();
+        lower.sort_by_key(|&(l, _)| std::cmp::Reverse(l));
+        let tan = |l: i64| (l as f64 / 1000.0).to_radians().tan();
+        let &(below, scale) = lower.first()?;
+        let power = match lower.get(1) {
+            Some(&(second, s2)) if s2 > 0.0 && scale > 0.0 => {
+                ((scale / s2).ln() / (tan(below) / tan(second)).ln()).clamp(0.0, PRIOR_MAX_POWER)
+            }
+            _ => PRIOR_MAX_POWER,
+        };
+        let s = scale * (tan(layer) / tan(below)).powf(power) * PRIOR_SAFETY;
         (s.is_finite() && s > 0.0).then_some(s)
     }
 }

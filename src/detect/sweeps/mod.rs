@@ -257,6 +257,9 @@ pub(crate) struct SweepMonitor {
     model_layer_counts: HashMap<i64, usize>,
     model_builds: usize,
     level_history: HashMap<i64, ScaleHistory>,
+    /// The same sweeps' raw levels (no pattern model taken out), per θi layer: the prior scale
+    /// of a layer that has no pattern model yet.
+    raw_level_history: HashMap<i64, ScaleHistory>,
     joint_history: [ScaleHistory; 2],
     level_cusum: Cusum,
     joint_cusum: [Cusum; 2],
@@ -344,6 +347,7 @@ impl SweepMonitor {
             model_layer_counts: HashMap::new(),
             model_builds: 0,
             level_history: HashMap::new(),
+            raw_level_history: HashMap::new(),
             joint_history: Default::default(),
             level_cusum: Cusum::default(),
             joint_cusum: [Cusum::default(), Cusum::default()],
@@ -523,10 +527,10 @@ impl SweepMonitor {
         }
         let mut findings = Vec::new();
         let level_step = if level_test {
-            let floor = pattern_fit.as_ref().map_or(0.0, |p| p.sd);
+            let floor = pattern_fit.as_ref().map(|p| p.sd);
             self.test_level(
                 &sweep,
-                (level - expected, level_se, floor),
+                (level - expected, level, level_se, floor),
                 &known,
                 &mut rec,
                 &mut findings,

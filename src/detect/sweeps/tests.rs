@@ -184,18 +184,71 @@ fn a_layer_borrows_the_scale_of_the_nearest_lower_layer_grown_by_tan_squared() {
         held: Vec::new(),
     };
     m.level_history.insert(0, history(0.001, 10));
-    assert_eq!(m.prior_level_scale(15_000), None);
+    assert_eq!(m.prior_level_scale(15_000, true), None);
     m.level_history
         .insert(30_000, history(0.002, PRIOR_MIN_SWEEPS - 1));
-    assert_eq!(m.prior_level_scale(45_000), None);
+    assert_eq!(m.prior_level_scale(45_000, true), None);
     m.level_history
         .insert(15_000, history(0.002, PRIOR_MIN_SWEEPS));
     let tan2 = |d: f64| d.to_radians().tan().powi(2);
     let want = 0.002 * crate::measure::stats::MAD_TO_SIGMA * tan2(45.0) / tan2(15.0) * PRIOR_SAFETY;
-    let got = m.prior_level_scale(45_000).unwrap();
+    let got = m.prior_level_scale(45_000, true).unwrap();
     assert!((got / want - 1.0).abs() < 1e-9, "{got} {want}");
     // a layer lends only upwards
-    assert_eq!(m.prior_level_scale(15_000), None);
+    assert_eq!(m.prior_level_scale(15_000, true), None);
+}
+
+/// A layer that has no pattern model yet judges its raw levels, which carry the light-side
+/// pattern's whole swing, by the lower layer's raw levels, not by its residuals about its
+/// model: the pattern a lower layer's model takes out is still in the new layer's levels.
+#[test]
+fn a_layer_without_a_pattern_model_borrows_the_raw_levels_scale() {
+    let rig = Rig::new(Default::default()).unwrap();
+    let mut m = SweepMonitor::new(SweepSpec::default(), rig, 81);
+    let history = |v: f64, n: usize| ScaleHistory {
+        values: [v, -v].repeat(n.div_ceil(2))[..n].to_vec(),
+        held: Vec::new(),
+    };
+    // the θi = 60° layer: residuals of 0.05 % about its model, raw levels swinging 1 %
+    m.level_history.insert(60_000, history(0.0005, 12));
+    m.raw_level_history.insert(60_000, history(0.01, 12));
+    let modelled = m.prior_level_scale(75_000, true).unwrap();
+    let unmodelled = m.prior_level_scale(75_000, false).unwrap();
+    assert!(
+        (unmodelled / modelled - 20.0).abs() < 1e-9,
+        "{unmodelled} {modelled}"
+    );
+}
+
+/// The lent scale grows towards grazing as the session's own lower layers do, up to the
+/// footprint's tan² law: flat layers lend their scale as it is, layers growing as tan θi lend
+/// it grown so, and faster growth is capped at tan².
+#[test]
+fn the_lent_scale_grows_as_the_lower_layers_do_up_to_tan_squared() {
+    let tan = |d: f64| d.to_radians().tan();
+    let history = |v: f64| ScaleHistory {
+        values: [v, -v].repeat(PRIOR_MIN_SWEEPS.div_ceil(2))[..PRIOR_MIN_SWEEPS].to_vec(),
+        held: Vec::new(),
+    };
+    let lent = |s30: f64, s45: f64| {
+        let mut m = SweepMonitor::new(
+            SweepSpec::default(),
+            Rig::new(Default::default()).unwrap(),
+            81,
+        );
+        m.raw_level_history.insert(30_000, history(s30));
+        m.raw_level_history.insert(45_000, history(s45));
+        m.prior_level_scale(60_000, false).unwrap()
+            / (s45 * crate::measure::stats::MAD_TO_SIGMA * PRIOR_SAFETY)
+    };
+    let close = |a: f64, b: f64| (a / b - 1.0).abs() < 1e-9;
+    assert!(close(lent(0.004, 0.004), 1.0));
+    let linear = lent(0.004, 0.004 * tan(45.0) / tan(30.0));
+    assert!(close(linear, tan(60.0) / tan(45.0)), "{linear}");
+    let steep = lent(0.001, 0.02);
+    assert!(close(steep, (tan(60.0) / tan(45.0)).powi(2)), "{steep}");
+    // shrinking layers lend their scale unshrunk
+    assert!(close(lent(0.01, 0.002), 1.0));
 }
 
 #[test]
