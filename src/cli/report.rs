@@ -972,7 +972,7 @@ figure svg{{max-width:100%;height:auto}} td a{{color:inherit;text-decoration:und
         let last = inp.sweeps.last();
         let _ = write!(h, "<h2>Light sweeps</h2><p>{} completed light directions were each compared with the earlier ones (isotropy classes; ARCHITECTURE.md). The first plot is each sweep's gain level less what its θ layer's earlier lights predict (± 2 standard errors): a lamp step moves every later sweep. In the second, a slipped arm joint shows as a run of sweeps whose fitted offset (dots ± 1 standard error; blue joint 1, orange joint 2) leaves zero; these per-sweep fits are biased towards zero, so read them as a lower bound; a joint alarm's own size is fitted afresh against the captures before the slip with a smooth model of the BRDF, and is not. Joint 3 cannot be seen on an isotropic sample. Ticks are drift and positioning alarms. The last sweep's gain level against the earlier ones: {}. sweeps.csv has every sweep.</p>",
             inp.sweeps.len(),
-            last.map(|r| format!("{:+.2} % ± {:.2}", r.level_pct, r.level_se_pct)).unwrap_or_default());
+            last.map(|r| esc(&super::summary::sweep_level_words(r))).unwrap_or_default());
         h.push_str(&figure(&sweep_levels_plot(inp)));
         h.push_str(&figure(&sweeps_plot(inp)));
     }

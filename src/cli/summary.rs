@@ -199,11 +199,10 @@ fn print_lamp_and_pose(s: &Summary, out: &mut impl std::io::Write) -> std::io::R
                     .collect();
                 writeln!(
                     out,
-                    "light sweeps: {} tested; the last (light {}): level {:+.2} % ± {:.2}{}{}",
+                    "light sweeps: {} tested; the last (light {}): {}{}{}",
                     sw.tested,
                     r.light,
-                    r.level_pct,
-                    r.level_se_pct,
+                    sweep_level_words(r),
                     if joints.is_empty() { "" } else { ", " },
                     joints.join(", ")
                 )?;
@@ -275,6 +274,22 @@ fn subset_line(
     )
 }
 
+/// A sweep's level as the level test judges it: against what its θi layer's light-side pattern
+/// predicts, with the standard error of the sweep's mean, and the departure in units of the
+/// layer's sweep-to-sweep scatter (the test's own measure). The standard error alone leaves out
+/// the pattern and the scatter from sweep to sweep, which fault-free runs show.
+pub(crate) fn sweep_level_words(r: &crate::detect::sweeps::SweepRecord) -> String {
+    let departure = r.level_pct - r.level_expected_pct;
+    let judged = match r.level_z {
+        Some(z) => format!("{z:+.1} of the layer's sweep-to-sweep scatter"),
+        None => "not judged yet: too few sweeps of its layer".to_string(),
+    };
+    format!(
+        "level {:+.2} %, {:+.2} % ± {:.2} (standard error) off its layer's pattern ({judged})",
+        r.level_pct, departure, r.level_se_pct
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -308,5 +323,29 @@ mod tests {
         // it follows Table 2's own line
         let t2 = text.find("Table 2").unwrap();
         assert!(text.find(line).unwrap() > t2);
+    }
+
+    /// The level is shown against its layer's pattern and the layer's scatter, the measure the
+    /// level test uses, not with the standard error of its mean alone.
+    #[test]
+    fn a_sweeps_level_is_worded_against_its_layers_pattern_and_scatter() {
+        let rec = |z: &str| -> crate::detect::sweeps::SweepRecord {
+            serde_json::from_str(&format!(
+                r#"{{"light":80,"idx":6560,"t":45913.0,"captures":80,"level_pct":-1.62,"level_expected_pct":-1.56,"level_se_pct":0.29,"level_z":{z},"level_cusum":0.0,"joints":[],"residual_sd":0.0,"thresholds":[3.2,3.5],"model_layers":5,"model_builds":30}}"#
+            ))
+            .unwrap()
+        };
+        let w = sweep_level_words(&rec("-0.12"));
+        assert!(w.contains("level -1.62 %"), "{w}");
+        assert!(
+            w.contains("-0.06 % ± 0.29 (standard error) off its layer's pattern"),
+            "{w}"
+        );
+        assert!(
+            w.contains("-0.1 of the layer's sweep-to-sweep scatter"),
+            "{w}"
+        );
+        let w = sweep_level_words(&rec("null"));
+        assert!(w.contains("not judged yet"), "{w}");
     }
 }
