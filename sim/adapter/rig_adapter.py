@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import math
 import os
 import pty
 import queue
@@ -82,9 +83,15 @@ class RigAdapter:
                   "exp": exp}
         if fields["idx"] < 0 or fields["entry"] < 0 or not fields["file"] or os.path.isabs(fields["file"]):
             raise ValueError(f"bad capture {index}: negative number, empty or absolute path")
+        if not math.isfinite(fields["t"]):
+            raise ValueError(f"bad capture {index}: time {t!r} is not a finite number of seconds")
         if sub is not None:
+            if not math.isfinite(float(sub)):
+                raise ValueError(f"bad capture {index}: sub {sub!r} is not a finite angle")
             fields["sub"] = f"{float(sub):.4f}"
         if exposure is not None:
+            if not (math.isfinite(float(exposure)) and float(exposure) > 0):
+                raise ValueError(f"bad capture {index}: exposure {exposure!r} is not a positive number")
             fields["exposure"] = float(exposure)
         P.frame(P.SEQ_MOD - 1, "CAPTURE", {**fields, "replay": 1})  # too long for the 512-byte line: fail here
         self.inbox.put(("capture", fields))
@@ -279,6 +286,8 @@ def _pose(p):
     v = [float(x) for x in (p.split(",") if isinstance(p, str) else p)]
     if len(v) != 4:
         raise ValueError(f"a pose is q1, q2, q3, w: got {p!r}")
+    if not all(math.isfinite(x) for x in v):
+        raise ValueError(f"a pose's angles are finite degrees: got {p!r}")
     return v
 
 

@@ -8,7 +8,7 @@ import pytest
 from simtest import REPO, goniowatch_binary
 
 from goniosim.geometry import Plan, Rig, angle_between, sph_to_vec
-from goniosim.material import PRESETS, REALISM, albedo_texture
+from goniosim.material import PRESETS, REALISM, Material, albedo_texture
 from goniosim.render import add_noise, decode_hdr, hdr_bytes, render
 
 
@@ -90,18 +90,26 @@ def test_realistic_render_is_stationary_and_not_reciprocal():
     assert abs(a1[1] / wi[2] / (b[1] / wo[2]) - 1) > 0.01
 
 
-def test_the_second_nuisance_model_is_positive_non_reciprocal_and_does_not_depend_on_image_size():
-    from goniosim.material import Material
+WHITE = Material("white", (1.0, 1.0, 1.0), 0.0, 1.0, 0.0, 0.5, 0.04)
 
-    # a uniform white Lambertian sample: only the nuisance makes the mean move
-    white = Material("white", (1.0, 1.0, 1.0), 0.0, 1.0, 0.0, 0.5, 0.04)
+
+def white_roi_mean(realism, n, wi, wo):
+    """A uniform white Lambertian sample under a nuisance model at n × n pixels (holder 8 %):
+    the mean RGB over the daemon's region (margin 10 %); only the nuisance makes it move."""
+    img = render(np.ones((n, n, 3)), wi, wo, WHITE, realism, 1.0, max(1, round(0.08 * n)))
+    assert (img >= 0).all() and np.isfinite(img).all()
+    m = int(n * 0.1)
+    return img[m : n - m, m : n - m].reshape(-1, 3).mean(axis=0)
+
+
+def test_the_second_nuisance_model_is_positive_non_reciprocal_and_does_not_depend_on_image_size():
     rb = REALISM["realistic-b"]
+    white = WHITE
 
     def roi_mean(n, wi, wo):
-        img = render(np.ones((n, n, 3)), wi, wo, white, rb, 1.0, max(1, round(0.08 * n)))
-        assert (img > 0).all()
-        m = int(n * 0.1)
-        return img[m : n - m, m : n - m].reshape(-1, 3).mean(axis=0)
+        a = white_roi_mean(rb, n, wi, wo)
+        assert (a > 0).all()
+        return a
 
     for wi, wo in [(sph_to_vec(75, 0), sph_to_vec(15, 120)), (sph_to_vec(45, 200), sph_to_vec(60, 20))]:
         # sizes whose 10 % margin is a whole number of pixels: the same region at both sizes
@@ -239,16 +247,11 @@ def test_rgbe_stores_non_finite_pixels_as_the_format_allows():
 
 
 def test_the_third_nuisance_model_has_a_light_side_pattern_is_non_reciprocal_and_does_not_depend_on_image_size():
-    from goniosim.material import Material
-
-    white = Material("white", (1.0, 1.0, 1.0), 0.0, 1.0, 0.0, 0.5, 0.04)
     rc = REALISM["realistic-c"]
+    white = WHITE
 
     def roi_mean(n, wi, wo):
-        img = render(np.ones((n, n, 3)), wi, wo, white, rc, 1.0, max(1, round(0.08 * n)))
-        assert (img >= 0).all() and np.isfinite(img).all()
-        m = int(n * 0.1)
-        return img[m : n - m, m : n - m].reshape(-1, 3).mean(axis=0)
+        return white_roi_mean(rc, n, wi, wo)
 
     for wi, wo in [(sph_to_vec(75, 0), sph_to_vec(15, 120)), (sph_to_vec(45, 200), sph_to_vec(60, 20))]:
         a20, a80 = roi_mean(20, wi, wo), roi_mean(80, wi, wo)

@@ -173,16 +173,28 @@ fn an_amplitude_is_judged_along_its_own_direction_and_a_degenerate_one_lends_no_
     assert!(pattern_fit(&[0.0, 1.0, 2.0], &[0.0; 3], &[4.0], None, 0.5).is_none());
 }
 
+/// A fresh monitor on the default rig and plan size, for the lent-scale tests.
+fn monitor() -> SweepMonitor {
+    SweepMonitor::new(
+        SweepSpec::default(),
+        Rig::new(Default::default()).unwrap(),
+        81,
+    )
+}
+
+/// A scale history of `n` values ±v (robust scale v · 1.4826).
+fn history(v: f64, n: usize) -> ScaleHistory {
+    ScaleHistory {
+        values: [v, -v].repeat(n.div_ceil(2))[..n].to_vec(),
+        held: Vec::new(),
+    }
+}
+
 /// The lent scale: the nearest lower layer with enough sweeps, grown by tan²θi; none from
 /// the pole's layer or from a layer with too few sweeps.
 #[test]
 fn a_layer_borrows_the_scale_of_the_nearest_lower_layer_grown_by_tan_squared() {
-    let rig = Rig::new(Default::default()).unwrap();
-    let mut m = SweepMonitor::new(SweepSpec::default(), rig, 81);
-    let history = |v: f64, n: usize| ScaleHistory {
-        values: [v, -v].repeat(n.div_ceil(2))[..n].to_vec(),
-        held: Vec::new(),
-    };
+    let mut m = monitor();
     m.level_history.insert(0, history(0.001, 10));
     assert_eq!(m.prior_level_scale(15_000, true), None);
     m.level_history
@@ -203,12 +215,7 @@ fn a_layer_borrows_the_scale_of_the_nearest_lower_layer_grown_by_tan_squared() {
 /// model: the pattern a lower layer's model takes out is still in the new layer's levels.
 #[test]
 fn a_layer_without_a_pattern_model_borrows_the_raw_levels_scale() {
-    let rig = Rig::new(Default::default()).unwrap();
-    let mut m = SweepMonitor::new(SweepSpec::default(), rig, 81);
-    let history = |v: f64, n: usize| ScaleHistory {
-        values: [v, -v].repeat(n.div_ceil(2))[..n].to_vec(),
-        held: Vec::new(),
-    };
+    let mut m = monitor();
     // the θi = 60° layer: residuals of 0.05 % about its model, raw levels swinging 1 %
     m.level_history.insert(60_000, history(0.0005, 12));
     m.raw_level_history.insert(60_000, history(0.01, 12));
@@ -226,18 +233,12 @@ fn a_layer_without_a_pattern_model_borrows_the_raw_levels_scale() {
 #[test]
 fn the_lent_scale_grows_as_the_lower_layers_do_up_to_tan_squared() {
     let tan = |d: f64| d.to_radians().tan();
-    let history = |v: f64| ScaleHistory {
-        values: [v, -v].repeat(PRIOR_MIN_SWEEPS.div_ceil(2))[..PRIOR_MIN_SWEEPS].to_vec(),
-        held: Vec::new(),
-    };
     let lent = |s30: f64, s45: f64| {
-        let mut m = SweepMonitor::new(
-            SweepSpec::default(),
-            Rig::new(Default::default()).unwrap(),
-            81,
-        );
-        m.raw_level_history.insert(30_000, history(s30));
-        m.raw_level_history.insert(45_000, history(s45));
+        let mut m = monitor();
+        m.raw_level_history
+            .insert(30_000, history(s30, PRIOR_MIN_SWEEPS));
+        m.raw_level_history
+            .insert(45_000, history(s45, PRIOR_MIN_SWEEPS));
         m.prior_level_scale(60_000, false).unwrap()
             / (s45 * crate::measure::stats::MAD_TO_SIGMA * PRIOR_SAFETY)
     };
