@@ -58,3 +58,28 @@ def test_an_announcement_that_cannot_be_sent_is_refused_and_nothing_is_queued(kw
     # the same call with good values goes through
     a.announce_capture(1, "img.hdr", POSE, t=7.0)
     assert not a.inbox.empty()
+
+
+@pytest.mark.parametrize("fmt", ["{bogus}.hdr", "{idx:q}.hdr", "{0}.hdr", "{idx"])
+def test_archive_refuses_a_name_format_it_cannot_fill_before_writing_anything(tmp_path, fmt):
+    import subprocess
+
+    sim = os.path.join(os.path.dirname(__file__), "..")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "goniosim", "archive", "scenarios/archive.toml", "--out", str(out),
+                        "--captures", "2", "--name-format", fmt], cwd=sim, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2, r.stderr
+    assert "--name-format" in r.stderr and "fields: idx, entry, tl, pl, tv, pv, ext" in r.stderr, r.stderr
+    assert not out.exists()
+
+
+def test_archive_names_the_files_by_the_format(tmp_path):
+    import subprocess
+
+    sim = os.path.join(os.path.dirname(__file__), "..")
+    r = subprocess.run([sys.executable, "-m", "goniosim", "archive", "scenarios/archive.toml", "--out", str(tmp_path),
+                        "--captures", "3", "--name-format", "{idx:05d}_L{tl:02.0f}-{pl:03.0f}_C{tv:02.0f}-{pv:03.0f}.{ext}"],
+                       cwd=sim, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    names = sorted(n for n in os.listdir(tmp_path / "archive") if n.endswith(".hdr"))
+    assert names[0].startswith("00000_L00-000_C") and len(names) == 3, names
