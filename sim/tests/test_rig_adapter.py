@@ -1,6 +1,8 @@
 """The adapter's lab-facing side (sim/adapter/rig_adapter.py) on bad input: a log line or a call
 it cannot announce is refused at once with a ValueError that says why (the follower skips the
-line with that message and goes on), and nothing is queued for goniowatch."""
+line with that message and goes on), and nothing is queued for goniowatch. Also the dry run's
+own names (`goniosim archive --name-format`): a format it cannot fill is refused before anything
+is written."""
 
 import os
 import sys
