@@ -91,9 +91,19 @@ pub struct ColourSpec {
     pub rgb_scale: Option<f64>,
     #[serde(default)]
     pub white: WhiteSpec,
+    /// The reflectance of the white that the white's luminance stands for (default 1: a
+    /// perfect reflector, as when `rgb_scale` already holds the standard's reflectance). Only
+    /// the export uses it: a BRDF is (Y / the white's Y) × this / (π cos θi).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub white_reflectance: Option<f64>,
 }
 
 impl ColourSpec {
+    /// The white's reflectance (1 when not set).
+    pub fn white_reflectance(&self) -> f64 {
+        self.white_reflectance.unwrap_or(1.0)
+    }
+
     /// The factor on the mean RGB: the configured one, or 1 when the config leaves it to the
     /// data and nothing resolved it.
     pub fn scale(&self) -> f64 {
@@ -390,6 +400,7 @@ impl KeyRange {
 /// `Duration`, thread and queue counts fit the machine, counts fit memory.
 pub(crate) const KEY_RANGES: &[KeyRange] = &[
     above("colour.rgb_scale", 0.0, 1e12),
+    above("colour.white_reflectance", 0.0, 2.0),
     above("capture.clip_level", 0.0, f32::MAX as f64),
     closed("capture.dark_level", 0.0, f32::MAX as f64),
     KeyRange {
@@ -793,6 +804,9 @@ impl Config {
         if let Some(scale) = self.colour.rgb_scale {
             v.push(("colour.rgb_scale", scale));
         }
+        if let Some(r) = self.colour.white_reflectance {
+            v.push(("colour.white_reflectance", r));
+        }
         for (k, j) in self.rig.joints.iter().enumerate() {
             v.push((
                 [
@@ -1126,7 +1140,15 @@ mod tests {
         let mut all = Vec::new();
         keys("", &defaults, &mut all);
         // keys whose default is unset do not serialise: these are shown commented out
-        all.extend(["colour.rgb_scale", "probes.entry", "source.sidecar"].map(String::from));
+        all.extend(
+            [
+                "colour.rgb_scale",
+                "colour.white_reflectance",
+                "probes.entry",
+                "source.sidecar",
+            ]
+            .map(String::from),
+        );
         for key in all {
             // a table's inner keys of another variant (roi, white) are compared by their table
             if key.starts_with("capture.roi.") || key.starts_with("colour.white.") {

@@ -39,6 +39,7 @@ pub mod daemon;
 pub mod decode;
 pub(crate) mod detect;
 pub mod engine;
+pub mod export;
 #[cfg(any(test, feature = "fixtures"))]
 pub mod fixtures;
 pub mod measure;

@@ -42,6 +42,9 @@ PRESETS = {
     "floortile": Material("floortile (granite)", (0.36, 0.34, 0.33), 0.45, 23.0, 0.05, 0.30, 0.05),
     "pinkwall": Material("pinkwall (polished ceramic)", (0.70, 0.46, 0.45), 0.10, 5.0, 0.12, 0.08, 0.05),
     "walkway": Material("walkway (plastic with a glossy varnish)", (0.42, 0.36, 0.26), 0.30, 13.0, 0.10, 0.15, 0.045),
+    # uniform samples with a known BRDF, for checking what `goniowatch export` writes
+    "lambert": Material("lambert (a uniform Lambertian diffuser)", (0.50, 0.40, 0.30), 0.0, 1.0, 0.0, 0.5, 0.04),
+    "ggx": Material("ggx (a uniform Lambertian base and a GGX lobe)", (0.30, 0.25, 0.20), 0.0, 1.0, 0.15, 0.25, 0.04),
     # anisotropic samples ([sample] isotropic = false in their config)
     "brushed": Material(
         "brushed (brushed aluminium: a narrow lobe along the brushing)",

@@ -1,6 +1,6 @@
 //! The commands that read files and print: `average`, `compare`, `report` and `plan`.
 
-use super::args::{AlarmsArgs, AverageArgs, CompareArgs, PlanArgs, ReportArgs};
+use super::args::{AlarmsArgs, AverageArgs, CompareArgs, ExportArgs, PlanArgs, ReportArgs};
 use super::commands::{average_file, plan_summary, AverageOutcome, ProbePlanSummary};
 use super::exit::{self, UsageError};
 use crate::config::Config;
@@ -341,6 +341,48 @@ pub(super) fn alarms_command(args: AlarmsArgs, out: &mut impl Write) -> Result<E
         }
     } else {
         write!(out, "{}", crate::checks::catalogue::markdown())?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+pub(super) fn export_command(args: ExportArgs, out: &mut impl Write) -> Result<ExitCode> {
+    use super::export::{export_images, export_merl, export_table, load, ExportFormat};
+    let ExportArgs {
+        session,
+        format,
+        out: dest,
+        sigma,
+        no_drift_correction,
+        capture_root,
+        threads,
+    } = args;
+    if sigma.is_some() && format != ExportFormat::Merl {
+        return Err(UsageError("--sigma goes with --format merl".into()).into());
+    }
+    if capture_root.is_some() && format != ExportFormat::CorrectedImages {
+        return Err(UsageError("--capture-root goes with --format corrected-images".into()).into());
+    }
+    let threads = threads
+        .map(usize::from)
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let data = load(&session, !no_drift_correction)
+        .with_context(|| format!("cannot export {}", session.display()))?;
+    let done = match format {
+        ExportFormat::Merl => export_merl(&data, dest.as_deref(), sigma.as_deref(), threads)?,
+        ExportFormat::Table => export_table(&data, dest.as_deref())?,
+        ExportFormat::CorrectedImages => {
+            export_images(&data, dest.as_deref(), capture_root.as_deref(), threads)?
+        }
+    };
+    for l in &done.lines {
+        writeln!(out, "{l}")?;
+    }
+    if done.meaningless {
+        eprintln!("goniowatch: the export holds no usable value");
+        return Ok(ExitCode::from(exit::EXIT_MEANINGLESS));
+    }
+    if done.failed {
+        return Ok(ExitCode::from(exit::EXIT_RUNTIME));
     }
     Ok(ExitCode::SUCCESS)
 }

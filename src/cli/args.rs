@@ -36,6 +36,11 @@ pub enum Command {
     /// angles) with the same checks as a live run, on every core, into a session folder that
     /// `report`, `compare` and `replay` read like any other. The folder is only read.
     Check(CheckArgs),
+    /// Export a checked session for the lab: the MERL BRDF binary (isotropic samples; with a
+    /// JSON sidecar of units, white, corrections, support and the checks' verdict), a table of
+    /// every capture raw and drift-corrected with its BRDF (CSV and JSON lines), or
+    /// drift-corrected OpenEXR copies of the captures. Never writes under the capture root.
+    Export(ExportArgs),
     /// Print the alarm catalogue: every alarm code with its kind, severities, meaning,
     /// evidence fields and what to do (docs/alarms.md is this table).
     Alarms(AlarmsArgs),
@@ -217,6 +222,33 @@ pub struct PlanArgs {
     /// ... flagged before this fraction of the run.
     #[arg(long, default_value_t = 0.15)]
     pub target_colour_by: f64,
+}
+
+#[derive(Args)]
+pub struct ExportArgs {
+    /// The session folder (or a replay's output folder).
+    pub session: PathBuf,
+    /// merl, table or corrected-images.
+    #[arg(long, value_enum)]
+    pub format: crate::cli::export::ExportFormat,
+    /// merl: the file (default SESSION/export/brdf.binary; its sidecar is FILE.json).
+    /// table: the CSV (default SESSION/export/captures-table.csv; the JSON lines beside it
+    /// as .jsonl). corrected-images: the folder (required; outside the capture root).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// merl: also write each cell's interpolation σ in the same layout to this file.
+    #[arg(long)]
+    pub sigma: Option<PathBuf>,
+    /// Export the values as measured, without dividing the session's drift estimate out.
+    #[arg(long)]
+    pub no_drift_correction: bool,
+    /// corrected-images: read the captures from here instead of the session's recorded
+    /// capture root.
+    #[arg(long)]
+    pub capture_root: Option<PathBuf>,
+    /// Threads (default: one per core).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=64))]
+    pub threads: Option<u16>,
 }
 
 #[derive(Args)]

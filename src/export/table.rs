@@ -1,0 +1,282 @@
+//! One row per capture: where it was, what was measured, what the drift correction made of it
+//! and the BRDF it gives (`goniowatch export --format table`). The row is flat so that the CSV
+//! header and the JSON lines' keys are the same names in the same order (docs/outputs.md).
+
+use super::correction::{DriftCorrection, Photometry};
+use crate::checks::{CaptureRecord, CaptureStatus};
+use serde::{Deserialize, Serialize};
+use std::collections::HashSet;
+
+/// One capture's row. Angles are the placed directions in degrees (sample frame); colour
+/// values are on the white's scale (Y = the white's luminance for the white) unless named
+/// `file_*` (the file's own mean) or `brdf_*` (sr⁻¹).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExportRow {
+    pub idx: u64,
+    pub file: String,
+    pub entry: usize,
+    pub light: usize,
+    pub camera: usize,
+    pub probe: bool,
+    pub t_s: f64,
+    pub status: CaptureStatus,
+    pub theta_i_deg: Option<f64>,
+    pub phi_i_deg: Option<f64>,
+    pub theta_o_deg: Option<f64>,
+    pub phi_o_deg: Option<f64>,
+    /// The file's mean RGB over the region of interest (the files' own scale).
+    pub file_r: Option<f64>,
+    pub file_g: Option<f64>,
+    pub file_b: Option<f64>,
+    /// XYZ as checked (cos θi and the drift still in it).
+    pub raw_x: Option<f64>,
+    pub raw_y: Option<f64>,
+    pub raw_z: Option<f64>,
+    /// The factors X, Y and Z were divided by (g·cx, g, g·cz).
+    pub gain: f64,
+    pub factor_x: f64,
+    pub factor_z: f64,
+    pub corrected_x: Option<f64>,
+    pub corrected_y: Option<f64>,
+    pub corrected_z: Option<f64>,
+    /// Corrected linear RGB of the configured primaries, each channel relative to the white's.
+    pub corrected_r: Option<f64>,
+    pub corrected_g: Option<f64>,
+    pub corrected_b: Option<f64>,
+    /// The BRDF (sr⁻¹): per RGB channel and of Y.
+    pub brdf_r: Option<f64>,
+    pub brdf_g: Option<f64>,
+    pub brdf_b: Option<f64>,
+    pub brdf_y: Option<f64>,
+    /// Divide the image's R, G and B by these to take the drift out of it.
+    pub image_factor_r: Option<f64>,
+    pub image_factor_g: Option<f64>,
+    pub image_factor_b: Option<f64>,
+    /// The capture stands for its plan entry in the exported grid (first good capture of the
+    /// entry, not a probe, above the dark level).
+    pub in_grid: bool,
+    /// Why the capture has no colour (failed or missing).
+    pub error: Option<String>,
+}
+
+/// The rows of `records` (in their order), corrected by `drift`; captures at or below
+/// `dark_y` are rows but not in the grid.
+pub fn rows(
+    records: &[CaptureRecord],
+    drift: &DriftCorrection,
+    photometry: &Photometry,
+    dark_y: f64,
+) -> Vec<ExportRow> {
+    let mut taken = HashSet::new();
+    records
+        .iter()
+        .map(|rec| {
+            let f = drift.xyz_factors(rec.t);
+            let corrected = rec.xyz.map(|x| drift.correct(x, rec.t));
+            let cos_i = rec.angles.map(|a| a.theta_i_deg.to_radians().cos());
+            let brdf = match (corrected, cos_i) {
+                (Some(x), Some(c)) => photometry.brdf_rgb(x, c),
+                _ => None,
+            };
+            let brdf_y = match (corrected, cos_i) {
+                (Some(x), Some(c)) => photometry.brdf_y(x, c),
+                _ => None,
+            };
+            let image = match (rec.mean_rgb, corrected) {
+                (Some(m), Some(x)) => photometry.image_factors(m, x),
+                _ => None,
+            };
+            let rel = corrected.map(|x| photometry.relative_rgb(x));
+            let in_grid = !rec.probe
+                && rec.status == CaptureStatus::Ok
+                && brdf.is_some()
+                && rec.xyz.is_some_and(|x| x[1] > dark_y)
+                && taken.insert(rec.entry);
+            ExportRow {
+                idx: rec.idx,
+                file: rec.file.clone(),
+                entry: rec.entry,
+                light: rec.light,
+                camera: rec.camera,
+                probe: rec.probe,
+                t_s: rec.t,
+                status: rec.status,
+                theta_i_deg: rec.angles.map(|a| a.theta_i_deg),
+                phi_i_deg: rec.angles.map(|a| a.phi_i_deg),
+                theta_o_deg: rec.angles.map(|a| a.theta_o_deg),
+                phi_o_deg: rec.angles.map(|a| a.phi_o_deg),
+                file_r: rec.mean_rgb.map(|m| m[0]),
+                file_g: rec.mean_rgb.map(|m| m[1]),
+                file_b: rec.mean_rgb.map(|m| m[2]),
+                raw_x: rec.xyz.map(|x| x[0]),
+                raw_y: rec.xyz.map(|x| x[1]),
+                raw_z: rec.xyz.map(|x| x[2]),
+                gain: f[1],
+                factor_x: f[0],
+                factor_z: f[2],
+                corrected_x: corrected.map(|x| x[0]),
+                corrected_y: corrected.map(|x| x[1]),
+                corrected_z: corrected.map(|x| x[2]),
+                corrected_r: rel.map(|v| v[0]),
+                corrected_g: rel.map(|v| v[1]),
+                corrected_b: rel.map(|v| v[2]),
+                brdf_r: brdf.map(|v| v[0]),
+                brdf_g: brdf.map(|v| v[1]),
+                brdf_b: brdf.map(|v| v[2]),
+                brdf_y,
+                image_factor_r: image.map(|v| v[0]),
+                image_factor_g: image.map(|v| v[1]),
+                image_factor_b: image.map(|v| v[2]),
+                in_grid,
+                error: rec.error.clone(),
+            }
+        })
+        .collect()
+}
+
+/// The CSV header: the row's field names in order.
+pub const COLUMNS: &[&str] = &[
+    "idx",
+    "file",
+    "entry",
+    "light",
+    "camera",
+    "probe",
+    "t_s",
+    "status",
+    "theta_i_deg",
+    "phi_i_deg",
+    "theta_o_deg",
+    "phi_o_deg",
+    "file_r",
+    "file_g",
+    "file_b",
+    "raw_x",
+    "raw_y",
+    "raw_z",
+    "gain",
+    "factor_x",
+    "factor_z",
+    "corrected_x",
+    "corrected_y",
+    "corrected_z",
+    "corrected_r",
+    "corrected_g",
+    "corrected_b",
+    "brdf_r",
+    "brdf_g",
+    "brdf_b",
+    "brdf_y",
+    "image_factor_r",
+    "image_factor_g",
+    "image_factor_b",
+    "in_grid",
+    "error",
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::export::correction::GainSource;
+    use crate::measure::colour::{RgbPrimaries, RgbToXyz, White};
+    use crate::measure::kinematics::Angles;
+
+    fn record(idx: u64, entry: usize, probe: bool, rgb: Option<[f64; 3]>) -> CaptureRecord {
+        let conv = RgbToXyz::new(RgbPrimaries::SrgbIec);
+        CaptureRecord {
+            idx,
+            entry,
+            light: entry / 81,
+            camera: entry % 81,
+            probe,
+            sentinel: false,
+            t: idx as f64 * 7.0,
+            file: format!("c{idx}.exr"),
+            status: if rgb.is_some() {
+                CaptureStatus::Ok
+            } else {
+                CaptureStatus::Missing
+            },
+            error: rgb.is_none().then(|| "never appeared".to_string()),
+            mean_rgb: rgb,
+            xyz: rgb.map(|m| conv.convert_scaled(m, 100.0)),
+            lab: None,
+            pixels: None,
+            nonfinite: None,
+            clipped: None,
+            negative: None,
+            angles: Some(Angles {
+                theta_i_deg: 60.0,
+                phi_i_deg: 0.0,
+                theta_o_deg: 30.0,
+                phi_o_deg: 180.0,
+            }),
+            substitute: None,
+            pose_error_deg: None,
+            by_command: false,
+            gain_corrected: None,
+        }
+    }
+
+    #[test]
+    fn the_columns_are_the_rows_fields_in_order() {
+        let p = Photometry::new(
+            RgbPrimaries::SrgbIec,
+            White::d65_scaled(100.0).unwrap(),
+            1.0,
+            100.0,
+        )
+        .unwrap();
+        let r = rows(
+            &[record(0, 5, false, Some([0.2; 3]))],
+            &DriftCorrection::none(),
+            &p,
+            0.5,
+        );
+        let v = serde_json::to_value(&r[0]).unwrap();
+        let keys: Vec<&str> = v.as_object().unwrap().keys().map(|k| k.as_str()).collect();
+        let mut sorted_cols: Vec<&str> = COLUMNS.to_vec();
+        sorted_cols.sort();
+        let mut sorted_keys = keys.clone();
+        sorted_keys.sort();
+        assert_eq!(sorted_keys, sorted_cols);
+        let mut w = csv::Writer::from_writer(Vec::new());
+        w.serialize(&r[0]).unwrap();
+        let text = String::from_utf8(w.into_inner().unwrap()).unwrap();
+        assert_eq!(text.lines().next().unwrap(), COLUMNS.join(","));
+    }
+
+    #[test]
+    fn the_first_good_capture_of_an_entry_is_in_the_grid_and_probes_retakes_and_dark_are_not() {
+        let p = Photometry::new(
+            RgbPrimaries::SrgbIec,
+            White::d65_scaled(100.0).unwrap(),
+            1.0,
+            100.0,
+        )
+        .unwrap();
+        let mut d = DriftCorrection::none();
+        d.gain_source = GainSource::IsotropyClasses;
+        d.rate_pct_per_h = -1.0;
+        let recs = [
+            record(0, 5, false, None),
+            record(1, 5, false, Some([0.0001; 3])),
+            record(2, 5, false, Some([0.2; 3])),
+            record(3, 5, false, Some([0.2; 3])),
+            record(4, 5, true, Some([0.2; 3])),
+        ];
+        let r = rows(&recs, &d, &p, 0.5);
+        let grid: Vec<bool> = r.iter().map(|x| x.in_grid).collect();
+        assert_eq!(grid, [false, false, true, false, false]);
+        assert_eq!(r[0].brdf_r, None);
+        assert_eq!(r[0].error.as_deref(), Some("never appeared"));
+        let row = &r[2];
+        let g = d.gain(row.t_s);
+        assert!((row.gain - g).abs() < 1e-15 && g < 1.0);
+        assert!((row.corrected_y.unwrap() - row.raw_y.unwrap() / g).abs() < 1e-12);
+        // 0.2 of a white at cos 60° is a BRDF of 0.4 / π; the drift divided out raises it
+        let want = 0.2 / 0.5 / std::f64::consts::PI / g;
+        assert!((row.brdf_g.unwrap() / want - 1.0).abs() < 3e-4, "{row:?}");
+        assert!((row.image_factor_g.unwrap() - g).abs() < 1e-9);
+    }
+}
