@@ -352,12 +352,20 @@ pub(super) fn export_command(args: ExportArgs, out: &mut impl Write) -> Result<E
         format,
         out: dest,
         sigma,
+        fit_nodes,
+        weight_nodes,
         no_drift_correction,
         capture_root,
         threads,
     } = args;
     if sigma.is_some() && format != ExportFormat::Merl {
         return Err(UsageError("--sigma goes with --format merl".into()).into());
+    }
+    let default_nodes = (fit_nodes, weight_nodes) == (40, 40);
+    if !default_nodes && format != ExportFormat::Merl {
+        return Err(
+            UsageError("--fit-nodes and --weight-nodes go with --format merl".into()).into(),
+        );
     }
     if capture_root.is_some() && format != ExportFormat::CorrectedImages {
         return Err(UsageError("--capture-root goes with --format corrected-images".into()).into());
@@ -368,7 +376,13 @@ pub(super) fn export_command(args: ExportArgs, out: &mut impl Write) -> Result<E
     let data = load(&session, !no_drift_correction)
         .with_context(|| format!("cannot export {}", session.display()))?;
     let done = match format {
-        ExportFormat::Merl => export_merl(&data, dest.as_deref(), sigma.as_deref(), threads)?,
+        ExportFormat::Merl => export_merl(
+            &data,
+            dest.as_deref(),
+            sigma.as_deref(),
+            (usize::from(fit_nodes), usize::from(weight_nodes)),
+            threads,
+        )?,
         ExportFormat::Table => export_table(&data, dest.as_deref())?,
         ExportFormat::CorrectedImages => {
             export_images(&data, dest.as_deref(), capture_root.as_deref(), threads)?

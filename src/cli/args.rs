@@ -239,6 +239,14 @@ pub struct ExportArgs {
     /// merl: also write each cell's interpolation σ in the same layout to this file.
     #[arg(long)]
     pub sigma: Option<PathBuf>,
+    /// merl: nodes in each nodal fit of the modified Shepard interpolant (Renka's NC; 10–40).
+    /// More nodes average the captures' noise over a wider neighbourhood and keep the fits
+    /// from swinging into gaps (the retro-reflection hole); fewer follow a narrow lobe closer.
+    #[arg(long, default_value_t = 40, value_parser = clap::value_parser!(u16).range(10..=40))]
+    pub fit_nodes: u16,
+    /// merl: nodes within each node's radius of influence (Renka's NW; 1–40).
+    #[arg(long, default_value_t = 40, value_parser = clap::value_parser!(u16).range(1..=40))]
+    pub weight_nodes: u16,
     /// Export the values as measured, without dividing the session's drift estimate out.
     #[arg(long)]
     pub no_drift_correction: bool,

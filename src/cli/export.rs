@@ -171,16 +171,31 @@ pub(crate) struct Verdict {
     /// Table 2 of the exact reciprocal pairs and of the isotropy classes.
     pub table2: crate::checks::Table2,
     pub isotropy: crate::checks::Table2,
-    /// Alarm counts by code.
+    /// Alarm counts by kind (the summary's) and by code (alarms.jsonl).
     pub alarms: BTreeMap<String, u64>,
+    pub alarm_codes: BTreeMap<String, u64>,
     /// Why the sample's isotropy is in doubt (an isotropy alarm), if it is.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub isotropy_warning: Option<String>,
 }
 
-fn verdict(s: &Summary, rows: &[ExportRow]) -> Verdict {
-    let isotropy_codes: Vec<String> = s
-        .alarms
+/// Alarm counts by code from the session's alarms.jsonl (none when it has no such file).
+fn alarm_codes(dir: &Path) -> BTreeMap<String, u64> {
+    let mut out = BTreeMap::new();
+    let path = dir.join("alarms.jsonl");
+    if let Ok(records) = crate::session::folder::read_records::<serde_json::Value>(&path) {
+        for a in records {
+            if let Some(code) = a.get("code").and_then(|c| c.as_str()) {
+                *out.entry(code.to_string()).or_insert(0) += 1;
+            }
+        }
+    }
+    out
+}
+
+fn verdict(dir: &Path, s: &Summary, rows: &[ExportRow]) -> Verdict {
+    let codes = alarm_codes(dir);
+    let isotropy_codes: Vec<String> = codes
         .keys()
         .filter(|k| {
             serde_json::from_value::<AlarmCode>(serde_json::Value::String((*k).clone()))
@@ -189,6 +204,11 @@ fn verdict(s: &Summary, rows: &[ExportRow]) -> Verdict {
         })
         .cloned()
         .collect();
+    let isotropy_alarms = s
+        .alarms
+        .get(AlarmKind::Isotropy.as_str())
+        .copied()
+        .unwrap_or(0);
     Verdict {
         finished: s.finished,
         captures_planned: s.captures_planned,
@@ -199,10 +219,16 @@ fn verdict(s: &Summary, rows: &[ExportRow]) -> Verdict {
         table2: s.table2.clone(),
         isotropy: s.isotropy.clone(),
         alarms: s.alarms.clone(),
-        isotropy_warning: (!isotropy_codes.is_empty()).then(|| {
+        alarm_codes: codes,
+        isotropy_warning: (isotropy_alarms > 0 || !isotropy_codes.is_empty()).then(|| {
             format!(
-                "the session raised {}: the sample may not be isotropic (or sits off the rotation centre), and an isotropic table folds its azimuths together",
-                isotropy_codes.join(", ")
+                "the session raised {} isotropy alarm(s){}: the sample may not be isotropic (or sits off the rotation centre), and an isotropic export folds its azimuths together",
+                isotropy_alarms.max(isotropy_codes.len() as u64),
+                if isotropy_codes.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", isotropy_codes.join(", "))
+                }
             )
         }),
     }
@@ -246,6 +272,9 @@ pub(crate) struct MerlSidecar {
     pub interpolant: Interpolant,
     /// The filled cells' σ relative to their value (worst channel): 50 %, 95 %, max.
     pub relative_sigma: Option<[f64; 3]>,
+    /// One capture's own scatter about its isotropy class (what the interpolant's σ leaves
+    /// out): a single capture differs from a cell by about √(σ² + (scatter × value)²).
+    pub capture_scatter: Option<crate::export::table::CaptureScatter>,
     /// The σ file (the same layout), when one was written.
     pub sigma_file: Option<String>,
     pub verdict: Verdict,
@@ -303,6 +332,7 @@ pub(crate) fn export_merl(
     data: &SessionData,
     out: Option<&Path>,
     sigma_out: Option<&Path>,
+    (fit_nodes, weight_nodes): (usize, usize),
     threads: usize,
 ) -> Result<Exported> {
     if !data.config.sample.isotropic {
@@ -318,7 +348,7 @@ pub(crate) fn export_merl(
     if let Some(s) = sigma_out {
         refuse_capture_root(s, &data.dir, None)?;
     }
-    let verdict = verdict(&data.summary, &data.rows);
+    let verdict = verdict(&data.dir, &data.summary, &data.rows);
     let mut lines = Vec::new();
     if let Some(w) = &verdict.isotropy_warning {
         eprintln!("goniowatch: warning: {w}");
@@ -351,7 +381,11 @@ pub(crate) fn export_merl(
         .flatten()
         .fold(0.0, f64::max)
         + LAYER_TOL_DEG;
-    let spec = ResampleSpec::default();
+    let spec = ResampleSpec {
+        nc_2d: fit_nodes,
+        nw_2d: weight_nodes,
+        ..ResampleSpec::default()
+    };
     let resampler = LayeredResampler::new(&samples, &spec)
         .context("the session's captures cannot be interpolated")?;
     let grid: MerlGrid = merl::fill(&resampler, theta_max, threads);
@@ -405,6 +439,7 @@ pub(crate) fn export_merl(
             layers_deg: resampler.layer_thetas(),
         },
         relative_sigma: grid.relative_sigma_quantiles(),
+        capture_scatter: table::capture_scatter(&data.rows),
         sigma_file: sigma_out.map(|p| p.display().to_string()),
         verdict,
     };
@@ -436,6 +471,12 @@ pub(crate) fn export_merl(
             "interpolation σ relative to the value: median {:.2} %, 95 % of cells below {:.2} %",
             100.0 * q[0],
             100.0 * q[1]
+        ));
+    }
+    if let Some(c) = sidecar.capture_scatter {
+        lines.push(format!(
+            "one capture's scatter about its isotropy class: {:.2} % ({} classes)",
+            c.relative_pct, c.classes
         ));
     }
     lines.push(correction_line(&data.drift));

@@ -279,4 +279,97 @@ mod tests {
         assert!((row.brdf_g.unwrap() / want - 1.0).abs() < 3e-4, "{row:?}");
         assert!((row.image_factor_g.unwrap() - g).abs() < 1e-9);
     }
+
+    #[test]
+    fn the_capture_scatter_is_pooled_over_repeated_geometries() {
+        let p = Photometry::new(
+            RgbPrimaries::SrgbIec,
+            White::d65_scaled(100.0).unwrap(),
+            1.0,
+            100.0,
+        )
+        .unwrap();
+        // two classes of two captures each: ±1 % and ±2 % about their means
+        let mut recs = Vec::new();
+        for (k, (level, phi)) in [(1.01, 0.0), (0.99, 40.0), (1.02, 0.0), (0.98, 40.0)]
+            .into_iter()
+            .enumerate()
+        {
+            let mut r = record(k as u64, k, false, Some([0.2 * level; 3]));
+            let a = r.angles.as_mut().unwrap();
+            a.phi_i_deg = phi;
+            a.phi_o_deg = phi + 180.0;
+            a.theta_o_deg = if k < 2 { 30.0 } else { 45.0 };
+            recs.push(r);
+        }
+        let s = capture_scatter(&rows(&recs, &DriftCorrection::none(), &p, 0.5)).unwrap();
+        assert_eq!((s.classes, s.dof), (2, 2));
+        let want = ((1.01f64.ln() - 0.99f64.ln()).powi(2) / 2.0
+            + (1.02f64.ln() - 0.98f64.ln()).powi(2) / 2.0)
+            / 2.0;
+        assert!((s.relative_pct - 100.0 * want.sqrt()).abs() < 1e-9, "{s:?}");
+        // nothing repeats: no estimate
+        assert_eq!(
+            capture_scatter(&rows(&recs[..1], &DriftCorrection::none(), &p, 0.5)),
+            None
+        );
+    }
+}
+
+/// The captures' own scatter: how much repeated measurements of one geometry differ.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CaptureScatter {
+    /// The standard deviation of one capture's BRDF about its isotropy class's mean, relative
+    /// (pooled over the classes; the worst of R, G and B), in %.
+    pub relative_pct: f64,
+    /// Classes with at least two captures, and the degrees of freedom pooled.
+    pub classes: usize,
+    pub dof: usize,
+}
+
+/// The scatter of the in-grid rows within their isotropy classes (same θi, θo and |φo − φi|
+/// to 0.01°): the noise a single capture carries beyond what the interpolant smooths. None
+/// when no class repeats (an anisotropic plan, or too few captures).
+pub fn capture_scatter(rows: &[ExportRow]) -> Option<CaptureScatter> {
+    use std::collections::BTreeMap;
+    let key = |r: &ExportRow| -> Option<[i64; 3]> {
+        let dphi = (r.phi_o_deg? - r.phi_i_deg?).rem_euclid(360.0);
+        let dphi = if dphi > 180.0 { 360.0 - dphi } else { dphi };
+        let k = |v: f64| (v * 100.0).round() as i64;
+        Some([k(r.theta_i_deg?), k(r.theta_o_deg?), k(dphi)])
+    };
+    let mut classes: BTreeMap<[i64; 3], Vec<[f64; 3]>> = BTreeMap::new();
+    for r in rows.iter().filter(|r| r.in_grid) {
+        let (Some(k), Some(red), Some(green), Some(blue)) = (key(r), r.brdf_r, r.brdf_g, r.brdf_b)
+        else {
+            continue;
+        };
+        if red > 0.0 && green > 0.0 && blue > 0.0 {
+            classes
+                .entry(k)
+                .or_default()
+                .push([red.ln(), green.ln(), blue.ln()]);
+        }
+    }
+    let (mut ss, mut dof, mut n_classes) = ([0.0f64; 3], 0usize, 0usize);
+    for members in classes.values().filter(|m| m.len() >= 2) {
+        n_classes += 1;
+        dof += members.len() - 1;
+        for c in 0..3 {
+            let mean = members.iter().map(|m| m[c]).sum::<f64>() / members.len() as f64;
+            ss[c] += members.iter().map(|m| (m[c] - mean).powi(2)).sum::<f64>();
+        }
+    }
+    if dof == 0 {
+        return None;
+    }
+    let worst = ss
+        .iter()
+        .map(|s| (s / dof as f64).sqrt())
+        .fold(0.0, f64::max);
+    Some(CaptureScatter {
+        relative_pct: 100.0 * worst,
+        classes: n_classes,
+        dof,
+    })
 }
