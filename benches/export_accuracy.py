@@ -56,9 +56,11 @@ def session_for(binary, tmp, preset, size, seed):
     return session
 
 
-def export(binary, session, out, threads=None, nodes=None):
+def export(binary, session, out, threads=None, nodes=None, across=None):
     """Export the MERL file and its σ; returns the wall time (s)."""
     cmd = [binary, "export", session, "--format", "merl", "--out", out, "--sigma", out + ".sigma"]
+    if across:
+        cmd += ["--across-layers", across]
     if nodes:
         cmd += ["--fit-nodes", str(nodes[0]), "--weight-nodes", str(nodes[1])]
     if threads:
@@ -144,6 +146,7 @@ def main():
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--stride", type=int, default=5, help="compare every STRIDE-th filled cell")
     ap.add_argument("--nodes", help="NC,NW of the interpolant (default: the export's)")
+    ap.add_argument("--across-layers", help="cosine-weighted or brdf (default: the export's)")
     ap.add_argument("--json")
     a = ap.parse_args()
     results = {}
@@ -153,7 +156,7 @@ def main():
             run([a.bin, "export", session, "--format", "table"])
             path = os.path.join(tmp, "brdf.binary")
             nodes = tuple(int(x) for x in a.nodes.split(",")) if a.nodes else None
-            times = {t: export(a.bin, session, path, t, nodes) for t in (1, 2)}
+            times = {t: export(a.bin, session, path, t, nodes, a.across_layers) for t in (1, 2)}
             side = json.load(open(path + ".json"))
             scatter = (side.get("capture_scatter") or {}).get("relative_pct", 0.0) / 100.0
             cells, filled = cell_errors(path, preset, a.stride)
@@ -181,7 +184,7 @@ def main():
             "capture_error_p95": bias95,
             "captures": {"n": len(caps), "looked_up": len(covered), "median": q([c[2] for c in covered], 0.5), "p95": q([c[2] for c in covered], 0.95), "within_1sigma": sum(c[3] <= 1 for c in covered) / max(len(covered), 1), "within_2sigma": sum(c[3] <= 2 for c in covered) / max(len(covered), 1)},
         }
-    print(f"{a.size} × {a.size} px, seed {a.seed}, interpolant nodes {a.nodes or 'default'}, every {a.stride}th filled cell; relative error = |exported − analytic| / analytic, worst channel\n")
+    print(f"{a.size} × {a.size} px, seed {a.seed}, interpolant nodes {a.nodes or 'default'}, across layers {a.across_layers or 'default'}, every {a.stride}th filled cell; relative error = |exported − analytic| / analytic, worst channel\n")
     for preset, r in results.items():
         print(f"**{preset}**: {r['filled']:,} cells filled ({100 * r['filled_fraction_above_horizon']:.1f} % of those above the horizon); export {r['seconds'][1]:.2f} s on 1 thread, {r['seconds'][2]:.2f} s on 2\n")
         print("| θi of the cell | cells | median | 95 % | max | within 2σ |\n|---|---|---|---|---|---|")

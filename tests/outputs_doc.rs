@@ -7,7 +7,9 @@
 //! `files_skipped`, a storm's aggregated alarm, `lock`), `compare` on copies of the `decay` and
 //! `probe-step` sessions' results against a reference written here (`crossval.json`, with a gain
 //! rate and with the probes' gain curve), `report` of the first (every CSV, `sweeps.csv` and
-//! `table3.csv` included, and `report.html`), and `replay --out` of the `clean` session.
+//! `table3.csv` included, and `report.html`), `replay --out` of the `clean` session, and `export`
+//! of the check session in every format (the MERL file and its sidecar, the table, the corrected
+//! images' list).
 //!
 //! The conventions of docs/outputs.md this test reads:
 //!
@@ -71,7 +73,7 @@ struct Section {
 fn is_file_name(token: &str) -> bool {
     token == "lock"
         || (!token.contains([' ', '/', '*'])
-            && [".jsonl", ".json", ".toml", ".csv", ".html"]
+            && [".jsonl", ".json", ".toml", ".csv", ".html", ".binary"]
                 .iter()
                 .any(|e| token.ends_with(e)))
 }
@@ -399,6 +401,22 @@ fn make_check_session(scratch: &Path) -> PathBuf {
         "check",
         &[0],
     );
+    for format in ["merl", "table"] {
+        run(
+            bin().arg("export").arg(&session).args(["--format", format]),
+            "export",
+            &[0],
+        );
+    }
+    run(
+        bin()
+            .arg("export")
+            .arg(&session)
+            .args(["--format", "corrected-images", "--out"])
+            .arg(scratch.join("corrected")),
+        "export",
+        &[0],
+    );
     session
 }
 
@@ -467,6 +485,8 @@ fn outputs() -> BTreeMap<String, Seen> {
         (a.join().unwrap(), b.join().unwrap(), c.join().unwrap())
     });
     read_folder(&check_session, &mut all);
+    read_folder(&check_session.join("export"), &mut all);
+    read_file(&check.0.join("corrected/corrected-images.jsonl"), &mut all);
     for dir in &compared {
         read_folder(dir, &mut all);
     }
@@ -616,6 +636,12 @@ fn docs_outputs_md_documents_every_file_and_field_goniowatch_writes() {
         "retakes.csv",
         "sweeps.csv",
         "table3.csv",
+        "brdf.binary",
+        "brdf.binary.json",
+        "merl-export.json",
+        "captures-table.csv",
+        "captures-table.jsonl",
+        "corrected-images.jsonl",
     ] {
         assert!(all.contains_key(name), "{name} was not made");
     }

@@ -354,6 +354,7 @@ pub(super) fn export_command(args: ExportArgs, out: &mut impl Write) -> Result<E
         sigma,
         fit_nodes,
         weight_nodes,
+        across_layers,
         no_drift_correction,
         capture_root,
         threads,
@@ -361,11 +362,13 @@ pub(super) fn export_command(args: ExportArgs, out: &mut impl Write) -> Result<E
     if sigma.is_some() && format != ExportFormat::Merl {
         return Err(UsageError("--sigma goes with --format merl".into()).into());
     }
-    let default_nodes = (fit_nodes, weight_nodes) == (40, 40);
+    let default_nodes = (fit_nodes, weight_nodes) == (40, 40)
+        && across_layers == super::export::LayerInterpolation::Brdf;
     if !default_nodes && format != ExportFormat::Merl {
-        return Err(
-            UsageError("--fit-nodes and --weight-nodes go with --format merl".into()).into(),
-        );
+        return Err(UsageError(
+            "--fit-nodes, --weight-nodes and --across-layers go with --format merl".into(),
+        )
+        .into());
     }
     if capture_root.is_some() && format != ExportFormat::CorrectedImages {
         return Err(UsageError("--capture-root goes with --format corrected-images".into()).into());
@@ -381,6 +384,7 @@ pub(super) fn export_command(args: ExportArgs, out: &mut impl Write) -> Result<E
             dest.as_deref(),
             sigma.as_deref(),
             (usize::from(fit_nodes), usize::from(weight_nodes)),
+            across_layers,
             threads,
         )?,
         ExportFormat::Table => export_table(&data, dest.as_deref())?,

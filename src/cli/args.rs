@@ -247,6 +247,11 @@ pub struct ExportArgs {
     /// merl: nodes within each node's radius of influence (Renka's NW; 1–40).
     #[arg(long, default_value_t = 40, value_parser = clap::value_parser!(u16).range(1..=40))]
     pub weight_nodes: u16,
+    /// merl: what is interpolated across the θi layers: brdf (the BRDF itself; closest on
+    /// matte samples) or cosine-weighted (the BRDF × cos θi × cos θo: several times closer to a
+    /// glossy lobe at θi ≥ 45°). BENCHMARKS.md gives the error of each.
+    #[arg(long, value_enum, default_value = "brdf")]
+    pub across_layers: crate::cli::export::LayerInterpolation,
     /// Export the values as measured, without dividing the session's drift estimate out.
     #[arg(long)]
     pub no_drift_correction: bool,

@@ -32,6 +32,17 @@ pub enum ExportFormat {
     CorrectedImages,
 }
 
+/// What the MERL export interpolates across the θi layers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum LayerInterpolation {
+    /// The BRDF itself (the default: exact for a matte sample's flat BRDF).
+    Brdf,
+    /// The BRDF × cos θi × cos θo (a microfacet lobe's D·F·G/4, slow in θi): several times
+    /// closer on glossy samples at θi ≥ 45°, somewhat further on matte ones.
+    CosineWeighted,
+}
+
 /// The session as the export reads it.
 pub(crate) struct SessionData {
     pub dir: PathBuf,
@@ -241,6 +252,8 @@ pub(crate) struct Interpolant {
     pub nc_2d: usize,
     pub nw_2d: usize,
     pub log_values: bool,
+    /// What is interpolated across the θi layers.
+    pub across_layers: LayerInterpolation,
     /// θi of the layers interpolated across (degrees).
     pub layers_deg: Vec<f64>,
 }
@@ -249,6 +262,7 @@ pub(crate) struct Interpolant {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub(crate) struct MerlSidecar {
     pub format: String,
+    /// The MERL file's name (the sidecar sits beside it).
     pub file: String,
     pub sha256: String,
     pub goniowatch: String,
@@ -333,6 +347,7 @@ pub(crate) fn export_merl(
     out: Option<&Path>,
     sigma_out: Option<&Path>,
     (fit_nodes, weight_nodes): (usize, usize),
+    across: LayerInterpolation,
     threads: usize,
 ) -> Result<Exported> {
     if !data.config.sample.isotropic {
@@ -384,6 +399,7 @@ pub(crate) fn export_merl(
     let spec = ResampleSpec {
         nc_2d: fit_nodes,
         nw_2d: weight_nodes,
+        cosine_across_layers: across == LayerInterpolation::CosineWeighted,
         ..ResampleSpec::default()
     };
     let resampler = LayeredResampler::new(&samples, &spec)
@@ -404,7 +420,10 @@ pub(crate) fn export_merl(
     let above = merl::CELLS as u64 - cells.below_horizon;
     let sidecar = MerlSidecar {
         format: "merl".into(),
-        file: out.display().to_string(),
+        file: out
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
         sha256,
         goniowatch: env!("CARGO_PKG_VERSION").into(),
         session: data.summary.session.clone(),
@@ -436,11 +455,12 @@ pub(crate) fn export_merl(
             nc_2d: spec.nc_2d,
             nw_2d: spec.nw_2d,
             log_values: spec.log_values,
+            across_layers: across,
             layers_deg: resampler.layer_thetas(),
         },
         relative_sigma: grid.relative_sigma_quantiles(),
         capture_scatter: table::capture_scatter(&data.rows),
-        sigma_file: sigma_out.map(|p| p.display().to_string()),
+        sigma_file: sigma_out.and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned())),
         verdict,
     };
     let json = serde_json::to_vec_pretty(&sidecar)?;
@@ -488,7 +508,7 @@ pub(crate) fn export_merl(
     })
 }
 
-fn correction_line(d: &DriftCorrection) -> String {
+pub(crate) fn correction_line(d: &DriftCorrection) -> String {
     let gain = match d.gain_source {
         GainSource::ProbeCurve => {
             format!("the drift probes' gain curve ({} points)", d.curve.len())

@@ -8,6 +8,7 @@
 mod acquisition;
 mod analysis;
 pub mod args;
+pub(crate) mod brdf_plots;
 pub(crate) mod commands;
 pub(crate) mod compare;
 pub mod exit;

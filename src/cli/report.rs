@@ -30,6 +30,8 @@ pub(crate) struct ReportInputs {
     /// The checked count of `summary.json` when the run stopped before writing it again (a
     /// killed run): the capture counts shown are then those of `captures.jsonl`.
     pub summary_behind: Option<u64>,
+    /// The BRDF section's inputs (none when the session gives no BRDF values).
+    pub brdf: Option<super::brdf_plots::BrdfInputs>,
 }
 
 /// A run stopped between two writes of `summary.json` (killed, the machine lost) has capture
@@ -73,6 +75,7 @@ pub(crate) fn load(dir: &Path) -> Result<ReportInputs> {
         sweeps: read_complete_records(&dir.join("sweeps.jsonl"))?,
         crossval,
         summary_behind,
+        brdf: super::brdf_plots::load(dir),
     })
 }
 
@@ -89,7 +92,7 @@ fn esc(s: &str) -> String {
 }
 
 /// A perceptually ordered ramp (viridis stops), t in [0, 1].
-fn ramp(t: f64) -> String {
+pub(super) fn ramp(t: f64) -> String {
     const STOPS: [[f64; 3]; 5] = [
         [68.0, 1.0, 84.0],
         [59.0, 82.0, 139.0],
@@ -980,6 +983,10 @@ figure svg{{max-width:100%;height:auto}} td a{{color:inherit;text-decoration:und
     if let Some(cv) = &inp.crossval {
         h.push_str("<h2>Cross-validation (the paper's Table 3)</h2>");
         h.push_str(&table3_html(cv));
+    }
+
+    if let Some(b) = &inp.brdf {
+        h.push_str(&super::brdf_plots::section(b, figure));
     }
 
     // capture quality

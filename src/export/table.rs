@@ -82,8 +82,10 @@ pub fn rows(
                 (Some(x), Some(c)) => photometry.brdf_y(x, c),
                 _ => None,
             };
+            // a mean with a channel at or below zero (a dark frame) has no colour to keep:
+            // the gain alone is divided out
             let image = match (rec.mean_rgb, corrected) {
-                (Some(m), Some(x)) => photometry.image_factors(m, x),
+                (Some(m), Some(x)) => photometry.image_factors(m, x).or(Some([f[1]; 3])),
                 _ => None,
             };
             let rel = corrected.map(|x| photometry.relative_rgb(x));
