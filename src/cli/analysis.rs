@@ -378,7 +378,7 @@ pub(super) fn export_command(args: ExportArgs, out: &mut impl Write) -> Result<E
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let data = load(&session, !no_drift_correction)
         .with_context(|| format!("cannot export {}", session.display()))?;
-    let done = match format {
+    let result = match format {
         ExportFormat::Merl => export_merl(
             &data,
             dest.as_deref(),
@@ -386,10 +386,20 @@ pub(super) fn export_command(args: ExportArgs, out: &mut impl Write) -> Result<E
             (usize::from(fit_nodes), usize::from(weight_nodes)),
             across_layers,
             threads,
-        )?,
-        ExportFormat::Table => export_table(&data, dest.as_deref())?,
+        ),
+        ExportFormat::Table => export_table(&data, dest.as_deref()),
         ExportFormat::CorrectedImages => {
-            export_images(&data, dest.as_deref(), capture_root.as_deref(), threads)?
+            export_images(&data, dest.as_deref(), capture_root.as_deref(), threads)
+        }
+    };
+    let done = match result {
+        Ok(d) => d,
+        Err(e) => {
+            if let Some(crate::export::ExportError::NothingToExport(why)) = e.downcast_ref() {
+                eprintln!("goniowatch: nothing to export: {why}");
+                return Ok(ExitCode::from(exit::EXIT_MEANINGLESS));
+            }
+            return Err(e);
         }
     };
     for l in &done.lines {
