@@ -11,6 +11,8 @@
 //!   the controller's side of the protocol that announces them (pure).
 //! - [`checks`]: the checker: a router over one stage per concern, the alarms (the words,
 //!   severity and advice for every finding) and the result records (pure).
+//! - [`export`]: what a lab takes away from a checked session: the drift model and photometry
+//!   to a BRDF, one row per capture, the MERL grid (pure).
 //! - [`config`]: the TOML configuration as plain data (parsing and validation; the
 //!   checks' and core's spec types are its sections).
 //! - [`setup`]: the fixed parts of a session built from its configuration once (plan, rig,
