@@ -898,6 +898,7 @@ mod tests {
         let mut with_entry = c.clone();
         with_entry.probes.entry = Some(3);
         with_entry.colour.rgb_scale = Some(1.0);
+        with_entry.colour.white_reflectance = Some(1.0);
         with_entry.probes.every = crate::detect::probes::ProbeEvery::Captures(1);
         let all: Vec<&str> = with_entry
             .numeric_values()

@@ -199,8 +199,24 @@ fn a_merl_export_reads_back_at_the_captures_directions_and_its_sidecar_says_what
     assert!(side["verdict"]["table2"]["pairs"].as_u64().unwrap() > 0);
     assert!(side["verdict"]["isotropy_warning"].is_null());
     assert_eq!(side["coverage"].as_array().unwrap().len(), 90);
-    // the report's copy
+    // the report's copy, and the report's BRDF section drawn from it
     assert!(s.join("merl-export.json").exists());
+    let out = bin().arg("report").arg(&s).output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let html = std::fs::read_to_string(s.join("report/report.html")).unwrap();
+    let brdf = &html[html.find("<h2>BRDF</h2>").expect("a BRDF section")..];
+    let brdf = &brdf[..brdf.find("<h2>Capture quality").unwrap()];
+    assert!(
+        brdf.contains("θi = 0°") && brdf.contains("θi = 15°"),
+        "one curve per θi layer"
+    );
+    // corrected (solid) and as measured (dashed) for each layer
+    assert_eq!(
+        brdf.matches("<polyline").count(),
+        2 * brdf.matches("θi = ").count()
+    );
+    assert!(brdf.matches("stroke-dasharray").count() >= 2);
+    assert!(brdf.contains("The MERL export's coverage") && brdf.contains("brdf.binary"));
     // a second export is byte-identical (threads do not change it)
     let again = tmp.path().join("again.binary");
     let out = export(
