@@ -86,7 +86,8 @@ def test_the_report_prints_to_a4_with_no_plot_cut_and_its_alarms_linked(tmp_path
         # every plot is a figure (what the print style keeps whole)
         assert page.evaluate("document.querySelectorAll('svg').length === document.querySelectorAll('figure > svg').length")
         figures = page.evaluate(MARK_FIGURES)
-        assert figures == 5 + 2 + 81, figures  # the time plots and histogram, map and legend, one disc per light
+        # the time plots and histogram, map and legend, one disc per light, the in-plane BRDF
+        assert figures == 5 + 2 + 81 + 1, figures
         # nothing is wider than the printed page's column (else the browser shrinks every page)
         page.emulate_media(media="print")
         widths = page.evaluate("[document.documentElement.scrollWidth, document.documentElement.clientWidth]")
