@@ -84,27 +84,7 @@ impl DriftCorrection {
         match self.gain_source {
             GainSource::None => 1.0,
             GainSource::ProbeCurve if self.curve.len() >= 2 => {
-                let p = &self.curve;
-                let k = p.partition_point(|q| q.0 <= t);
-                let ln = |i: usize| p[i].1.ln();
-                let v = if k == 0 {
-                    ln(0)
-                } else if k == p.len() {
-                    ln(p.len() - 1)
-                } else {
-                    let (a, b) = (p[k - 1], p[k]);
-                    let u = if b.0 > a.0 {
-                        (t - a.0) / (b.0 - a.0)
-                    } else {
-                        1.0
-                    };
-                    ln(k - 1) + u * (ln(k) - ln(k - 1))
-                };
-                if v.is_finite() {
-                    v.exp()
-                } else {
-                    1.0
-                }
+                crate::measure::crossval::gain_curve_at(&self.curve, t).unwrap_or(1.0)
             }
             GainSource::ProbeCurve | GainSource::IsotropyClasses => {
                 let steps: f64 = self

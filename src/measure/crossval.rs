@@ -256,31 +256,36 @@ pub(crate) struct GainCorrection {
     pub points: Vec<(f64, f64)>,
 }
 
+/// A gain curve's value at `t_h` (hours): (t in hours, gain) points in time order, interpolated
+/// linearly in ln g and held at the ends. None with fewer than two points or a gain that is not
+/// positive.
+pub(crate) fn gain_curve_at(points: &[(f64, f64)], t_h: f64) -> Option<f64> {
+    let p = points;
+    if p.len() < 2 {
+        return None;
+    }
+    let k = p.partition_point(|q| q.0 <= t_h);
+    let ln = |i: usize| p[i].1.ln();
+    let v = if k == 0 {
+        ln(0)
+    } else if k == p.len() {
+        ln(p.len() - 1)
+    } else {
+        let (a, b) = (p[k - 1], p[k]);
+        let u = if b.0 > a.0 {
+            (t_h - a.0) / (b.0 - a.0)
+        } else {
+            1.0
+        };
+        ln(k - 1) + u * (ln(k) - ln(k - 1))
+    };
+    v.is_finite().then(|| v.exp())
+}
+
 impl GainCorrection {
     pub(crate) fn gain(&self, t_s: f64) -> f64 {
         let t = t_s / 3600.0;
-        let p = &self.points;
-        if p.len() >= 2 {
-            let k = p.partition_point(|q| q.0 <= t);
-            let ln = |i: usize| p[i].1.ln();
-            let v = if k == 0 {
-                ln(0)
-            } else if k == p.len() {
-                ln(p.len() - 1)
-            } else {
-                let (a, b) = (p[k - 1], p[k]);
-                let u = if b.0 > a.0 {
-                    (t - a.0) / (b.0 - a.0)
-                } else {
-                    1.0
-                };
-                ln(k - 1) + u * (ln(k) - ln(k - 1))
-            };
-            if v.is_finite() {
-                return v.exp();
-            }
-        }
-        (self.rate_pct_per_h / 100.0 * t).exp()
+        gain_curve_at(&self.points, t).unwrap_or_else(|| (self.rate_pct_per_h / 100.0 * t).exp())
     }
 }
 

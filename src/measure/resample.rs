@@ -613,6 +613,11 @@ mod tests {
     }
 
     fn ubo_isotropic_samples() -> Vec<Sample> {
+        ubo_samples_of(f)
+    }
+
+    /// Every (light, camera) pair of the UBO plan with the value `g` gives it.
+    fn ubo_samples_of(g: impl Fn(&Vec3, &Vec3) -> Xyz) -> Vec<Sample> {
         let plan = SamplingPlan::ubo();
         let dirs: Vec<Vec3> = plan
             .directions()
@@ -625,7 +630,7 @@ mod tests {
                 samples.push(Sample {
                     omega_i: *wi,
                     omega_o: *wo,
-                    value: f(wi, wo),
+                    value: g(wi, wo),
                 });
             }
         }
@@ -702,23 +707,7 @@ mod tests {
 
     #[test]
     fn cosine_weighting_across_layers_follows_a_lobe_at_high_theta_and_leaves_layers_alone() {
-        let plan = SamplingPlan::ubo();
-        let dirs: Vec<Vec3> = plan
-            .directions()
-            .iter()
-            .map(|d| d.spherical().to_vector())
-            .collect();
-        let mut samples = Vec::new();
-        for wi in &dirs {
-            for wo in &dirs {
-                let v = lobe(wi, wo);
-                samples.push(Sample {
-                    omega_i: *wi,
-                    omega_o: *wo,
-                    value: [v; 3],
-                });
-            }
-        }
+        let samples = ubo_samples_of(|wi, wo| [lobe(wi, wo); 3]);
         let plain = LayeredResampler::new(&samples, &ResampleSpec::default()).unwrap();
         let weighted = LayeredResampler::new(
             &samples,
