@@ -399,3 +399,52 @@ fn bad_calls_and_empty_sessions_get_their_exit_status_and_nothing_is_written_und
         text(&out.stderr)
     );
 }
+
+#[test]
+fn corrected_images_list_a_truncated_capture_with_its_error_and_write_the_others() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = session("clean", tmp.path());
+    // the captures, copied: one cut short, one deleted
+    let src = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/sessions/clean/captures");
+    let root = tmp.path().join("captures");
+    std::fs::create_dir_all(root.join("clean")).unwrap();
+    for e in std::fs::read_dir(src.join("clean")).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), root.join("clean").join(e.file_name())).unwrap();
+    }
+    let cut = root.join("clean/cap_00010_e0010.hdr");
+    let bytes = std::fs::read(&cut).unwrap();
+    std::fs::write(&cut, &bytes[..bytes.len() / 3]).unwrap();
+    std::fs::remove_file(root.join("clean/cap_00020_e0020.hdr")).unwrap();
+    let out_dir = tmp.path().join("corrected");
+    let out = export(
+        &s,
+        &[
+            "--format",
+            "corrected-images",
+            "--out",
+            out_dir.to_str().unwrap(),
+            "--capture-root",
+            root.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out.stderr));
+    let listed = jsonl(&out_dir.join("corrected-images.jsonl"));
+    assert_eq!(listed.len(), 240);
+    let failed: Vec<&str> = listed
+        .iter()
+        .filter(|r| r.get("error").is_some())
+        .map(|r| r["source"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        failed,
+        ["clean/cap_00010_e0010.hdr", "clean/cap_00020_e0020.hdr"]
+    );
+    assert!(out_dir.join("clean/cap_00011_e0011.exr").exists());
+    assert!(!out_dir.join("clean/cap_00010_e0010.exr").exists());
+    assert!(
+        text(&out.stdout).contains("238 written, 2 failed"),
+        "{}",
+        text(&out.stdout)
+    );
+}
