@@ -107,8 +107,8 @@ def score(run: M.Run, session: str) -> dict:
     t = run.row.truth
     onset = t.onset if t else 0
     # a drift alarm: a lamp change raised (not one cleared or withdrawn, nor the lamp's
-    # capture-to-capture instability, scored on its own)
-    drift = sorted((x for x in alarms if x["kind"] == "drift" and x["code"] != "lamp-unstable"
+    # capture-to-capture instability, scored on its own, nor an advisory of severity info)
+    drift = sorted((x for x in alarms if x["kind"] == "drift" and x["severity"] != "info" and x["code"] != "lamp-unstable"
                     and not x["code"].endswith(("-cleared", "-withdrawn")) and x["idx"] is not None), key=lambda x: x["idx"])
     geo = sorted((x for x in alarms if x["kind"] == "positioning" and x["severity"] != "info" and x["idx"] is not None),
                  key=lambda x: x["idx"])

@@ -128,6 +128,8 @@ pub enum AlarmCode {
     SkippedFiles,
     /// Capture times went back.
     TimeSteppedBack,
+    /// A trend in the isotropy classes that a stationary light-side pattern could also make.
+    TrendUnresolved,
     /// Files in the capture folder no CAPTURE line named.
     UnannouncedFiles,
     /// The controller does not speak this protocol version.
@@ -136,7 +138,7 @@ pub enum AlarmCode {
 
 impl AlarmCode {
     /// Every code.
-    pub(crate) const ALL: [AlarmCode; 45] = [
+    pub(crate) const ALL: [AlarmCode; 46] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
@@ -180,6 +182,7 @@ impl AlarmCode {
         AlarmCode::SessionChanged,
         AlarmCode::SkippedFiles,
         AlarmCode::TimeSteppedBack,
+        AlarmCode::TrendUnresolved,
         AlarmCode::UnannouncedFiles,
         AlarmCode::UnsupportedVersion,
     ];
@@ -230,6 +233,7 @@ impl AlarmCode {
             AlarmCode::SessionChanged => "session-changed",
             AlarmCode::SkippedFiles => "skipped-files",
             AlarmCode::TimeSteppedBack => "time-stepped-back",
+            AlarmCode::TrendUnresolved => "trend-unresolved",
             AlarmCode::UnannouncedFiles => "unannounced-files",
             AlarmCode::UnsupportedVersion => "unsupported-version",
         }
@@ -283,6 +287,7 @@ impl AlarmCode {
             AlarmCode::SessionChanged => "the controller announced another session",
             AlarmCode::SkippedFiles => "files in the capture folder not placed as captures",
             AlarmCode::TimeSteppedBack => "capture times went back",
+            AlarmCode::TrendUnresolved => "a trend in the isotropy classes that a stationary light-side pattern could also make",
             AlarmCode::UnannouncedFiles => "files in the capture folder no CAPTURE line named",
             AlarmCode::UnsupportedVersion => "the controller does not speak this protocol version",
         }

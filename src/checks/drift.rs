@@ -92,6 +92,7 @@ fn isotropy_drift_spec() -> DriftSpec {
         run_pairs: 5200.0,
         step_detection: false,
         mount_terms: true,
+        pattern_check: true,
         ..DriftSpec::default()
     }
 }
@@ -112,6 +113,7 @@ impl ColourStage {
         let quiet = DriftSpec {
             rate_tolerance_pct_per_h: f64::INFINITY,
             mount_terms: false,
+            pattern_check: false,
             ..fits
         };
         Some(ColourStage {
@@ -173,6 +175,7 @@ impl ColourStage {
                 sigma: 0.0,
                 // the chromaticity ratios cancel the mount's achromatic pattern
                 mount: [0.0; 4],
+                light_az: [0.0; 2],
             });
         }
         let (Some(u), Some(v)) = (self.fits[0].estimate(), self.fits[1].estimate()) else {
@@ -281,8 +284,9 @@ pub(super) struct DriftStage {
     detector: DriftDetector,
     /// The lamp's colour (None when the lamp model cannot be built).
     colour: Option<ColourStage>,
-    /// The first capture of each geometry: (time in hours, XYZ, `mount_coordinates`).
-    first_of_geometry: HashMap<GeometryKey, (f64, Xyz, [f64; 4])>,
+    /// The first capture of each geometry: (time in hours, XYZ, `mount_coordinates`, the
+    /// light's azimuth in radians).
+    first_of_geometry: HashMap<GeometryKey, (f64, Xyz, [f64; 4], f64)>,
     /// Interpolated pairs fed to the fit.
     pub(super) interpolated: u64,
 }
@@ -304,21 +308,24 @@ impl DriftStage {
         }
     }
 
-    /// A capture of `key` at time `t_s` with colour `xyz` (Y > 0) and the gnomonic coordinates
-    /// `mount` of its directions: an observation against the first capture of its geometry, or
-    /// that first capture.
+    /// A capture of `key` at time `t_s` with colour `xyz` (Y > 0), the gnomonic coordinates
+    /// `mount` of its directions and its light's azimuth `light_az` (radians, sample frame):
+    /// an observation against the first capture of its geometry, or that first capture.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn observe(
         &mut self,
         key: GeometryKey,
         t_s: f64,
         xyz: Xyz,
         mount: [f64; 4],
+        light_az: f64,
         at: (Option<u64>, Option<f64>),
         alarms: &mut Vec<Alarm>,
     ) {
         let t_h = t_s / 3600.0;
+        let light_az = if light_az.is_finite() { light_az } else { 0.0 };
         match self.first_of_geometry.get(&key) {
-            Some(&(t0, xyz0, mount0)) => {
+            Some(&(t0, xyz0, mount0, az0)) => {
                 let obs = PairObservation {
                     t_a_h: t0,
                     t_b_h: t_h,
@@ -326,6 +333,7 @@ impl DriftStage {
                     bucket: (key.0, key.1),
                     sigma: 0.0,
                     mount: std::array::from_fn(|j| mount[j] - mount0[j]),
+                    light_az: [az0, light_az],
                 };
                 let events = self.detector.add(obs);
                 raise(events, at, alarms);
@@ -334,7 +342,8 @@ impl DriftStage {
                 }
             }
             None => {
-                self.first_of_geometry.insert(key, (t_h, xyz, mount));
+                self.first_of_geometry
+                    .insert(key, (t_h, xyz, mount, light_az));
             }
         }
     }
@@ -376,6 +385,11 @@ impl DriftStage {
     ) {
         let events = self.detector.remove_step(t_s / 3600.0);
         raise(events, at, alarms);
+    }
+
+    /// Whether the isotropy classes raise rate alarms (`DriftDetector::set_rate_alarms`).
+    pub(super) fn set_rate_alarms(&mut self, on: bool) {
+        self.detector.set_rate_alarms(on);
     }
 
     /// Pairs left out of the gain fit after a named joint slip.
@@ -449,6 +463,7 @@ impl DriftStage {
             bucket,
             sigma: (spread[1] / b[1]).abs(),
             mount,
+            light_az: [0.0; 2],
         };
         if !(obs.d.is_finite() && obs.sigma.is_finite()) {
             return;
@@ -544,6 +559,24 @@ pub(super) fn drift_alarm(
         .at(at.0, at.1)
         .with(Evidence::LampScatter(evidence::LampScatter { scatter_pct: 100.0 * scatter, design_scatter_pct: 100.0 * design, probes, source })),
         DriftEvent::MountPattern(m) => mount_alarm(&m, source, at),
+        DriftEvent::Unresolved { estimate: e, robust: r } => Alarm::new(
+            AlarmKind::Drift,
+            Severity::Info,
+            AlarmCode::TrendUnresolved,
+            format!(
+                "the {source} show a gain trend of {:+.2} ± {:.2} %/h, but beside a stationary pattern of the light's direction in each θi layer (a beam not uniform over the sample, a holder's shadow) it is {:+.2} ± {:.2} %/h: in this acquisition order the two are not told apart yet, so no alarm. Probes would decide at once; without them the classes decide as the light turns through more of its layers",
+                e.rate_pct_per_h, e.se_pct_per_h, r.rate_pct_per_h, r.se_pct_per_h
+            ),
+        )
+        .at(at.0, at.1)
+        .with(Evidence::UnresolvedTrend(evidence::UnresolvedTrend {
+            rate_pct_per_h: e.rate_pct_per_h,
+            se_pct_per_h: e.se_pct_per_h,
+            robust_rate_pct_per_h: r.rate_pct_per_h,
+            robust_se_pct_per_h: r.se_pct_per_h,
+            n: e.pairs,
+            source,
+        })),
         DriftEvent::Step { direction, statistic, threshold, pairs_since_reset } => Alarm::new(
             AlarmKind::Drift,
             Severity::Warning,

@@ -96,6 +96,8 @@ pub enum Evidence {
     TrendStep(TrendStep),
     /// `gain-drift`.
     GainRate(GainRate),
+    /// `trend-unresolved`.
+    UnresolvedTrend(UnresolvedTrend),
     /// `lamp-unstable` and `lamp-unstable-cleared`.
     LampScatter(LampScatter),
     /// `colour-drift`.
@@ -352,6 +354,19 @@ pub struct GainRate {
     pub source: Source,
 }
 
+/// A gain trend of the isotropy classes (%/h, its standard error and observations) beside the
+/// same trend fitted with a stationary light-side pattern per θi layer, which leaves it within
+/// the significance the alarm asks for.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct UnresolvedTrend {
+    pub rate_pct_per_h: f64,
+    pub se_pct_per_h: f64,
+    pub robust_rate_pct_per_h: f64,
+    pub robust_se_pct_per_h: f64,
+    pub n: usize,
+    pub source: Source,
+}
+
 /// The probes' robust scatter against the design scatter (%), over this many probes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LampScatter {
@@ -465,6 +480,7 @@ impl Evidence {
                 parse(&v, Evidence::SweepStep).or_else(|| parse(&v, Evidence::TrendStep))
             }
             C::GainDrift => parse(&v, Evidence::GainRate),
+            C::TrendUnresolved => parse(&v, Evidence::UnresolvedTrend),
             C::LampUnstable | C::LampUnstableCleared => parse(&v, Evidence::LampScatter),
             C::ColourDrift => parse(&v, Evidence::ColourRate),
             C::SampleOffCentre => parse(&v, Evidence::MountPattern),
@@ -523,6 +539,7 @@ impl Evidence {
             Evidence::StepWithdrawn(_) => code == C::GainStepWithdrawn,
             Evidence::SweepStep(_) | Evidence::TrendStep(_) => code == C::GainStep,
             Evidence::GainRate(_) => code == C::GainDrift,
+            Evidence::UnresolvedTrend(_) => code == C::TrendUnresolved,
             Evidence::LampScatter(_) => matches!(code, C::LampUnstable | C::LampUnstableCleared),
             Evidence::ColourRate(_) => code == C::ColourDrift,
             Evidence::MountPattern(_) => code == C::SampleOffCentre,

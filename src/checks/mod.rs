@@ -281,14 +281,22 @@ impl Checker {
         let light_outer = !matches!(plan.order(), AcquisitionOrder::CameraOuter);
         let sweeps = (isotropic && spec.sweeps.enabled && light_outer)
             .then(|| SweepMonitor::new(spec.sweeps.clone(), rig.clone(), plan.direction_count()));
+        let probes = ProbeStage::new(isotropic, probes, &spec.colour_drift);
+        // with probes the lamp's rate is theirs to alarm (a re-capture of one pose sees no
+        // stationary pattern of the geometry); the isotropy fit still estimates it
+        let drift = isotropic.then(|| {
+            let mut d = DriftStage::new(&spec.colour_drift);
+            d.set_rate_alarms(!probes.enabled());
+            d
+        });
         Checker {
             ledger: Ledger::new(&plan),
             capture: CaptureStage::default(),
             pairs: PairStage::default(),
             isotropy: isotropic.then(IsotropyStage::default),
-            drift: isotropic.then(|| DriftStage::new(&spec.colour_drift)),
+            drift,
             sweeps,
-            probes: ProbeStage::new(isotropic, probes, &spec.colour_drift),
+            probes,
             plan,
             rig,
             colour,
@@ -387,6 +395,9 @@ impl Checker {
     /// sweeps' level test is back on; no new sentinel or probe pose is chosen).
     pub(crate) fn withdraw_probes(&mut self) {
         self.probes.withdraw();
+        if let Some(d) = self.drift.as_mut() {
+            d.set_rate_alarms(true);
+        }
     }
 
     /// The lamp probe's entry, when the configuration names one.
@@ -448,7 +459,8 @@ impl Checker {
                 let key = ctx.geometry_key(m.light, m.camera);
                 let at = (Some(input.idx), Some(input.t));
                 let mount = mount_coordinates(&m.nominal.omega_i, &m.nominal.omega_o);
-                drift.observe(key, input.t, c.xyz, mount, at, &mut out.alarms);
+                let light_az = m.nominal.omega_i.y.atan2(m.nominal.omega_i.x);
+                drift.observe(key, input.t, c.xyz, mount, light_az, at, &mut out.alarms);
                 if let Some(sweeps) = self.sweeps.as_mut() {
                     sweeps.add(SweepCapture {
                         idx: input.idx,

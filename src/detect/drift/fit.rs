@@ -14,15 +14,64 @@ impl DriftDetector {
             self.spec.rate_tolerance_pct_per_h,
             self.spec.z,
         );
+        if !self.rate_alarms {
+            return Vec::new();
+        }
         let identified = self.mount.is_none() || self.light_separated;
         if !self.rate_alarm && identified && rate_alarm_raised(r, se, tol, z) {
-            self.rate_alarm = true;
-            vec![DriftEvent::RateSignificant(est)]
+            match self.pattern_verdict(est) {
+                PatternVerdict::Confirmed => {
+                    self.rate_alarm = true;
+                    vec![DriftEvent::RateSignificant(est)]
+                }
+                PatternVerdict::Unresolved(robust) if !self.unresolved_said => {
+                    self.unresolved_said = true;
+                    vec![DriftEvent::Unresolved {
+                        estimate: est,
+                        robust,
+                    }]
+                }
+                PatternVerdict::Unresolved(_) | PatternVerdict::NotYet => Vec::new(),
+            }
         } else if self.rate_alarm && rate_alarm_cleared(r, se, tol, z) {
             self.rate_alarm = false;
             vec![DriftEvent::RateCleared(est)]
         } else {
             Vec::new()
+        }
+    }
+
+    /// Whether a rate the model finds significant (`est`) stays so beside a stationary
+    /// light-side pattern: any smooth function of the light's direction in the sample frame,
+    /// here its first `PATTERN_HARMONICS` azimuthal harmonics with free amplitudes in every
+    /// θi layer (`fit_design`'s `layer_pattern`). In light-outer order such a pattern and a
+    /// drift both move with time within a layer; they are told apart where the light returns
+    /// to its first azimuths late in the layer (a drift does not return) and by a drift's
+    /// one rate across layers. The robust fit costs O(n·p²) with p about 25, so it is run at
+    /// most every `PATTERN_CHECK_EVERY` pairs and its verdict kept in between.
+    fn pattern_verdict(&mut self, est: DriftEstimate) -> PatternVerdict {
+        if !self.spec.pattern_check {
+            return PatternVerdict::Confirmed;
+        }
+        let n = self.obs.len();
+        if let Some((at, false)) = self.pattern_checked {
+            if n < at + PATTERN_CHECK_EVERY {
+                return PatternVerdict::NotYet;
+            }
+        }
+        let Some(f) = self.fit_design(self.mount.is_some(), true) else {
+            self.pattern_checked = Some((n, false));
+            return PatternVerdict::NotYet;
+        };
+        let robust = f.estimate;
+        let (tol, z) = (self.spec.rate_tolerance_pct_per_h, self.spec.z);
+        let confirmed = robust.rate_pct_per_h * est.rate_pct_per_h > 0.0
+            && rate_alarm_raised(robust.rate_pct_per_h, robust.se_pct_per_h, tol, z);
+        self.pattern_checked = Some((n, confirmed));
+        if confirmed {
+            PatternVerdict::Confirmed
+        } else {
+            PatternVerdict::Unresolved(robust)
         }
     }
 
@@ -46,7 +95,7 @@ impl DriftDetector {
         if !self.spec.mount_terms || self.mount.is_some() {
             return None;
         }
-        let f = self.fit_design(true)?;
+        let f = self.fit_design(true, false)?;
         let m = f.mount?;
         let (amp, _) = m.camera_pct();
         let lower = amp - self.spec.z * 100.0 * m.camera_se;
@@ -61,7 +110,7 @@ impl DriftDetector {
     /// IRLS with Huber weights and bucket fixed effects (within-bucket centring).
     pub(super) fn fit(&mut self) -> Option<DriftEstimate> {
         if self.mount.is_some() || !self.step_times.is_empty() {
-            let f = self.fit_design(self.mount.is_some())?;
+            let f = self.fit_design(self.mount.is_some(), false)?;
             return Some(self.keep(f));
         }
         let n = self.obs.len();
@@ -130,11 +179,15 @@ impl DriftDetector {
 
     /// The same IRLS with one indicator column per known step (a pair spanning τ_k carries
     /// s_k) and, with `mount`, the four mount columns: the centred weighted design solved by
-    /// normal equations and their pseudo-inverse, which is also the covariance. Deterministic: fixed passes,
-    /// buckets in BTreeMap order. Pure: the caller decides whether to keep the result.
+    /// normal equations and their pseudo-inverse, which is also the covariance. With
+    /// `layer_pattern`, the light-side pattern's columns follow (`pattern_layers`).
+    /// Deterministic: fixed passes, buckets in BTreeMap order. Pure: the caller decides whether
+    /// to keep the result.
     /// The design, flat: row i is `rows[i * p..(i + 1) * p]`: the time between the pair's
-    /// captures, a 1 for each step between them, and the mount columns.
-    pub(super) fn design_rows(&self, mount: bool, p: usize) -> Vec<f64> {
+    /// captures, a 1 for each step between them, the mount columns, and per pattern layer the
+    /// later capture's cos kφ, sin kφ less the earlier one's (k = 1..`PATTERN_HARMONICS`; 0
+    /// outside the pair's layer).
+    pub(super) fn design_rows(&self, mount: bool, layers: &[i64], p: usize) -> Vec<f64> {
         let mut rows: Vec<f64> = Vec::with_capacity(self.obs.len() * p);
         for o in &self.obs {
             rows.push(o.t_b_h - o.t_a_h);
@@ -148,15 +201,47 @@ impl DriftDetector {
             if mount {
                 rows.extend_from_slice(&o.mount);
             }
+            for &layer in layers {
+                for k in 1..=PATTERN_HARMONICS {
+                    let kf = k as f64;
+                    let (a, b) = (kf * o.light_az[0], kf * o.light_az[1]);
+                    if o.bucket.0 == layer {
+                        rows.push(b.cos() - a.cos());
+                        rows.push(b.sin() - a.sin());
+                    } else {
+                        rows.push(0.0);
+                        rows.push(0.0);
+                    }
+                }
+            }
         }
         rows
     }
 
-    pub(super) fn fit_design(&self, mount: bool) -> Option<DesignFit> {
+    /// The θi layers (the buckets' light θ) whose pairs span more than one light azimuth:
+    /// each gets the pattern's columns.
+    pub(super) fn pattern_layers(&self) -> Vec<i64> {
+        let mut layers: Vec<i64> = self
+            .obs
+            .iter()
+            .filter(|o| (o.light_az[1] - o.light_az[0]).abs() > 1e-9)
+            .map(|o| o.bucket.0)
+            .collect();
+        layers.sort_unstable();
+        layers.dedup();
+        layers
+    }
+
+    pub(super) fn fit_design(&self, mount: bool, layer_pattern: bool) -> Option<DesignFit> {
         let n = self.obs.len();
         let k = self.step_times.len();
-        let p = 1 + k + if mount { 4 } else { 0 };
-        let rows = self.design_rows(mount, p);
+        let layers = if layer_pattern {
+            self.pattern_layers()
+        } else {
+            Vec::new()
+        };
+        let p = 1 + k + if mount { 4 } else { 0 } + 2 * PATTERN_HARMONICS * layers.len();
+        let rows = self.design_rows(mount, &layers, p);
         let mut w: Vec<f64> = self.obs.iter().map(|o| prior_weight(0.0, o)).collect();
         let buckets = self.index.buckets();
         let nk = buckets.keys.len();
@@ -348,6 +433,25 @@ impl Buckets {
             .zip(values.iter().copied())
             .collect()
     }
+}
+
+/// Azimuthal harmonics of the light-side pattern per θi layer in the pattern-robust fit: the
+/// first two, as the light sweeps' layer model has (a footprint's and an outline's lowest
+/// orders); a layer of 6 lights (θi = 15° on the UBO plan) is then fitted almost exactly, and
+/// its trend left to the layers with more lights.
+pub(super) const PATTERN_HARMONICS: usize = 2;
+
+/// The pattern-robust fit is redone at most this often (pairs) while it does not confirm.
+pub(super) const PATTERN_CHECK_EVERY: usize = 100;
+
+/// What the pattern-robust fit says of a significant rate.
+pub(super) enum PatternVerdict {
+    /// Significant beside the pattern too (or no check asked for).
+    Confirmed,
+    /// Not significant beside it: the robust fit.
+    Unresolved(DriftEstimate),
+    /// Not checked again yet after a fit that did not confirm.
+    NotYet,
 }
 
 /// What `fit_design` found.

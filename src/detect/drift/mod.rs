@@ -89,6 +89,11 @@ pub(crate) struct DriftSpec {
     /// observations from judging its rate by a scale that happens to be small.
     #[serde(skip)]
     pub scale_floor: f64,
+    /// Before a rate alarm, ask whether a stationary light-side pattern could make the trend
+    /// (`DriftDetector::pattern_robust`): the alarm is raised only when the rate stays
+    /// significant beside such a pattern, and an `Unresolved` advisory says so otherwise.
+    #[serde(default)]
+    pub pattern_check: bool,
 }
 
 fn mount_min_pct() -> f64 {
@@ -114,6 +119,7 @@ impl Default for DriftSpec {
             mount_terms: false,
             mount_min_pct: mount_min_pct(),
             scale_floor: 0.0,
+            pattern_check: false,
         }
     }
 }
@@ -157,6 +163,11 @@ pub(crate) struct PairObservation {
     /// source has no such pattern).
     #[serde(default)]
     pub mount: [f64; 4],
+    /// The light's azimuth in the sample frame (radians) of the earlier and of the later
+    /// capture, for the stationary light-side pattern of `pattern_check` (0 where unknown: the
+    /// pattern's columns are then 0).
+    #[serde(default)]
+    pub light_az: [f64; 2],
 }
 
 /// The gnomonic coordinates (tan θ·cos φ, tan θ·sin φ) of the light and of the camera direction
@@ -306,6 +317,13 @@ pub(crate) enum DriftEvent {
     /// The off-centre mount's pattern is significant and large (once per session): from now on
     /// it is part of the model.
     MountPattern(MountPattern),
+    /// (`pattern_check`) The rate is significant, but a stationary light-side pattern could
+    /// make the same trend in this acquisition order: no alarm (once per session, until the
+    /// rate is confirmed or cleared). `robust` is the rate fitted beside that pattern.
+    Unresolved {
+        estimate: DriftEstimate,
+        robust: DriftEstimate,
+    },
     /// (Probes) the scatter is back under `UNSTABLE_CLEAR_FACTOR` times the design.
     UnstableCleared {
         scatter: f64,
@@ -344,6 +362,12 @@ pub(crate) struct DriftDetector {
     pose_break: Option<f64>,
     /// Pairs left out for that.
     pub(crate) left_out: usize,
+    /// Whether this source raises rate alarms (off while another source is the lamp's watch).
+    rate_alarms: bool,
+    /// The pair count at the last `pattern_robust` fit, and its verdict.
+    pattern_checked: Option<(usize, bool)>,
+    /// Whether the `Unresolved` advisory has been given.
+    unresolved_said: bool,
 }
 
 impl DriftDetector {
@@ -367,7 +391,18 @@ impl DriftDetector {
             light_separated: false,
             pose_break: None,
             left_out: 0,
+            rate_alarms: true,
+            pattern_checked: None,
+            unresolved_said: false,
         }
+    }
+
+    /// Whether this source raises rate alarms. Off while the probes are the lamp's watch (a
+    /// re-capture of one pose sees no stationary pattern of the geometry, where this source's
+    /// classes do); the fit goes on for the corrections. Turned back on (the rig refused the
+    /// probes), the next refit raises what is significant then.
+    pub(crate) fn set_rate_alarms(&mut self, on: bool) {
+        self.rate_alarms = on;
     }
 
     /// The pose changed at `t_h` (hours; a named joint slip, placed at the start of the light

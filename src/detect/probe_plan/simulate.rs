@@ -175,6 +175,7 @@ pub(super) fn simulate_colour(
                 bucket: (0, 0),
                 sigma: 0.0,
                 mount: [0.0; 4],
+                light_az: [0.0; 2],
             });
         }
         let (Some(u), Some(v)) = (fits[0].estimate(), fits[1].estimate()) else {

@@ -102,10 +102,16 @@ impl SweepMonitor {
             }
             rec.joints.push(fit);
         }
+        // the crossing names a slip only when the slip's own size, fitted against a reference
+        // that holds none of its sweeps, clears the tolerance too: a pattern the detection
+        // interpolant leaves across the cameras (a light pattern that follows the whole pose)
+        // can drive the CUSUM while the refit finds no tilt; the CUSUMs carry on meanwhile
         let crossing = if level_alarmed {
             None
         } else {
-            crossing.map(|x| self.slip_estimate(x, known))
+            crossing
+                .map(|x| self.slip_estimate(x, known))
+                .filter(|x| x.mean.abs() >= self.spec.joint_tolerance_deg)
         };
         // a crossing in a layer that already has its positioning alarm restarts the CUSUMs
         // without a second alarm (the operator has it; the next layer may raise one again)

@@ -128,11 +128,15 @@ impl SweepMonitor {
                         .attribute_level(layer, mean, run.start)
                         .filter(|_| !self.latched.contains(&Latch::Joint { layer }))
                     {
+                        // named only when the slip's own size clears the tolerance (as a
+                        // crossing of the joints' CUSUMs); otherwise the level is the lamp's
                         let x = self.slip_estimate(x, known);
-                        step.slip = Some(self.name_slip(sweep, &x, rec, findings));
-                        self.level_cusum.reset();
-                        step.alarmed = true;
-                        break;
+                        if x.mean.abs() >= self.spec.joint_tolerance_deg {
+                            step.slip = Some(self.name_slip(sweep, &x, rec, findings));
+                            self.level_cusum.reset();
+                            step.alarmed = true;
+                            break;
+                        }
                     }
                     findings.push(SweepFinding::GainStep {
                         at: sweep.at(),
