@@ -98,7 +98,7 @@ pub enum AlarmCode {
     JointOffsetSuspected,
     /// No pose of the sample can watch arm joint 3.
     Joint3SentinelUnavailable,
-    /// The probes scatter more than the noise floor allows.
+    /// The lamp's gain moves from capture to capture (probes, or the light sweeps' scatter).
     LampUnstable,
     /// A lamp instability no longer holds.
     LampUnstableCleared,
@@ -270,7 +270,7 @@ impl AlarmCode {
             AlarmCode::GainStepWithdrawn => "a gain step was later explained otherwise",
             AlarmCode::JointOffsetSuspected => "the images show an arm joint or the wagon off its commanded angle",
             AlarmCode::Joint3SentinelUnavailable => "no pose of the sample can watch arm joint 3",
-            AlarmCode::LampUnstable => "the probes scatter more than the noise floor allows",
+            AlarmCode::LampUnstable => "the lamp's gain moves from capture to capture: the probes, or without them the light sweeps, scatter more than a steady lamp allows",
             AlarmCode::LampUnstableCleared => "a lamp instability no longer holds",
             AlarmCode::LevelAfterSlip => "the level after a named joint slip, for the drift fits",
             AlarmCode::NonFinitePixels => "a capture holds NaN or infinite pixels",

@@ -98,8 +98,10 @@ pub enum Evidence {
     GainRate(GainRate),
     /// `trend-unresolved`.
     UnresolvedTrend(UnresolvedTrend),
-    /// `lamp-unstable` and `lamp-unstable-cleared`.
+    /// `lamp-unstable` and `lamp-unstable-cleared` from the probes.
     LampScatter(LampScatter),
+    /// `lamp-unstable` and `lamp-unstable-cleared` from the light sweeps.
+    SweepScatter(SweepScatter),
     /// `colour-drift`.
     ColourRate(ColourRate),
     /// `sample-off-centre`.
@@ -367,6 +369,16 @@ pub struct UnresolvedTrend {
     pub source: Source,
 }
 
+/// The light sweeps' scatter about the isotropy model (%, the median residual SD of `sweeps`
+/// sweeps) against the limit (`[checks.sweeps] unstable_scatter_pct`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepScatter {
+    pub source: Source,
+    pub scatter_pct: f64,
+    pub limit_pct: f64,
+    pub sweeps: usize,
+}
+
 /// The probes' robust scatter against the design scatter (%), over this many probes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LampScatter {
@@ -481,7 +493,9 @@ impl Evidence {
             }
             C::GainDrift => parse(&v, Evidence::GainRate),
             C::TrendUnresolved => parse(&v, Evidence::UnresolvedTrend),
-            C::LampUnstable | C::LampUnstableCleared => parse(&v, Evidence::LampScatter),
+            C::LampUnstable | C::LampUnstableCleared => {
+                parse(&v, Evidence::LampScatter).or_else(|| parse(&v, Evidence::SweepScatter))
+            }
             C::ColourDrift => parse(&v, Evidence::ColourRate),
             C::SampleOffCentre => parse(&v, Evidence::MountPattern),
             C::ReciprocityOutlier => parse(&v, Evidence::PairOutlier),
@@ -540,7 +554,9 @@ impl Evidence {
             Evidence::SweepStep(_) | Evidence::TrendStep(_) => code == C::GainStep,
             Evidence::GainRate(_) => code == C::GainDrift,
             Evidence::UnresolvedTrend(_) => code == C::TrendUnresolved,
-            Evidence::LampScatter(_) => matches!(code, C::LampUnstable | C::LampUnstableCleared),
+            Evidence::LampScatter(_) | Evidence::SweepScatter(_) => {
+                matches!(code, C::LampUnstable | C::LampUnstableCleared)
+            }
             Evidence::ColourRate(_) => code == C::ColourDrift,
             Evidence::MountPattern(_) => code == C::SampleOffCentre,
             Evidence::PairOutlier(_) => code == C::ReciprocityOutlier,

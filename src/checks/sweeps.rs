@@ -30,8 +30,55 @@ pub(crate) fn alarm(f: &SweepFinding) -> Alarm {
             ..
         } => gain_step_withdrawn(*joint, *step_idx, *level_pct, *slip_from_idx),
         SweepFinding::JointSlip { at, slip } => joint_slip(at, slip),
+        SweepFinding::LampUnstable {
+            scatter_pct,
+            limit_pct,
+            sweeps,
+            from_idx,
+            ..
+        } => lamp_unstable(*scatter_pct, *limit_pct, *sweeps, *from_idx),
+        SweepFinding::LampSteady {
+            scatter_pct,
+            limit_pct,
+            sweeps,
+            ..
+        } => Alarm::new(
+            AlarmKind::Drift,
+            Severity::Info,
+            AlarmCode::LampUnstableCleared,
+            format!(
+                "the lamp is steady again: the captures scatter by {scatter_pct:.2} % about the isotropy model (median residual SD of the last {sweeps} light sweeps; lamp-unstable above {limit_pct} %)"
+            ),
+        )
+        .with(Evidence::SweepScatter(evidence::SweepScatter {
+            source: Source::LightSweeps,
+            scatter_pct: *scatter_pct,
+            limit_pct: *limit_pct,
+            sweeps: *sweeps,
+        })),
     };
     alarm.at(Some(at.last_idx), Some(at.last_t))
+}
+
+fn lamp_unstable(scatter_pct: f64, limit_pct: f64, sweeps: usize, from_idx: u64) -> Alarm {
+    Alarm::new(
+        AlarmKind::Drift,
+        Severity::Warning,
+        AlarmCode::LampUnstable,
+        format!(
+            "the lamp is unstable: the captures scatter by {scatter_pct:.2} % about the isotropy model (median residual SD of the last {sweeps} light sweeps, θi ≤ 60°; a steady lamp leaves the model's misfit and the camera noise, lamp-unstable above {limit_pct} %; from isotropy classes, no probes)"
+        ),
+    )
+    .with(Evidence::SweepScatter(evidence::SweepScatter {
+        source: Source::LightSweeps,
+        scatter_pct,
+        limit_pct,
+        sweeps,
+    }))
+    .advise(
+        "Let the lamp warm up and settle; check its supply, its connections and any draught or fan near it; if the scatter stays, pause the run and fix the lamp. The captures since the first sweep judged carry the lamp's noise, which no correction removes; drift probes ([probes] every) would measure it directly.",
+        Some(Affects::Since { from_idx, handling: Handling::Inspect }),
+    )
 }
 
 fn layer_deg(at: &SweepAt) -> f64 {

@@ -80,6 +80,23 @@ pub(crate) enum SweepFinding {
     /// The pattern across the cameras (or a level change with that joint's pattern) names a
     /// joint as slipped, while the encoders agree with the commands.
     JointSlip { at: SweepAt, slip: JointSlip },
+    /// (No probes) The captures scatter about the isotropy model by `scatter_pct` (the median
+    /// residual SD of `sweeps` sweeps, the first from capture `from_idx`), beyond `limit_pct`:
+    /// the lamp's gain moves from capture to capture.
+    LampUnstable {
+        at: SweepAt,
+        scatter_pct: f64,
+        limit_pct: f64,
+        sweeps: usize,
+        from_idx: u64,
+    },
+    /// The scatter is back well under the limit.
+    LampSteady {
+        at: SweepAt,
+        scatter_pct: f64,
+        limit_pct: f64,
+        sweeps: usize,
+    },
 }
 
 impl SweepFinding {
@@ -89,7 +106,9 @@ impl SweepFinding {
             SweepFinding::GainStep { at, .. }
             | SweepFinding::LevelAfterSlip { at, .. }
             | SweepFinding::GainStepWithdrawn { at, .. }
-            | SweepFinding::JointSlip { at, .. } => at,
+            | SweepFinding::JointSlip { at, .. }
+            | SweepFinding::LampUnstable { at, .. }
+            | SweepFinding::LampSteady { at, .. } => at,
         }
     }
 }

@@ -84,6 +84,10 @@ pub struct SweepSpec {
     pub min_captures: usize,
     /// Half-width of the central difference for ∂ ln Y / ∂q_j (degrees).
     pub sensitivity_step_deg: f64,
+    /// Without probes: `lamp-unstable` when the captures scatter about the isotropy model by
+    /// more than this (%, the median residual SD of the last `SCATTER_SWEEPS` sweeps with
+    /// θi ≤ 60°): a lamp whose gain moves from capture to capture (flicker).
+    pub unstable_scatter_pct: f64,
 }
 
 impl Default for SweepSpec {
@@ -99,9 +103,20 @@ impl Default for SweepSpec {
             min_layer_sweeps: 2,
             min_captures: 12,
             sensitivity_step_deg: 1.0,
+            unstable_scatter_pct: 2.0,
         }
     }
 }
+
+/// The scatter watch judges the median of this many sweeps' residual SDs: one odd sweep cannot
+/// raise it, and a lamp flickering from the start is judged by the third sweep with a residual
+/// SD (on the UBO plan the 30° layer's fourth light, capture 971): the 15° layer's sweeps have
+/// none (too few lights for the joints' pattern fit).
+const SCATTER_SWEEPS: usize = 3;
+/// The highest θi layer (millidegrees) the scatter watch judges.
+const SCATTER_MAX_LAYER_MDEG: i64 = 60_000;
+/// `lamp-unstable` is cleared when the scatter is back under the limit divided by this.
+const SCATTER_CLEAR: f64 = 1.5;
 
 /// One capture as the sweep checks keep it.
 #[derive(Debug, Clone)]
@@ -280,6 +295,10 @@ pub(crate) struct SweepMonitor {
     /// The gain steps raised so far: θi layer, the capture the alarm came at, where the drift
     /// model's step term was placed (seconds) and the level (%).
     level_steps: Vec<(i64, u64, Option<f64>, f64)>,
+    /// The residual SDs of the sweeps the scatter watch judges (θi ≤ 60°), with each sweep's
+    /// first capture; and whether `lamp-unstable` stands.
+    scatter: Vec<(f64, u64)>,
+    unstable: bool,
 }
 
 /// Where a completed sweep lies in the session, and the joint offsets its pattern fit gave
@@ -352,6 +371,8 @@ impl SweepMonitor {
             level_cusum: Cusum::default(),
             joint_cusum: [Cusum::default(), Cusum::default()],
             latched: HashSet::new(),
+            scatter: Vec::new(),
+            unstable: false,
             last: None,
             tested: 0,
             sweep_starts: Vec::new(),
@@ -546,6 +567,9 @@ impl SweepMonitor {
             &mut rec,
             &mut findings,
         );
+        if level_test {
+            self.test_scatter(&sweep, &rec, &mut findings);
+        }
         let NamedSlip {
             at_s: slip_at_s,
             withdrawn_steps_s,
@@ -564,6 +588,49 @@ impl SweepMonitor {
             step_at_s: level_step.at_s,
             slip_at_s,
             withdrawn_steps_s,
+        }
+    }
+
+    /// The lamp's capture-to-capture stability without probes. A flickering lamp gives every
+    /// capture a gain of its own, which no stationary model of the geometry follows, so the
+    /// sweep's residuals about the isotropy model (F + L + C and the joints' patterns) scatter
+    /// by about the flicker's SD; a steady lamp leaves the model's misfit and the camera noise.
+    /// Judged on the median residual SD of the last `SCATTER_SWEEPS` sweeps (one odd sweep
+    /// cannot raise it) in the layers up to `SCATTER_MAX_LAYER_MDEG`: at grazing light a square
+    /// sample's footprint leaves several per cent of misfit of its own. Raised above
+    /// `unstable_scatter_pct`, cleared below `1 / SCATTER_CLEAR` of it.
+    fn test_scatter(&mut self, sweep: &Sweep, rec: &SweepRecord, findings: &mut Vec<SweepFinding>) {
+        let sd = rec.residual_sd;
+        if sweep.layer > SCATTER_MAX_LAYER_MDEG || !(sd > 0.0 && sd.is_finite()) {
+            return;
+        }
+        self.scatter.push((sd, sweep.first_idx));
+        if self.scatter.len() < SCATTER_SWEEPS {
+            return;
+        }
+        let recent = &self.scatter[self.scatter.len() - SCATTER_SWEEPS..];
+        let mut v: Vec<f64> = recent.iter().map(|r| r.0).collect();
+        v.sort_by(f64::total_cmp);
+        let median_pct = 100.0 * median_sorted(&v);
+        let limit = self.spec.unstable_scatter_pct;
+        let from_idx = recent[0].1;
+        if !self.unstable && median_pct > limit {
+            self.unstable = true;
+            findings.push(SweepFinding::LampUnstable {
+                at: sweep.at(),
+                scatter_pct: median_pct,
+                limit_pct: limit,
+                sweeps: SCATTER_SWEEPS,
+                from_idx,
+            });
+        } else if self.unstable && median_pct < limit / SCATTER_CLEAR {
+            self.unstable = false;
+            findings.push(SweepFinding::LampSteady {
+                at: sweep.at(),
+                scatter_pct: median_pct,
+                limit_pct: limit,
+                sweeps: SCATTER_SWEEPS,
+            });
         }
     }
 

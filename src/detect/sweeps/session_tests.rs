@@ -12,6 +12,8 @@ enum Fault {
     Joint(usize, f64),
     /// gain factor
     Step(f64),
+    /// a lamp whose gain has an SD of its own every capture (ln units), until this capture
+    Flicker(f64, usize),
 }
 
 /// The joints named as slipped, with the sweep each was named at.
@@ -116,6 +118,10 @@ fn simulate(
                 Fault::None => {}
                 Fault::Joint(j, d) => actual.joints_deg[j] += d,
                 Fault::Step(g) => gain = g,
+                Fault::Flicker(sd, until) if e < until => {
+                    gain = (sd * normal(seed ^ 0xF11C, e as u64)).exp();
+                }
+                Fault::Flicker(..) => {}
             }
         }
         let Ok(seen) = rig.forward(&actual) else {
@@ -431,4 +437,61 @@ fn a_lamp_step_from_mid_run_is_a_gain_step() {
     let (records, findings) = self::run(Fault::Step(0.97), ONSET, LAST, 1, false);
     assert!(gain_steps(&findings).next().is_none(), "{findings:?}");
     assert!(records.iter().all(|r| r.level_z.is_none()));
+}
+
+/// The lamp-unstable findings: the sweep each came at and its scatter (%).
+fn unstable(findings: &[SweepFinding]) -> Vec<(u64, f64)> {
+    findings
+        .iter()
+        .filter_map(|f| match f {
+            SweepFinding::LampUnstable {
+                at, scatter_pct, ..
+            } => Some((at.last_idx, *scatter_pct)),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_lamp_flickering_from_the_start_is_unstable_by_the_third_judged_sweep_and_steady_after() {
+    // 3 % a capture from the first capture to the end of light sweep 30
+    let until = 31 * 81;
+    let (_, findings) = run(Fault::Flicker(0.03, until), 0, 48, 5, true);
+    let raised = unstable(&findings);
+    assert_eq!(raised.len(), 1, "{findings:?}");
+    let (idx, pct) = raised[0];
+    // the 30° layer's fourth light ends at capture 971
+    assert!(idx <= 1_000, "{idx}");
+    assert!((2.0..6.0).contains(&pct), "{pct}");
+    // steady again once the scatter is back under the limit / 1.5: the 45° layer's later
+    // sweeps are judged against class effects that average its flickered captures, so here
+    // at the 60° layer's third sweep (capture 3,239), whose classes hold none
+    let steady: Vec<u64> = findings
+        .iter()
+        .filter_map(|f| match f {
+            SweepFinding::LampSteady { at, .. } => Some(at.last_idx),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(steady.len(), 1, "{findings:?}");
+    assert!(
+        steady[0] > until as u64 && steady[0] < until as u64 + 10 * 81,
+        "{steady:?}"
+    );
+    // with probes the probes watch the lamp: the sweeps say nothing of it
+    let (_, with_probes) = run(Fault::Flicker(0.03, until), 0, 48, 5, false);
+    assert!(unstable(&with_probes).is_empty());
+}
+
+#[test]
+fn a_steady_lamps_scatter_stays_under_the_limit_in_every_judged_layer() {
+    let (records, findings) = run(Fault::None, usize::MAX, 56, 3, true);
+    assert!(unstable(&findings).is_empty(), "{findings:?}");
+    let judged: Vec<f64> = records
+        .iter()
+        .filter(|r| r.residual_sd > 0.0 && r.light < 57)
+        .map(|r| 100.0 * r.residual_sd)
+        .collect();
+    assert!(judged.len() > 30, "{}", judged.len());
+    assert!(judged.iter().all(|&v| v < 2.0), "{judged:?}");
 }
