@@ -93,7 +93,9 @@ SCENARIOS = {
         True,
     ),
     "decay": (
-        "a 1 %/h lamp decay from the start, no probes: gain-drift from the isotropy classes",
+        "a 1 %/h lamp decay from the start, no probes: trend-unresolved from the isotropy "
+        "classes while the 15° layer's 6 lights cannot tell a drift from a light-side pattern, "
+        "gain-drift once the 30° layer's lights can",
         [{"kind": "lamp-decay", "at_capture": 0, "rate_pct_per_h": 1.0}],
         {"captures": 1500},
         {},
