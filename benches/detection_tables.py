@@ -66,8 +66,10 @@ def named(r: dict) -> bool:
 
 
 def false_alarm(r: dict) -> bool:
+    """A drift or positioning alarm in a fault-free run (a `lamp-unstable` too: the lamp is
+    steady there), or one before a fault's onset."""
     if r["fault"] is None:
-        return bool(r["drift_after"] or r["positioning_after"])
+        return bool(r["drift_after"] or r["positioning_after"] or r.get("unstable_after"))
     return bool(r["drift_before"] or r["positioning_before"])
 
 
@@ -122,11 +124,12 @@ def false_alarm_table(records) -> str:
                 free = [r for r in g if r["fault"] is None]
                 faulty = [r for r in g if r["fault"] and r["fault"]["onset"] > 0]
                 bad = [r for r in free if false_alarm(r)]
-                codes = sorted({(r["drift_after"] or r["positioning_after"])["code"] for r in bad})
+                codes = sorted({x["code"] for r in bad
+                                for x in (r["drift_after"], r["positioning_after"], r.get("unstable_after")) if x})
                 early = [r for r in faulty if false_alarm(r)]
                 rows.append([m, p, f"every {every}" if every else "none", len(free),
                              f"{len(bad)}" + (f" ({', '.join(codes)})" if codes else ""), len(faulty), len(early)])
-    return table(["material", "model", "probes", "fault-free runs", "with a drift or positioning alarm",
+    return table(["material", "model", "probes", "fault-free runs", "with a drift, positioning or lamp-unstable alarm",
                   "runs with a later fault", "alarmed before the onset"], rows)
 
 
@@ -233,7 +236,7 @@ def _catches_lines(records) -> list[list[str]]:
     for every in (0, 75):
         rs = [r for r in iso if r["every"] == every]
         free = [r for r in rs if r["fault"] is None]
-        lines.append(["no fault (false drift or positioning alarms)", "every 75" if every else "none",
+        lines.append(["no fault (false drift, positioning or lamp-unstable alarms)", "every 75" if every else "none",
                       of(sum(1 for r in free if false_alarm(r)), len(free)) if free else "–"])
         for size in (-1.5, -2.0, -3.0, 1.5):
             lines.append([f"lamp step {signed(f'{size:+g}')} %, within {STEP_WITHIN} captures", "every 75" if every else "none",

@@ -47,7 +47,7 @@ pub(crate) fn alarm(f: &SweepFinding) -> Alarm {
             Severity::Info,
             AlarmCode::LampUnstableCleared,
             format!(
-                "the lamp is steady again: the captures scatter by {scatter_pct:.2} % about the isotropy model (median residual SD of the last {sweeps} light sweeps; lamp-unstable above {limit_pct} %)"
+                "the lamp is steady again: the captures scatter by at most {scatter_pct:.2} % about the isotropy model (residual SD of each of the last {sweeps} light sweeps judged; lamp-unstable above {limit_pct} %)"
             ),
         )
         .with(Evidence::SweepScatter(evidence::SweepScatter {
@@ -66,7 +66,7 @@ fn lamp_unstable(scatter_pct: f64, limit_pct: f64, sweeps: usize, from_idx: u64)
         Severity::Warning,
         AlarmCode::LampUnstable,
         format!(
-            "the lamp is unstable: the captures scatter by {scatter_pct:.2} % about the isotropy model (median residual SD of the last {sweeps} light sweeps, θi ≤ 60°; a steady lamp leaves the model's misfit and the camera noise, lamp-unstable above {limit_pct} %; from isotropy classes, no probes)"
+            "the lamp is unstable: the captures scatter by at least {scatter_pct:.2} % about the isotropy model (residual SD of each of the last {sweeps} light sweeps judged, θi ≤ 60°; a steady lamp leaves the model's misfit and the camera noise, lamp-unstable above {limit_pct} %; from isotropy classes, no probes)"
         ),
     )
     .with(Evidence::SweepScatter(evidence::SweepScatter {

@@ -80,9 +80,9 @@ pub(crate) enum SweepFinding {
     /// The pattern across the cameras (or a level change with that joint's pattern) names a
     /// joint as slipped, while the encoders agree with the commands.
     JointSlip { at: SweepAt, slip: JointSlip },
-    /// (No probes) The captures scatter about the isotropy model by `scatter_pct` (the median
-    /// residual SD of `sweeps` sweeps, the first from capture `from_idx`), beyond `limit_pct`:
-    /// the lamp's gain moves from capture to capture.
+    /// (No probes) The captures scatter about the isotropy model by at least `scatter_pct` (the
+    /// smallest residual SD of `sweeps` consecutive judged sweeps, the first from capture
+    /// `from_idx`), beyond `limit_pct`: the lamp's gain moves from capture to capture.
     LampUnstable {
         at: SweepAt,
         scatter_pct: f64,
@@ -90,7 +90,8 @@ pub(crate) enum SweepFinding {
         sweeps: usize,
         from_idx: u64,
     },
-    /// The scatter is back well under the limit.
+    /// The scatter is back well under the limit: `scatter_pct` is the largest residual SD of the
+    /// last `sweeps` judged sweeps.
     LampSteady {
         at: SweepAt,
         scatter_pct: f64,

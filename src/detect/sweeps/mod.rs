@@ -108,11 +108,16 @@ impl Default for SweepSpec {
     }
 }
 
-/// The scatter watch judges the median of this many sweeps' residual SDs: one odd sweep cannot
-/// raise it, and a lamp flickering from the start is judged by the third sweep with a residual
-/// SD (on the UBO plan the 30° layer's fourth light, capture 971): the 15° layer's sweeps have
-/// none (too few lights for the joints' pattern fit).
-const SCATTER_SWEEPS: usize = 3;
+/// The scatter watch asks this many consecutive judged sweeps to scatter beyond the limit (and
+/// all of them to be back under it to clear): one odd sweep cannot raise it, and a lamp
+/// flickering from the start is raised at the second sweep judged (on the UBO plan the 30°
+/// layer's fifth light, capture 971): the 15° layer's sweeps have no residual SD (too few
+/// lights for the joints' pattern fit).
+const SCATTER_SWEEPS: usize = 2;
+/// A sweep is judged once its layer has this many earlier lights: before, its class effects
+/// rest on one or two members and the layer's joint model is new, and a steady lamp's first
+/// sweeps of a layer scatter by 2–4 % (the 60° layer on the realistic preset).
+const SCATTER_MIN_EARLIER_LIGHTS: usize = 3;
 /// The highest θi layer (millidegrees) the scatter watch judges.
 const SCATTER_MAX_LAYER_MDEG: i64 = 60_000;
 /// `lamp-unstable` is cleared when the scatter is back under the limit divided by this.
@@ -601,7 +606,16 @@ impl SweepMonitor {
     /// `unstable_scatter_pct`, cleared below `1 / SCATTER_CLEAR` of it.
     fn test_scatter(&mut self, sweep: &Sweep, rec: &SweepRecord, findings: &mut Vec<SweepFinding>) {
         let sd = rec.residual_sd;
-        if sweep.layer > SCATTER_MAX_LAYER_MDEG || !(sd > 0.0 && sd.is_finite()) {
+        let earlier_lights = self
+            .sweep_starts
+            .iter()
+            .filter(|s| s.layer == sweep.layer)
+            .count()
+            .saturating_sub(1);
+        if sweep.layer > SCATTER_MAX_LAYER_MDEG
+            || earlier_lights < SCATTER_MIN_EARLIER_LIGHTS
+            || !(sd > 0.0 && sd.is_finite())
+        {
             return;
         }
         self.scatter.push((sd, sweep.first_idx));
@@ -609,25 +623,25 @@ impl SweepMonitor {
             return;
         }
         let recent = &self.scatter[self.scatter.len() - SCATTER_SWEEPS..];
-        let mut v: Vec<f64> = recent.iter().map(|r| r.0).collect();
-        v.sort_by(f64::total_cmp);
-        let median_pct = 100.0 * median_sorted(&v);
+        let (lo, hi) = recent.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
+            (lo.min(100.0 * r.0), hi.max(100.0 * r.0))
+        });
         let limit = self.spec.unstable_scatter_pct;
         let from_idx = recent[0].1;
-        if !self.unstable && median_pct > limit {
+        if !self.unstable && lo > limit {
             self.unstable = true;
             findings.push(SweepFinding::LampUnstable {
                 at: sweep.at(),
-                scatter_pct: median_pct,
+                scatter_pct: lo,
                 limit_pct: limit,
                 sweeps: SCATTER_SWEEPS,
                 from_idx,
             });
-        } else if self.unstable && median_pct < limit / SCATTER_CLEAR {
+        } else if self.unstable && hi < limit / SCATTER_CLEAR {
             self.unstable = false;
             findings.push(SweepFinding::LampSteady {
                 at: sweep.at(),
-                scatter_pct: median_pct,
+                scatter_pct: hi,
                 limit_pct: limit,
                 sweeps: SCATTER_SWEEPS,
             });

@@ -460,7 +460,7 @@ fn a_lamp_flickering_from_the_start_is_unstable_by_the_third_judged_sweep_and_st
     let raised = unstable(&findings);
     assert_eq!(raised.len(), 1, "{findings:?}");
     let (idx, pct) = raised[0];
-    // the 30° layer's fourth light ends at capture 971
+    // judged from the 30° layer's fourth light on: its fifth ends at capture 971
     assert!(idx <= 1_000, "{idx}");
     assert!((2.0..6.0).contains(&pct), "{pct}");
     // steady again once the scatter is back under the limit / 1.5: the 45° layer's later
