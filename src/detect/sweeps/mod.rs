@@ -85,8 +85,8 @@ pub struct SweepSpec {
     /// Half-width of the central difference for ∂ ln Y / ∂q_j (degrees).
     pub sensitivity_step_deg: f64,
     /// Without probes: `lamp-unstable` when the captures scatter about the isotropy model by
-    /// more than this (%, the median residual SD of the last `SCATTER_SWEEPS` sweeps with
-    /// θi ≤ 60°): a lamp whose gain moves from capture to capture (flicker).
+    /// more than this (%, the residual SD of each of `SCATTER_SWEEPS` consecutive judged
+    /// sweeps): a lamp whose gain moves from capture to capture (flicker).
     pub unstable_scatter_pct: f64,
 }
 
@@ -600,10 +600,11 @@ impl SweepMonitor {
     /// capture a gain of its own, which no stationary model of the geometry follows, so the
     /// sweep's residuals about the isotropy model (F + L + C and the joints' patterns) scatter
     /// by about the flicker's SD; a steady lamp leaves the model's misfit and the camera noise.
-    /// Judged on the median residual SD of the last `SCATTER_SWEEPS` sweeps (one odd sweep
-    /// cannot raise it) in the layers up to `SCATTER_MAX_LAYER_MDEG`: at grazing light a square
-    /// sample's footprint leaves several per cent of misfit of its own. Raised above
-    /// `unstable_scatter_pct`, cleared below `1 / SCATTER_CLEAR` of it.
+    /// Judged on the residual SDs of the last `SCATTER_SWEEPS` sweeps, each beyond the limit (one
+    /// odd sweep cannot raise it), in the layers up to `SCATTER_MAX_LAYER_MDEG` (at grazing
+    /// light a square sample's footprint leaves several per cent of misfit of its own), each
+    /// sweep once its layer has `SCATTER_MIN_EARLIER_LIGHTS` earlier lights. Raised when each
+    /// is above `unstable_scatter_pct`, cleared when each is below `1 / SCATTER_CLEAR` of it.
     fn test_scatter(&mut self, sweep: &Sweep, rec: &SweepRecord, findings: &mut Vec<SweepFinding>) {
         let sd = rec.residual_sd;
         let earlier_lights = self
