@@ -57,27 +57,31 @@ pub(crate) fn observability(
     }
     if isotropic {
         o.watched.push(
-            "the lamp's gain rate and colour (K/h), from isotropy classes (the same geometry at other times)"
-                .into(),
+            if probes {
+                "the lamp's colour (K/h) and its gain rate for the corrections (the probes alarm it), from isotropy classes (the same geometry at other times)"
+            } else {
+                "the lamp's gain rate, alarmed once it cannot be a stationary pattern of the light's direction (trend-unresolved until then), and its colour (K/h), from isotropy classes (the same geometry at other times)"
+            }
+            .into(),
         );
     }
     if sweeps_run {
-        // with probes the sweeps leave the gain level to them
+        // with probes the sweeps leave the gain level and the lamp's stability to them
         o.watched.push(
             if probes {
                 "arm joints 1 and 2, from the light sweeps (each light direction against the earlier ones)"
             } else {
-                "gain steps and arm joints 1 and 2, from the light sweeps (each light direction against the earlier ones)"
+                "gain steps, the lamp's stability from capture to capture (lamp-unstable, θi ≤ 60° from a layer's fourth light) and arm joints 1 and 2, from the light sweeps (each light direction against the earlier ones)"
             }
             .into(),
         );
     }
     let probes_remedy =
         "enable drift probes ([probes] every = N): a re-capture of one pose every N captures; `goniowatch plan` prints the N that meets the detection target";
-    if !probes {
+    if !probes && !sweeps_run {
         o.blind.push(blind(
             "the lamp's stability from capture to capture (flicker)",
-            "only a re-capture of the same pose measures it; isotropy classes and pairs differ by the sample's own pattern, which hides a flicker of a few per cent",
+            "a re-capture of the same pose measures it, or the light sweeps' scatter about the isotropy model; isotropy classes and pairs alone differ by the sample's own pattern, which hides a flicker of a few per cent",
             probes_remedy,
         ));
     }
@@ -149,10 +153,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn an_isotropic_light_outer_session_is_blind_to_flicker_only() {
+    fn an_isotropic_light_outer_session_watches_flicker_from_the_sweeps_or_the_probes() {
         let o = observability(true, false, AcquisitionOrder::LightOuter, true, true);
-        assert_eq!(o.blind.len(), 1, "{o:?}");
-        assert!(o.blind[0].what.contains("flicker") && o.blind[0].remedy.contains("[probes]"));
+        assert!(o.blind.is_empty(), "{o:?}");
+        assert!(o
+            .watched
+            .iter()
+            .any(|w| w.contains("lamp-unstable") && w.contains("light sweeps")));
+        assert!(o.watched.iter().any(|w| w.contains("trend-unresolved")));
+        // the sweeps off: flicker is a blind spot, with the probes as the remedy
+        let o = observability(true, false, AcquisitionOrder::LightOuter, false, true);
+        let f = o.blind.iter().find(|b| b.what.contains("flicker")).unwrap();
+        assert!(f.remedy.contains("[probes]"));
         let o = observability(true, true, AcquisitionOrder::LightOuter, true, true);
         assert!(o.blind.is_empty(), "{o:?}");
         assert!(o.watched.iter().any(|w| w.contains("lamp-unstable")));
