@@ -125,7 +125,8 @@ def test_regression_session(chk, tmp_path):
     t = run.row.truth
     expect = want["expect"]
     if expect == "quiet":
-        assert rec["drift_after"] is None and rec["positioning_after"] is None, rec
+        # no drift or positioning alarm, and the lamp not taken for unstable
+        assert rec["drift_after"] is None and rec["positioning_after"] is None and rec["unstable_after"] is None, rec
         return
     assert rec["drift_before"] is None and rec["positioning_before"] is None, f"alarm before the onset: {rec}"
     if expect == "caught":
