@@ -508,8 +508,13 @@ impl DriftDetector {
         self.estimate
     }
     /// Add one pair; returns the events it caused.
-    pub(crate) fn add(&mut self, o: PairObservation) -> Vec<DriftEvent> {
+    pub(crate) fn add(&mut self, mut o: PairObservation) -> Vec<DriftEvent> {
         let mut ev = Vec::new();
+        // a light azimuth that is not finite carries no pattern: its columns are left at 0, so
+        // one bad direction cannot make the pattern-robust fit fail for the rest of the run
+        if !o.light_az.iter().all(|a| a.is_finite()) {
+            o.light_az = [0.0; 2];
+        }
         if !(o.d.is_finite()
             && o.t_a_h.is_finite()
             && o.t_b_h.is_finite()

@@ -557,3 +557,32 @@ fn a_source_without_rate_alarms_estimates_and_raises_when_turned_back_on() {
         "{later:?}"
     );
 }
+
+#[test]
+fn a_non_finite_light_azimuth_leaves_the_pattern_check_working() {
+    // the drift of the pattern test, with every 50th observation's light azimuth NaN or ∞:
+    // those carry no pattern, and the check still confirms the drift
+    let mut spec = pattern_spec(true);
+    spec.refit_every = 100;
+    let (clean, clean_ev) = light_outer_run(-1.0, true, spec.clone(), 4);
+    let mut det = DriftDetector::new(spec);
+    let mut raised = false;
+    for (k, o) in clean.obs.iter().enumerate() {
+        let mut o = *o;
+        if k % 50 == 0 {
+            o.light_az = [f64::NAN, f64::INFINITY];
+        }
+        raised |= det
+            .add(o)
+            .iter()
+            .any(|e| matches!(e, DriftEvent::RateSignificant(_)));
+    }
+    assert!(clean_ev
+        .iter()
+        .any(|(_, e)| matches!(e, DriftEvent::RateSignificant(_))));
+    assert!(raised);
+    assert!(det
+        .obs
+        .iter()
+        .all(|o| o.light_az.iter().all(|a| a.is_finite())));
+}
