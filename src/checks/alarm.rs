@@ -126,6 +126,8 @@ pub enum AlarmCode {
     SessionChanged,
     /// Files in the capture folder not placed as captures.
     SkippedFiles,
+    /// A joint slip the light sweeps suggested, which a re-capture of earlier poses refutes.
+    SlipRefuted,
     /// Capture times went back.
     TimeSteppedBack,
     /// A trend in the isotropy classes that a stationary light-side pattern could also make.
@@ -138,7 +140,7 @@ pub enum AlarmCode {
 
 impl AlarmCode {
     /// Every code.
-    pub(crate) const ALL: [AlarmCode; 46] = [
+    pub(crate) const ALL: [AlarmCode; 47] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
@@ -181,6 +183,7 @@ impl AlarmCode {
         AlarmCode::SampleOffCentre,
         AlarmCode::SessionChanged,
         AlarmCode::SkippedFiles,
+        AlarmCode::SlipRefuted,
         AlarmCode::TimeSteppedBack,
         AlarmCode::TrendUnresolved,
         AlarmCode::UnannouncedFiles,
@@ -232,6 +235,7 @@ impl AlarmCode {
             AlarmCode::SampleOffCentre => "sample-off-centre",
             AlarmCode::SessionChanged => "session-changed",
             AlarmCode::SkippedFiles => "skipped-files",
+            AlarmCode::SlipRefuted => "slip-refuted",
             AlarmCode::TimeSteppedBack => "time-stepped-back",
             AlarmCode::TrendUnresolved => "trend-unresolved",
             AlarmCode::UnannouncedFiles => "unannounced-files",
@@ -286,6 +290,7 @@ impl AlarmCode {
             AlarmCode::SampleOffCentre => "the sample's surface sits off the arm's rotation centre",
             AlarmCode::SessionChanged => "the controller announced another session",
             AlarmCode::SkippedFiles => "files in the capture folder not placed as captures",
+            AlarmCode::SlipRefuted => "a joint slip the light sweeps suggested, which a re-capture of earlier poses refutes",
             AlarmCode::TimeSteppedBack => "capture times went back",
             AlarmCode::TrendUnresolved => "a trend in the isotropy classes that a stationary light-side pattern could also make",
             AlarmCode::UnannouncedFiles => "files in the capture folder no CAPTURE line named",

@@ -23,6 +23,9 @@ pub enum Source {
     /// Joint 3's sentinel probes against the lamp probes.
     #[serde(rename = "sentinel probes")]
     SentinelProbes,
+    /// Two earlier poses re-captured back to back.
+    #[serde(rename = "re-captures")]
+    Recaptures,
 }
 
 impl Source {
@@ -33,6 +36,7 @@ impl Source {
             Source::Probes => "probes",
             Source::LightSweeps => "light sweeps",
             Source::SentinelProbes => "sentinel probes",
+            Source::Recaptures => "re-captures",
         }
     }
 }
@@ -98,6 +102,8 @@ pub enum Evidence {
     GainRate(GainRate),
     /// `trend-unresolved`.
     UnresolvedTrend(UnresolvedTrend),
+    /// `slip-refuted`.
+    SlipRefuted(SlipRefuted),
     /// `lamp-unstable` and `lamp-unstable-cleared` from the probes.
     LampScatter(LampScatter),
     /// `lamp-unstable` and `lamp-unstable-cleared` from the light sweeps.
@@ -283,6 +289,41 @@ pub struct JointSlip {
     pub other_joints: Vec<OtherJoint>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub attributed_level_pct: Option<f64>,
+    /// What re-capturing two earlier poses said (a probe-taking rig; none when not asked).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recapture: Option<SlipRecapture>,
+}
+
+/// Earlier poses of one sweep re-captured back to back to check a slip the light sweeps
+/// named: confirmed or refuted with the reading, or asked for and not taken.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "status", rename_all = "kebab-case")]
+pub enum SlipRecapture {
+    Confirmed(RecaptureReading),
+    Refuted(RecaptureReading),
+    Unanswered { entries: Vec<usize> },
+}
+
+/// The re-captured plan entries (first half: those whose luminance rises most with the joint;
+/// then those whose luminance falls most), the change of the halves' mean luminance ratio
+/// against the originals' (%), the difference of their mean sensitivities to the joint (%/°),
+/// and the offset that makes (degrees) with its standard error.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecaptureReading {
+    pub entries: Vec<usize>,
+    pub change_pct: f64,
+    pub sensitivity_pct_per_deg: f64,
+    pub offset_deg: f64,
+    pub se_deg: f64,
+}
+
+/// A slip the light sweeps' pattern named (`joint`, `offset_deg`), refuted by re-captures.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SlipRefuted {
+    pub source: Source,
+    pub joint: usize,
+    pub offset_deg: f64,
+    pub recapture: SlipRecapture,
 }
 
 /// Arm joint 3 named by its sentinel: the turn, the first capture after the last reading in
@@ -493,6 +534,7 @@ impl Evidence {
             }
             C::GainDrift => parse(&v, Evidence::GainRate),
             C::TrendUnresolved => parse(&v, Evidence::UnresolvedTrend),
+            C::SlipRefuted => parse(&v, Evidence::SlipRefuted),
             C::LampUnstable | C::LampUnstableCleared => {
                 parse(&v, Evidence::LampScatter).or_else(|| parse(&v, Evidence::SweepScatter))
             }
@@ -554,6 +596,7 @@ impl Evidence {
             Evidence::SweepStep(_) | Evidence::TrendStep(_) => code == C::GainStep,
             Evidence::GainRate(_) => code == C::GainDrift,
             Evidence::UnresolvedTrend(_) => code == C::TrendUnresolved,
+            Evidence::SlipRefuted(_) => code == C::SlipRefuted,
             Evidence::LampScatter(_) | Evidence::SweepScatter(_) => {
                 matches!(code, C::LampUnstable | C::LampUnstableCleared)
             }

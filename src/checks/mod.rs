@@ -39,7 +39,9 @@ use crate::checks::alarm::{Alarm, AlarmCode};
 use crate::detect::drift::{mount_coordinates, DriftEstimate, MountPattern, StepEffect};
 use crate::detect::probes::{ProbePose, ProbeSpec};
 use crate::detect::sentinel::SentinelSummary;
-use crate::detect::sweeps::{SweepCapture, SweepMonitor, SweepRecord, SweepSpec, SweepSummary};
+use crate::detect::sweeps::{
+    RecaptureNoise, SweepCapture, SweepMonitor, SweepRecord, SweepSpec, SweepSummary,
+};
 use crate::measure::colour::{RgbToXyz, White, Xyz};
 use crate::measure::geometry::{azimuth_difference_deg, Vec3};
 use crate::measure::kinematics::Rig;
@@ -267,6 +269,8 @@ pub struct Checker {
     wagon_last_cmd: Option<f64>,
     wagon_dir: f64,
     alarms: u64,
+    /// The re-captures' noise at the design scatter (a probe-taking rig; None without).
+    recapture: Option<RecaptureNoise>,
 }
 
 impl Checker {
@@ -279,8 +283,18 @@ impl Checker {
         probes: ProbeSpec,
     ) -> Self {
         let light_outer = !matches!(plan.order(), AcquisitionOrder::CameraOuter);
-        let sweeps = (isotropic && spec.sweeps.enabled && light_outer)
-            .then(|| SweepMonitor::new(spec.sweeps.clone(), rig.clone(), plan.direction_count()));
+        // a probe-taking rig re-captures earlier poses before a slip the sweeps name is
+        // alarmed; a re-capture's ratio to its original holds two captures' noise, each at the
+        // probes' design scatter where the lamp probe's luminance is (`light_seen` sets it)
+        let recapture = (probes.cadence() > 0).then_some(RecaptureNoise {
+            sd: std::f64::consts::SQRT_2 * probes.design_scatter_pct / 100.0,
+            y_ref: None,
+        });
+        let sweeps = (isotropic && spec.sweeps.enabled && light_outer).then(|| {
+            let mut s = SweepMonitor::new(spec.sweeps.clone(), rig.clone(), plan.direction_count());
+            s.set_recapture(recapture);
+            s
+        });
         let probes = ProbeStage::new(isotropic, probes, &spec.colour_drift);
         // with probes the lamp's rate is theirs to alarm (a re-capture of one pose sees no
         // stationary pattern of the geometry); the isotropy fit still estimates it
@@ -304,6 +318,7 @@ impl Checker {
             wagon_last_cmd: None,
             wagon_dir: 0.0,
             alarms: 0,
+            recapture,
         }
     }
 
@@ -316,9 +331,15 @@ impl Checker {
             colour: &self.colour,
             spec: &self.spec,
         };
-        // a probe of the sentinel's pose is the sentinel's; any other probe is the lamp's, and
-        // the sentinel compares only with the lamp probe of its round (the last probe before it)
-        let sentinel = self.probes.route(input);
+        // a probe a waiting slip asked for is its re-capture; a probe of the sentinel's pose is
+        // the sentinel's; any other probe is the lamp's, and the sentinel compares only with
+        // the lamp probe of its round (the last probe before it)
+        let recapture = input.probe
+            && self
+                .sweeps
+                .as_ref()
+                .is_some_and(|s| s.awaits_recapture(input.entry));
+        let sentinel = !recapture && self.probes.route(input);
         let w = input.cmd[3];
         if w.is_finite() {
             if let Some(last) = self.wagon_last_cmd.filter(|last| *last != w) {
@@ -341,7 +362,11 @@ impl Checker {
                     input.t / 3600.0,
                     m.checked.xyz,
                 );
-                if sentinel {
+                if recapture {
+                    if !m.checked.dark {
+                        self.recaptured(input, m.checked.xyz[1], &mut out);
+                    }
+                } else if sentinel {
                     self.probes
                         .sentinel_probe(&self.ledger, input, &m, &mut out);
                 } else if input.probe {
@@ -370,6 +395,10 @@ impl Checker {
     pub(crate) fn finish(&mut self, t: f64) -> CheckOutput {
         let mut out = CheckOutput::default();
         self.resolve(|_, _| true, t, &mut out);
+        // a slip still waiting for its re-captures is named from the sweeps alone
+        if let Some(o) = self.sweeps.as_mut().map(|s| s.handle_end()) {
+            self.apply_sweep_outcome(o, (None, Some(t)), &mut out);
+        }
         self.alarms += out.alarms.len() as u64;
         out
     }
@@ -391,10 +420,24 @@ impl Checker {
         self.isotropy.is_some()
     }
 
+    /// The re-captures a slip the sweeps named waits for, once: the engine asks the rig for
+    /// them back to back.
+    pub(crate) fn recapture_wanted(&mut self) -> Option<Vec<usize>> {
+        let sweeps = self.sweeps.as_mut()?;
+        let entries = sweeps.recapture_wanted()?;
+        sweeps.handle_recapture_asked();
+        Some(entries)
+    }
+
     /// The controller refused the probes: the lamp is watched without them from now on (the
-    /// sweeps' level test is back on; no new sentinel or probe pose is chosen).
+    /// sweeps' level test is back on; no new sentinel or probe pose is chosen; slips are named
+    /// from the sweeps alone, one still waiting once its wait runs out).
     pub(crate) fn withdraw_probes(&mut self) {
         self.probes.withdraw();
+        self.recapture = None;
+        if let Some(s) = self.sweeps.as_mut() {
+            s.set_recapture(None);
+        }
         if let Some(d) = self.drift.as_mut() {
             d.set_rate_alarms(true);
         }
@@ -465,6 +508,7 @@ impl Checker {
                     sweeps.add(SweepCapture {
                         idx: input.idx,
                         t: input.t,
+                        entry: input.entry,
                         light: m.light,
                         camera: m.camera,
                         class: key,
@@ -501,6 +545,7 @@ impl Checker {
         if input.probe {
             return;
         }
+        self.recapture_wait(input, out);
         let Some(light) = self.plan.entry(input.entry).ok().map(|e| e.light) else {
             return;
         };
@@ -508,24 +553,75 @@ impl Checker {
             return;
         }
         let level_test = !self.probes.enabled();
+        let round = self.probes.round();
+        let reserved: Vec<usize> = round
+            .map(|(lamp, sentinel)| std::iter::once(lamp).chain(sentinel).collect())
+            .unwrap_or_default();
+        // the re-captures' noise scales from the lamp probe's luminance once it is known
+        let recapture = self.recapture.map(|n| RecaptureNoise {
+            y_ref: round
+                .and_then(|(lamp, _)| self.ledger.get(lamp))
+                .map(|c| c.xyz[1])
+                .filter(|y| *y > 0.0 && y.is_finite()),
+            ..n
+        });
         if let Some(sweeps) = self.sweeps.as_mut() {
             let mount = self.drift.as_ref().and_then(|d| d.mount());
             let gain = self.drift.as_ref().and_then(|d| d.gain_path());
+            sweeps.reserve_entries(&reserved);
+            sweeps.set_recapture(recapture);
             let o = sweeps.light_complete(light, level_test, mount.as_ref(), gain.as_ref());
-            if let Some(drift) = self.drift.as_mut() {
-                if let Some(t) = o.step_at_s {
-                    drift.add_step(t);
-                }
-                for &t in &o.withdrawn_steps_s {
-                    drift.remove_step(t, (Some(input.idx), Some(input.t)), &mut out.alarms);
-                }
-                if let Some(t) = o.slip_at_s {
-                    drift.add_pose_break(t, (Some(input.idx), Some(input.t)), &mut out.alarms);
-                }
-            }
-            out.sweeps.extend(o.record);
-            out.alarms.extend(o.findings.iter().map(sweeps::alarm));
+            self.apply_sweep_outcome(o, (Some(input.idx), Some(input.t)), out);
         }
+    }
+
+    /// A regular capture was seen: a slip whose re-captures did not come in time is named
+    /// from the sweeps alone.
+    fn recapture_wait(&mut self, input: &CaptureInput, out: &mut CheckOutput) {
+        if let Some(o) = self.sweeps.as_mut().map(|s| s.handle_regular_capture()) {
+            self.apply_sweep_outcome(o, (Some(input.idx), Some(input.t)), out);
+        }
+    }
+
+    /// A re-capture a waiting slip asked for, with its luminance: once both are in, the slip
+    /// is named (its alarm at this capture) or refuted.
+    fn recaptured(&mut self, input: &CaptureInput, y: f64, out: &mut CheckOutput) {
+        let Some(o) = self
+            .sweeps
+            .as_mut()
+            .map(|s| s.handle_recapture(input.entry, y))
+        else {
+            return;
+        };
+        let at = (Some(input.idx), Some(input.t));
+        let mut found = CheckOutput::default();
+        self.apply_sweep_outcome(o, at, &mut found);
+        out.alarms
+            .extend(found.alarms.into_iter().map(|a| a.at(at.0, at.1)));
+    }
+
+    /// What the sweeps found, into the drift model (a step term, a withdrawn step, a pose
+    /// break) and the output (the sweep's record and the alarms); `at` stamps the drift
+    /// model's own alarms.
+    fn apply_sweep_outcome(
+        &mut self,
+        o: crate::detect::sweeps::SweepOutcome,
+        at: (Option<u64>, Option<f64>),
+        out: &mut CheckOutput,
+    ) {
+        if let Some(drift) = self.drift.as_mut() {
+            if let Some(t) = o.step_at_s {
+                drift.add_step(t);
+            }
+            for &t in &o.withdrawn_steps_s {
+                drift.remove_step(t, at, &mut out.alarms);
+            }
+            if let Some(t) = o.slip_at_s {
+                drift.add_pose_break(t, at, &mut out.alarms);
+            }
+        }
+        out.sweeps.extend(o.record);
+        out.alarms.extend(o.findings.iter().map(sweeps::alarm));
     }
 
     /// Score the waiting substitutes that `ready` selects; their interpolated pairs also go to

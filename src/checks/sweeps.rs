@@ -3,7 +3,9 @@
 
 use super::evidence::{self, Evidence, Source};
 use crate::checks::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
-use crate::detect::sweeps::{JointSlip, LevelRun, SweepAt, SweepFinding};
+use crate::detect::sweeps::{
+    JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt, SweepFinding,
+};
 
 /// The alarm a finding of the sweep checks raises.
 pub(crate) fn alarm(f: &SweepFinding) -> Alarm {
@@ -30,6 +32,12 @@ pub(crate) fn alarm(f: &SweepFinding) -> Alarm {
             ..
         } => gain_step_withdrawn(*joint, *step_idx, *level_pct, *slip_from_idx),
         SweepFinding::JointSlip { at, slip } => joint_slip(at, slip),
+        SweepFinding::SlipRefuted {
+            at,
+            joint,
+            offset_deg,
+            reading,
+        } => slip_refuted(at, *joint, *offset_deg, reading),
         SweepFinding::LampUnstable {
             scatter_pct,
             limit_pct,
@@ -79,6 +87,67 @@ fn lamp_unstable(scatter_pct: f64, limit_pct: f64, sweeps: usize, from_idx: u64)
         "Let the lamp warm up and settle; check its supply, its connections and any draught or fan near it; if the scatter stays, pause the run and fix the lamp. The captures since the first sweep judged carry the lamp's noise, which no correction removes; drift probes ([probes] every) would measure it directly.",
         Some(Affects::Since { from_idx, handling: Handling::Inspect }),
     )
+}
+
+/// The re-captures' reading as the evidence holds it.
+fn reading_evidence(r: &RecaptureReading) -> evidence::RecaptureReading {
+    evidence::RecaptureReading {
+        entries: r.entries.clone(),
+        change_pct: r.change_pct,
+        sensitivity_pct_per_deg: r.sensitivity_pct_per_deg,
+        offset_deg: r.offset_deg,
+        se_deg: r.se_deg,
+    }
+}
+
+/// Plan entries in words: "1, 2 and 3".
+fn entry_list(entries: &[usize]) -> String {
+    match entries {
+        [] => String::new(),
+        [one] => one.to_string(),
+        [rest @ .., last] => format!(
+            "{} and {last}",
+            rest.iter()
+                .map(|e| e.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
+/// The re-captures' reading in words.
+fn reading_words(r: &RecaptureReading) -> String {
+    let (up, down) = r.entries.split_at(r.entries.len() / 2);
+    format!(
+        "earlier poses re-captured back to back (entries {}, rising with the joint, against {}, falling) moved {:+.2} % against each other since they were first taken ({:+.2} %/° of joint {} between them): {:+.2}° ± {:.2}°",
+        entry_list(up),
+        entry_list(down),
+        r.change_pct,
+        r.sensitivity_pct_per_deg,
+        r.joint,
+        r.offset_deg,
+        r.se_deg
+    )
+}
+
+fn slip_refuted(at: &SweepAt, joint: usize, offset_deg: f64, r: &RecaptureReading) -> Alarm {
+    Alarm::new(
+        AlarmKind::Positioning,
+        Severity::Info,
+        AlarmCode::SlipRefuted,
+        format!(
+            "no slip: the pattern across the cameras of light sweep {} (θi = {}°) follows joint {joint}'s sensitivity as an offset of {offset_deg:+.2}° would, but {}; the pattern is the geometry's (a lamp beam or a holder that follows the pose), which a re-capture shows unchanged",
+            at.light,
+            layer_deg(at),
+            reading_words(r)
+        ),
+    )
+    .with(Evidence::SlipRefuted(evidence::SlipRefuted {
+        source: Source::Recaptures,
+        joint,
+        offset_deg,
+        recapture: evidence::SlipRecapture::Refuted(reading_evidence(r)),
+    }))
 }
 
 fn layer_deg(at: &SweepAt) -> f64 {
@@ -194,7 +263,24 @@ fn joint_slip(at: &SweepAt, x: &JointSlip) -> Alarm {
             })
             .collect(),
         attributed_level_pct: x.attributed_level_pct,
+        recapture: match &x.recapture {
+            Recapture::NotAsked => None,
+            Recapture::Confirmed(r) => {
+                Some(evidence::SlipRecapture::Confirmed(reading_evidence(r)))
+            }
+            Recapture::Unanswered { entries } => Some(evidence::SlipRecapture::Unanswered {
+                entries: entries.clone(),
+            }),
+        },
     });
+    let recaptured = match &x.recapture {
+        Recapture::NotAsked => String::new(),
+        Recapture::Confirmed(r) => format!("; confirmed by a re-capture: {}", reading_words(r)),
+        Recapture::Unanswered { entries } => format!(
+            "; not confirmed: the re-captures asked for (entries {}) were not taken",
+            entry_list(entries)
+        ),
+    };
     let size = format!(
         "joint {} looks offset by about {:+.2}° (± {:.2}°, from {} light sweep(s) against the captures before the slip)",
         x.joint, x.offset_deg, x.se_deg, x.estimate_sweeps
@@ -220,7 +306,7 @@ fn joint_slip(at: &SweepAt, x: &JointSlip) -> Alarm {
                 x.statistic,
                 x.threshold
             ),
-        },
+        } + &recaptured,
     )
     .with(evidence)
     .advise(
@@ -337,6 +423,7 @@ mod tests {
             statistic: 9.5,
             threshold: 6.0,
             attributed_level_pct: None,
+            recapture: Recapture::NotAsked,
             other_joints: vec![JointFit {
                 joint: 1,
                 offset_deg: 0.5,

@@ -1331,6 +1331,26 @@ impl Engine {
             }
         }
         self.ask_probes_if_due(out);
+        self.ask_recapture_if_wanted(out);
+    }
+
+    /// Ask for the two re-captures a slip the sweeps named waits for, back to back (the lamp's
+    /// gain cancels between them). Not while the link is down or after the run's last regular
+    /// capture: the slip is then named from the sweeps alone when its wait runs out.
+    fn ask_recapture_if_wanted(&mut self, out: &mut Vec<Output>) {
+        if !(self.link.is_connected() && self.link.is_subscribed())
+            || self.done
+            || self.probes.announced() >= self.captures_planned
+        {
+            return;
+        }
+        let Some(entries) = self.checker.recapture_wanted() else {
+            return;
+        };
+        for entry in entries {
+            let seq = self.send(out, ToController::Probe { entry });
+            self.probe_requests.push(seq);
+        }
     }
 
     fn drain(&mut self, out: &mut Vec<Output>) {

@@ -44,6 +44,37 @@ pub(crate) struct JointSlip {
     pub threshold: f64,
     pub attributed_level_pct: Option<f64>,
     pub other_joints: Vec<JointFit>,
+    /// What re-capturing earlier poses said of it (`recapture`).
+    pub recapture: Recapture,
+}
+
+/// Whether a slip the sweeps name was checked by re-capturing two earlier poses
+/// (`SweepMonitor::set_recapture`).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Recapture {
+    /// Not asked: the rig takes no probes, or no two earlier poses differ enough in their
+    /// sensitivity to the joint to show a slip of the named size.
+    NotAsked,
+    /// The re-captures show the slip.
+    Confirmed(RecaptureReading),
+    /// Asked for, and not taken: the rig did not take them within `RECAPTURE_WAIT_CAPTURES`
+    /// regular captures, refused probes, or the run ended first. Named from the sweeps alone.
+    Unanswered { entries: Vec<usize> },
+}
+
+/// Earlier poses of one sweep re-captured back to back: `entries` (first half: those whose
+/// luminance rises most with the joint; then those whose luminance falls most), the change of
+/// the two halves' mean luminance ratio against the originals' (%), the difference of their
+/// mean sensitivities to the named joint (%/°), and the joint's offset that change makes
+/// (degrees) with its standard error.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct RecaptureReading {
+    pub joint: usize,
+    pub entries: Vec<usize>,
+    pub change_pct: f64,
+    pub sensitivity_pct_per_deg: f64,
+    pub offset_deg: f64,
+    pub se_deg: f64,
 }
 
 /// What the sweep checks saw in a completed sweep, with its numbers. `checks` words these as
@@ -80,6 +111,15 @@ pub(crate) enum SweepFinding {
     /// The pattern across the cameras (or a level change with that joint's pattern) names a
     /// joint as slipped, while the encoders agree with the commands.
     JointSlip { at: SweepAt, slip: JointSlip },
+    /// The sweeps' pattern named `joint` offset by `offset_deg`, and a re-capture of two earlier
+    /// poses shows no such change (`reading`): a stationary pattern of the geometry that
+    /// follows the pose, not a slip.
+    SlipRefuted {
+        at: SweepAt,
+        joint: usize,
+        offset_deg: f64,
+        reading: RecaptureReading,
+    },
     /// (No probes) The captures scatter about the isotropy model by at least `scatter_pct` (the
     /// smallest residual SD of `sweeps` consecutive judged sweeps, the first from capture
     /// `from_idx`), beyond `limit_pct`: the lamp's gain moves from capture to capture.
@@ -108,6 +148,7 @@ impl SweepFinding {
             | SweepFinding::LevelAfterSlip { at, .. }
             | SweepFinding::GainStepWithdrawn { at, .. }
             | SweepFinding::JointSlip { at, .. }
+            | SweepFinding::SlipRefuted { at, .. }
             | SweepFinding::LampUnstable { at, .. }
             | SweepFinding::LampSteady { at, .. } => at,
         }

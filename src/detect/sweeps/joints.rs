@@ -115,10 +115,16 @@ impl SweepMonitor {
         };
         // a crossing in a layer that already has its positioning alarm restarts the CUSUMs
         // without a second alarm (the operator has it; the next layer may raise one again)
+        // on a probe-taking rig the slip waits for a re-capture of earlier poses (`recapture`);
+        // while one waits, no other is asked about
         let mut named = None;
         if let Some(x) = &crossing {
-            if !self.latched.contains(&Latch::Joint { layer: sweep.layer }) {
-                named = Some(self.name_slip(sweep, x, rec, findings));
+            if !self.latched.contains(&Latch::Joint { layer: sweep.layer })
+                && !self.recapture_pending()
+                && !self.hold_for_recapture(sweep.at(), x, &rec.joints)
+            {
+                named =
+                    Some(self.name_slip(sweep.at(), x, &rec.joints, Recapture::NotAsked, findings));
             }
             for c in self.joint_cusum.iter_mut() {
                 c.reset();
@@ -135,34 +141,37 @@ impl SweepMonitor {
         named
     }
 
-    /// Names the slip `x` in `sweep` (its layer's one positioning alarm): the alarm, the slip's
-    /// place for the drift model, and the withdrawal of the gain steps of its layer raised
-    /// after the slip's first capture, which the slip explains (each with an info alarm).
+    /// Names the slip `x` found at the sweep `at` (its layer's one positioning alarm), with the
+    /// sweep's joint fits `fits` and what re-captures said of it: the alarm, the slip's place
+    /// for the drift model, and the withdrawal of the gain steps of its layer raised after the
+    /// slip's first capture, which the slip explains (each with an info alarm).
     pub(super) fn name_slip(
         &mut self,
-        sweep: &Sweep,
+        at: SweepAt,
         x: &JointCrossing,
-        rec: &SweepRecord,
+        fits: &[JointFit],
+        recapture: Recapture,
         findings: &mut Vec<SweepFinding>,
     ) -> NamedSlip {
-        self.latched.insert(Latch::Joint { layer: sweep.layer });
+        let layer = at.layer_mdeg;
+        self.latched.insert(Latch::Joint { layer });
         findings.push(SweepFinding::JointSlip {
-            at: sweep.at(),
-            slip: self.joint_slip(x, rec),
+            at,
+            slip: self.joint_slip(x, fits, recapture),
         });
         let at_s = self.slip_first_t(x.since);
         let slip_idx = self.slip_first_idx(x.since);
-        self.slip = Some((sweep.layer, x.joint + 1, slip_idx));
+        self.slip = Some((layer, x.joint + 1, slip_idx));
         // a level change raised after the slip began, in its layer, was the tilt's
         let (explained, kept): (Vec<_>, Vec<_>) = self
             .level_steps
             .iter()
-            .partition(|&&(l, idx, _, _)| l == sweep.layer && idx >= slip_idx);
+            .partition(|&&(l, idx, _, _)| l == layer && idx >= slip_idx);
         self.level_steps = kept;
         let mut withdrawn_steps_s = Vec::new();
         for (_, idx, step_at_s, level) in explained {
             findings.push(SweepFinding::GainStepWithdrawn {
-                at: sweep.at(),
+                at,
                 joint: x.joint + 1,
                 step_idx: idx,
                 level_pct: level,
@@ -372,8 +381,13 @@ impl SweepMonitor {
         x
     }
 
-    /// The slip `x` names, with the other joints' fits of the sweep.
-    pub(super) fn joint_slip(&self, x: &JointCrossing, rec: &SweepRecord) -> JointSlip {
+    /// The slip `x` names, with the other joints' fits of the sweep (from `fits`).
+    pub(super) fn joint_slip(
+        &self,
+        x: &JointCrossing,
+        fits: &[JointFit],
+        recapture: Recapture,
+    ) -> JointSlip {
         JointSlip {
             joint: x.joint + 1,
             offset_deg: x.mean,
@@ -390,12 +404,12 @@ impl SweepMonitor {
                 self.h_joint
             },
             attributed_level_pct: x.attributed_level.map(|level| 100.0 * level),
-            other_joints: rec
-                .joints
+            other_joints: fits
                 .iter()
                 .filter(|f| f.joint != x.joint + 1)
                 .cloned()
                 .collect(),
+            recapture,
         }
     }
 }

@@ -132,7 +132,13 @@ impl SweepMonitor {
                         // crossing of the joints' CUSUMs); otherwise the level is the lamp's
                         let x = self.slip_estimate(x, known);
                         if x.mean.abs() >= self.spec.joint_tolerance_deg {
-                            step.slip = Some(self.name_slip(sweep, &x, rec, findings));
+                            step.slip = Some(self.name_slip(
+                                sweep.at(),
+                                &x,
+                                &rec.joints,
+                                Recapture::NotAsked,
+                                findings,
+                            ));
                             self.level_cusum.reset();
                             step.alarmed = true;
                             break;

@@ -46,14 +46,18 @@ mod level;
 mod model;
 #[cfg(test)]
 mod model_tests;
+mod recapture;
 #[cfg(test)]
 mod session_tests;
 #[cfg(test)]
 mod tests;
 
-pub(crate) use findings::{JointSlip, LevelRun, SweepAt, SweepFinding};
+pub(crate) use findings::{
+    JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt, SweepFinding,
+};
 use level::ScaleHistory;
 use model::{Model, PatternFit, Reference, Row};
+pub(crate) use recapture::RecaptureNoise;
 
 /// `[checks.sweeps]` in the config.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -128,6 +132,8 @@ const SCATTER_CLEAR: f64 = 1.5;
 pub(crate) struct SweepCapture {
     pub idx: u64,
     pub t: f64,
+    /// Its plan entry (what a re-capture asks for).
+    pub entry: usize,
     pub light: usize,
     pub camera: usize,
     /// Isotropy class (any stable key).
@@ -304,6 +310,15 @@ pub(crate) struct SweepMonitor {
     /// first capture; and whether `lamp-unstable` stands.
     scatter: Vec<(f64, u64)>,
     unstable: bool,
+    /// Slips are re-captured before they are named (`recapture`), with this noise; None names
+    /// them from the sweeps alone.
+    recapture: Option<recapture::RecaptureNoise>,
+    /// Plan entries not offered for re-capture (the probes' own).
+    reserved: Vec<usize>,
+    /// A slip waiting for its re-captures.
+    pending: Option<recapture::PendingSlip>,
+    /// Per θi layer, the patterns the re-captures refuted.
+    refuted: HashMap<i64, usize>,
 }
 
 /// Where a completed sweep lies in the session, and the joint offsets its pattern fit gave
@@ -385,6 +400,10 @@ impl SweepMonitor {
             level_model: HashMap::new(),
             slip: None,
             level_steps: Vec::new(),
+            recapture: None,
+            reserved: Vec::new(),
+            pending: None,
+            refuted: HashMap::new(),
         }
     }
 

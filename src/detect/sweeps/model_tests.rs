@@ -39,6 +39,7 @@ fn session() -> (SweepMonitor, Vec<SweepCapture>, Rig) {
         let cap = SweepCapture {
             idx: e as u64,
             t: 7.0 * e as f64,
+            entry: e,
             light: pe.light,
             camera: pe.camera,
             class: (0, 0, e as i64),

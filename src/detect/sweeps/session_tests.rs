@@ -14,6 +14,10 @@ enum Fault {
     Step(f64),
     /// a lamp whose gain has an SD of its own every capture (ln units), until this capture
     Flicker(f64, usize),
+    /// A stationary effect of the geometry that follows the pose: the captures of every light
+    /// from this one on look as if the joint (0-based) were off by the degrees, whenever they
+    /// are taken (a re-capture of an earlier light's pose shows nothing). The onset is unused.
+    LightPattern(usize, f64, usize),
 }
 
 /// The joints named as slipped, with the sweep each was named at.
@@ -81,12 +85,71 @@ fn simulate(
     last_light: usize,
     seed: u64,
     level_test: bool,
+    outline: (f64, f64),
+) -> (SweepMonitor, Vec<SweepRecord>, Vec<SweepFinding>) {
+    simulate_with(fault, onset, last_light, seed, level_test, outline, None)
+}
+
+/// `simulate` on a rig that takes probes: with `recapture` (the SD of one re-capture's ln ratio
+/// to its original), the monitor's re-captures are taken right after the sweep that asked for them, with
+/// the rig as it is then.
+fn simulate_with(
+    fault: Fault,
+    onset: usize,
+    last_light: usize,
+    seed: u64,
+    level_test: bool,
     (outline, second): (f64, f64),
+    recapture: Option<f64>,
 ) -> (SweepMonitor, Vec<SweepRecord>, Vec<SweepFinding>) {
     let plan = SamplingPlan::ubo();
     let rig = Rig::new(Default::default()).unwrap();
     let mut m = SweepMonitor::new(SweepSpec::default(), rig.clone(), plan.direction_count());
+    m.set_recapture(recapture.map(|sd| RecaptureNoise { sd, y_ref: None }));
     let dirs = plan.directions().to_vec();
+    // plan entry `e` taken at capture `at` (the fault's state and the noise are the time's)
+    let render = |e: usize, at: usize| {
+        let pe = plan.entry(e).unwrap();
+        let (l, c) = (dirs[pe.light], dirs[pe.camera]);
+        let (inc, pose) = plan_pose(&rig, &l, &c)?;
+        let mut actual = pose;
+        let mut gain = 1.0;
+        if at >= onset {
+            match fault {
+                Fault::None | Fault::LightPattern(..) => {}
+                Fault::Joint(j, d) => actual.joints_deg[j] += d,
+                Fault::Step(g) => gain = g,
+                Fault::Flicker(sd, until) if at < until => {
+                    gain = (sd * normal(seed ^ 0xF11C, at as u64)).exp();
+                }
+                Fault::Flicker(..) => {}
+            }
+        }
+        if let Fault::LightPattern(j, d, from) = fault {
+            if pe.light >= from {
+                actual.joints_deg[j] += d;
+            }
+        }
+        let seen = rig.forward(&actual).ok()?;
+        if seen.omega_i.z <= 0.0 || seen.omega_o.z <= 0.0 {
+            return None;
+        }
+        let (ti, pi) = (l.theta_deg.to_radians(), l.phi_deg.to_radians());
+        let shape =
+            outline * ti.tan().powi(2) * ((4.0 * pi).cos() + second * (2.0 * pi - 1.0).cos());
+        let footprint = 0.005 * normal(seed ^ 0xF00D, pe.light as u64) + shape;
+        // a re-capture's noise is its own
+        let k = if at == e {
+            e as u64
+        } else {
+            (1 << 40) + ((at as u64) << 16) + e as u64
+        };
+        let y = brdf(&seen.omega_i, &seen.omega_o)
+            * seen.omega_i.z
+            * gain
+            * (footprint + 0.01 * normal(seed, k)).exp();
+        Some((pe, l, c, inc, pose, y))
+    };
     let (mut records, mut findings) = (Vec::new(), Vec::new());
     let mut current: Option<usize> = None;
     let (mut last_w, mut wagon_dir) = (None::<f64>, 0.0);
@@ -97,47 +160,28 @@ fn simulate(
                 let o = m.light_complete(done, level_test, None, None);
                 records.extend(o.record);
                 findings.extend(o.findings);
+                if let Some(entries) = m.recapture_wanted() {
+                    m.handle_recapture_asked();
+                    for entry in entries {
+                        if let Some((.., y)) = render(entry, e) {
+                            findings.extend(m.handle_recapture(entry, y).findings);
+                        }
+                    }
+                }
                 if done == last_light {
                     break;
                 }
             }
             current = Some(pe.light);
         }
-        let (l, c) = (dirs[pe.light], dirs[pe.camera]);
-        let Some((inc, pose)) = plan_pose(&rig, &l, &c) else {
+        findings.extend(m.handle_regular_capture().findings);
+        let Some((pe, l, c, inc, pose, y)) = render(e, e) else {
             continue;
         };
         if let Some(w) = last_w.filter(|w| *w != pose.wagon_deg) {
             wagon_dir = (pose.wagon_deg - w).signum();
         }
         last_w = Some(pose.wagon_deg);
-        let mut actual = pose;
-        let mut gain = 1.0;
-        if e >= onset {
-            match fault {
-                Fault::None => {}
-                Fault::Joint(j, d) => actual.joints_deg[j] += d,
-                Fault::Step(g) => gain = g,
-                Fault::Flicker(sd, until) if e < until => {
-                    gain = (sd * normal(seed ^ 0xF11C, e as u64)).exp();
-                }
-                Fault::Flicker(..) => {}
-            }
-        }
-        let Ok(seen) = rig.forward(&actual) else {
-            continue;
-        };
-        if seen.omega_i.z <= 0.0 || seen.omega_o.z <= 0.0 {
-            continue;
-        }
-        let (ti, pi) = (l.theta_deg.to_radians(), l.phi_deg.to_radians());
-        let shape =
-            outline * ti.tan().powi(2) * ((4.0 * pi).cos() + second * (2.0 * pi - 1.0).cos());
-        let footprint = 0.005 * normal(seed ^ 0xF00D, pe.light as u64) + shape;
-        let y = brdf(&seen.omega_i, &seen.omega_o)
-            * seen.omega_i.z
-            * gain
-            * (footprint + 0.01 * normal(seed, e as u64)).exp();
         let dphi = if l.theta_deg == 0.0 || c.theta_deg == 0.0 {
             0.0
         } else {
@@ -151,6 +195,7 @@ fn simulate(
         m.add(SweepCapture {
             idx: e as u64,
             t: 7.0 * e as f64,
+            entry: e,
             light: pe.light,
             camera: pe.camera,
             class,
@@ -494,4 +539,130 @@ fn a_steady_lamps_scatter_stays_under_the_limit_in_every_judged_layer() {
         .collect();
     assert!(judged.len() > 30, "{}", judged.len());
     assert!(judged.iter().all(|&v| v < 2.0), "{judged:?}");
+}
+
+/// The slips refuted by re-captures: the sweep, the joint (1-based) and the re-captures' offset.
+fn refuted(findings: &[SweepFinding]) -> Vec<(u64, usize, f64)> {
+    findings
+        .iter()
+        .filter_map(|f| match f {
+            SweepFinding::SlipRefuted {
+                at, joint, reading, ..
+            } => Some((at.last_idx, *joint, reading.offset_deg)),
+            _ => None,
+        })
+        .collect()
+}
+
+/// A pattern that follows the pose as a slip's would, from a light on (a stationary effect of
+/// the geometry), names a joint from the sweeps alone; on a rig that takes probes the
+/// re-captures of two earlier poses refute it, and nothing is raised.
+#[test]
+fn a_stationary_pattern_that_looks_like_a_slip_is_refuted_by_re_captures() {
+    let pattern = Fault::LightPattern(1, 2.0, 47);
+    let (_, _, alone) = simulate(pattern, usize::MAX, LAST, 1, false, (0.0, 0.0));
+    assert!(
+        slips(&alone).any(|(_, s)| s.joint == 2 && s.recapture == Recapture::NotAsked),
+        "{alone:?}"
+    );
+    let (m, _, checked) =
+        simulate_with(pattern, usize::MAX, LAST, 1, false, (0.0, 0.0), Some(0.014));
+    assert_eq!(slips(&checked).count(), 0, "{checked:?}");
+    let r = refuted(&checked);
+    assert!(
+        !r.is_empty() && r.len() <= recapture::MAX_REFUTED_PER_LAYER,
+        "{r:?}"
+    );
+    for (_, joint, offset) in &r {
+        assert_eq!(*joint, 2);
+        assert!(offset.abs() < 1.0, "{r:?}");
+    }
+    assert!(!m.recapture_pending());
+}
+
+/// A real slip moves the re-captured poses too: the slip is named, confirmed, with the
+/// re-captures' offset near the slip's.
+#[test]
+fn a_real_slip_is_confirmed_by_its_re_captures() {
+    for (joint, deg) in [(1usize, 2.0), (1, -2.0), (0, 2.0)] {
+        let (_, _, findings) = simulate_with(
+            Fault::Joint(joint, deg),
+            ONSET,
+            LAST,
+            1,
+            false,
+            (0.0, 0.0),
+            Some(0.014),
+        );
+        let named: Vec<_> = slips(&findings).collect();
+        assert_eq!(named.len(), 1, "joint {joint} {deg}: {findings:?}");
+        let s = named[0].1;
+        assert_eq!(s.joint, joint + 1);
+        match &s.recapture {
+            Recapture::Confirmed(r) => {
+                assert!(
+                    r.offset_deg * deg > 0.0 && (r.offset_deg - deg).abs() < 1.0,
+                    "{r:?}"
+                );
+            }
+            other => panic!("joint {joint} {deg}: {other:?}"),
+        }
+        assert!(refuted(&findings).is_empty(), "{findings:?}");
+    }
+}
+
+/// Re-captures that never come (a rig that stopped taking probes) leave the slip named from
+/// the sweeps alone after `RECAPTURE_WAIT_CAPTURES` regular captures, and so does the run's end.
+#[test]
+fn a_slip_whose_re_captures_never_come_is_named_unconfirmed() {
+    let plan = SamplingPlan::ubo();
+    let rig = Rig::new(Default::default()).unwrap();
+    let mut m = SweepMonitor::new(SweepSpec::default(), rig, plan.direction_count());
+    m.set_recapture(Some(RecaptureNoise {
+        sd: 0.014,
+        y_ref: None,
+    }));
+    let x = JointCrossing {
+        joint: 1,
+        statistic: 9.0,
+        mean: 1.0,
+        mean_se: 0.2,
+        sweeps: 2,
+        since: 100,
+        estimate_sweeps: 2,
+        run_mean: 1.0,
+        attributed_level: None,
+    };
+    let at = SweepAt {
+        light: 3,
+        last_idx: 200,
+        last_t: 1400.0,
+        layer_mdeg: 30_000,
+    };
+    // no earlier sweep to re-capture: named at once
+    assert!(!m.hold_for_recapture(at, &x, &[]));
+    // held by hand: the wait runs out
+    m.pending = Some(recapture::PendingSlip::for_test(at, x, &[5, 9]));
+    assert_eq!(m.recapture_wanted(), Some(vec![5, 9]));
+    m.handle_recapture_asked();
+    assert_eq!(m.recapture_wanted(), None);
+    assert!(m.awaits_recapture(5) && !m.awaits_recapture(6));
+    for k in 1..recapture::RECAPTURE_WAIT_CAPTURES {
+        assert!(m.handle_regular_capture().findings.is_empty(), "{k}");
+    }
+    let o = m.handle_regular_capture();
+    let named: Vec<_> = slips(&o.findings).collect();
+    assert_eq!(named.len(), 1);
+    assert_eq!(
+        named[0].1.recapture,
+        Recapture::Unanswered {
+            entries: vec![5, 9]
+        }
+    );
+    assert!(!m.recapture_pending());
+    // at the run's end
+    m.pending = Some(recapture::PendingSlip::for_test(at, x, &[5, 9]));
+    let o = m.handle_end();
+    assert_eq!(slips(&o.findings).count(), 1);
+    assert!(m.handle_end().findings.is_empty());
 }

@@ -132,6 +132,7 @@ fn bad_luminance_unknown_lights_and_empty_sweeps_give_nothing() {
         m.add(SweepCapture {
             idx: k as u64,
             t: 7.0 * k as f64,
+            entry: k,
             light: 0,
             camera: k,
             class: (0, 0, k as i64),

@@ -1,0 +1,392 @@
+//! Confirming a slip the light sweeps name by re-capturing two earlier poses.
+//!
+//! The sweeps see a slip as a pattern across a sweep's cameras that follows a joint's
+//! sensitivity. A stationary effect of the geometry that follows the whole pose (a lamp beam
+//! aimed beside the arm's rotation centre, a holder's rim) makes patterns of the same form,
+//! changing from light to light within a θi layer as a slip's would: the sweeps cannot tell the
+//! two apart. A re-capture can. A pose taken again shows a stationary effect exactly as it was,
+//! and a slip δ of joint j as s_j·δ.
+//!
+//! When a probe-taking rig's sweeps name a slip, the alarm waits for re-captures, asked for
+//! back to back, of poses from one sweep completed well before the slip can have begun
+//! (`RECAPTURE_BACK_SWEEPS` before the sweep the slip is placed in: a CUSUM run can start
+//! sweeps after the slip, and a pose first taken after it would show nothing): the
+//! `RECAPTURE_PER_SIDE` whose luminance rises most with the joint and the as many whose
+//! luminance falls most (the smooth model's sensitivities, as the slip's size uses). With
+//! r = ln(Y/Y0), each re-capture against its original, d = mean r of the rising ones less mean
+//! r of the falling ones is free of the lamp twice over: the originals were taken within one
+//! sweep and the re-captures are adjacent. A slip moves d by (s̄_up − s̄_down)·δ; a stationary
+//! pattern not at all. Each r's variance is that of two captures at its luminance: twice the
+//! probes' design scatter at the lamp probe's luminance, scaled as shot noise (inversely with
+//! the luminance) below it. The slip is named when d shows it, by `RECAPTURE_Z` standard errors
+//! and half the joint tolerance, in the named direction; otherwise the finding is `SlipRefuted`
+//! and the layer may raise again (at most `MAX_REFUTED_PER_LAYER` times).
+//! `2 · RECAPTURE_PER_SIDE` captures per question (0.1 % of the UBO run): a fault-free run pays
+//! only for the patterns it shows.
+
+use super::findings::{Recapture, RecaptureReading};
+use super::model::Model;
+use super::{JointCrossing, JointFit, Latch, SweepAt, SweepFinding, SweepMonitor, SweepOutcome};
+
+/// A slip is confirmed when the re-captures' offset points the named way by this many standard
+/// errors ...
+pub(super) const RECAPTURE_Z: f64 = 3.0;
+/// ... and by at least this fraction of the joint tolerance.
+pub(super) const RECAPTURE_MIN_TOLERANCE: f64 = 0.5;
+/// A pair is asked for only when the named offset would move it by this many standard errors
+/// (else the slip is named from the sweeps alone, `Recapture::NotAsked`).
+pub(super) const RECAPTURE_EXPECTED_Z: f64 = 5.0;
+/// Re-captures on each side (rising and falling with the joint).
+pub(super) const RECAPTURE_PER_SIDE: usize = 4;
+/// The re-captured poses come from a sweep at least this many sweeps before the one the slip is
+/// placed in ...
+const RECAPTURE_BACK_SWEEPS: usize = 6;
+/// Re-captured poses are at most this far from the normal on the camera side (cos θo): at
+/// grazing view the captures are dim and their luminance turns fastest with a jitter.
+const RECAPTURE_MIN_COS_THETA_O: f64 = 0.42; // θo ≤ 65°
+/// ... and of this many sweeps from there back, the one whose poses show the slip best.
+const RECAPTURE_SWEEPS: usize = 3;
+/// The slip is named from the sweeps alone when its re-captures have not both been checked
+/// this many regular captures after they were wanted.
+pub(crate) const RECAPTURE_WAIT_CAPTURES: u64 = 30;
+/// A θi layer whose sweeps' patterns were refuted this many times raises no more positioning
+/// alarms from its patterns: they are the geometry's.
+pub(super) const MAX_REFUTED_PER_LAYER: usize = 3;
+
+/// The poses to re-capture, as plan entries (the rising ones first, `up` of them), with their
+/// originals' luminance, their sensitivities to the named joint (ln Y per degree) and the
+/// variance of their r.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct RecaptureSet {
+    entries: Vec<usize>,
+    up: usize,
+    y0: Vec<f64>,
+    s: Vec<f64>,
+    var: Vec<f64>,
+}
+
+impl RecaptureSet {
+    /// The difference of the two sides' mean values of `v`.
+    fn contrast(&self, v: &[f64]) -> f64 {
+        let (a, b) = v.split_at(self.up);
+        a.iter().sum::<f64>() / a.len() as f64 - b.iter().sum::<f64>() / b.len() as f64
+    }
+
+    /// The contrast's sensitivity (ln Y per degree) and standard deviation (ln units).
+    fn sensitivity_and_sd(&self) -> (f64, f64) {
+        let (a, b) = self.var.split_at(self.up);
+        let na = a.len() as f64;
+        let nb = b.len() as f64;
+        let var = a.iter().sum::<f64>() / (na * na) + b.iter().sum::<f64>() / (nb * nb);
+        (self.contrast(&self.s), var.sqrt())
+    }
+}
+
+/// The re-captures' noise: the SD of one re-capture's r at the reference luminance (None: not
+/// known yet, then taken at every luminance).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct RecaptureNoise {
+    pub sd: f64,
+    pub y_ref: Option<f64>,
+}
+
+impl RecaptureNoise {
+    /// The variance of r for a pose of luminance `y`: shot noise below the reference.
+    fn var_at(&self, y: f64) -> f64 {
+        let scale = self.y_ref.map_or(1.0, |r| (r / y).max(1.0));
+        self.sd * self.sd * scale
+    }
+}
+
+/// A slip the sweeps named, waiting for its re-captures.
+#[derive(Debug, Clone)]
+pub(super) struct PendingSlip {
+    at: SweepAt,
+    crossing: JointCrossing,
+    /// The sweep's fits of the other joints (for the alarm).
+    fits: Vec<JointFit>,
+    set: RecaptureSet,
+    asked: bool,
+    /// Regular captures checked since the slip was found.
+    waited: u64,
+    /// ln(Y / Y0) of each re-capture, once checked.
+    readings: Vec<Option<f64>>,
+}
+
+#[cfg(test)]
+impl PendingSlip {
+    /// A slip found at `at` waiting for re-captures of `entries`, the first half rising with
+    /// the joint (originals of luminance 1).
+    pub(super) fn for_test(at: SweepAt, crossing: JointCrossing, entries: &[usize]) -> Self {
+        let n = entries.len();
+        PendingSlip {
+            at,
+            crossing,
+            fits: Vec::new(),
+            set: RecaptureSet {
+                entries: entries.to_vec(),
+                up: n / 2,
+                y0: vec![1.0; n],
+                s: (0..n)
+                    .map(|k| if k < n / 2 { 0.025 } else { -0.025 })
+                    .collect(),
+                var: vec![1e-4; n],
+            },
+            asked: false,
+            waited: 0,
+            readings: vec![None; n],
+        }
+    }
+}
+
+impl SweepMonitor {
+    /// Re-capture slips before naming them: `Some(noise)` on a rig that takes probes; `None`
+    /// names them from the sweeps alone (watch mode, archives, a rig that refused probes). A
+    /// slip already waiting keeps waiting and is named unconfirmed when its wait runs out.
+    pub(crate) fn set_recapture(&mut self, noise: Option<RecaptureNoise>) {
+        self.recapture = noise.filter(|n| {
+            n.sd.is_finite() && n.sd > 0.0 && n.y_ref.is_none_or(|y| y.is_finite() && y > 0.0)
+        });
+    }
+
+    /// Plan entries that are not offered for re-capture (the lamp probe's and the sentinel's:
+    /// a probe of them is theirs).
+    pub(crate) fn reserve_entries(&mut self, entries: &[usize]) {
+        self.reserved = entries.to_vec();
+    }
+
+    /// The entries to re-capture now, once per slip.
+    pub(crate) fn recapture_wanted(&self) -> Option<Vec<usize>> {
+        self.pending
+            .as_ref()
+            .filter(|p| !p.asked)
+            .map(|p| p.set.entries.clone())
+    }
+
+    /// The re-captures were asked for.
+    pub(crate) fn handle_recapture_asked(&mut self) {
+        if let Some(p) = self.pending.as_mut() {
+            p.asked = true;
+        }
+    }
+
+    /// Whether a probe of `entry` is a re-capture the pending slip waits for.
+    pub(crate) fn awaits_recapture(&self, entry: usize) -> bool {
+        self.pending.as_ref().is_some_and(|p| {
+            p.asked
+                && p.set
+                    .entries
+                    .iter()
+                    .zip(&p.readings)
+                    .any(|(e, r)| *e == entry && r.is_none())
+        })
+    }
+
+    /// A re-capture of `entry` was checked with luminance `y` (a dark or unusable one gives no
+    /// reading: the wait runs out). Once both are in, the slip is named or refuted.
+    pub(crate) fn handle_recapture(&mut self, entry: usize, y: f64) -> SweepOutcome {
+        let Some(p) = self.pending.as_mut() else {
+            return SweepOutcome::default();
+        };
+        for k in 0..p.set.entries.len() {
+            if p.set.entries[k] == entry && p.readings[k].is_none() {
+                let r = (y / p.set.y0[k]).ln();
+                if r.is_finite() {
+                    p.readings[k] = Some(r);
+                }
+                break;
+            }
+        }
+        let Some(r) = p.readings.iter().copied().collect::<Option<Vec<f64>>>() else {
+            return SweepOutcome::default();
+        };
+        let Some(p) = self.pending.take() else {
+            return SweepOutcome::default();
+        };
+        let x = p.crossing;
+        let d = p.set.contrast(&r);
+        let (sensitivity, sd) = p.set.sensitivity_and_sd();
+        let offset = d / sensitivity;
+        let se = sd / sensitivity.abs();
+        let reading = RecaptureReading {
+            joint: x.joint + 1,
+            entries: p.set.entries.clone(),
+            change_pct: 100.0 * d,
+            sensitivity_pct_per_deg: 100.0 * sensitivity,
+            offset_deg: offset,
+            se_deg: se,
+        };
+        let sign = x.mean.signum();
+        let shown = sign * offset >= RECAPTURE_MIN_TOLERANCE * self.spec.joint_tolerance_deg
+            && sign * offset >= RECAPTURE_Z * se;
+        let mut findings = Vec::new();
+        if shown {
+            let named = self.name_slip(
+                p.at,
+                &x,
+                &p.fits,
+                Recapture::Confirmed(reading.clone()),
+                &mut findings,
+            );
+            return SweepOutcome {
+                findings,
+                slip_at_s: named.at_s,
+                withdrawn_steps_s: named.withdrawn_steps_s,
+                ..SweepOutcome::default()
+            };
+        }
+        let layer = p.at.layer_mdeg;
+        let refuted = self.refuted.entry(layer).or_insert(0);
+        *refuted += 1;
+        if *refuted < MAX_REFUTED_PER_LAYER {
+            self.latched.remove(&Latch::Joint { layer });
+        }
+        findings.push(SweepFinding::SlipRefuted {
+            at: p.at,
+            joint: x.joint + 1,
+            offset_deg: x.mean,
+            reading,
+        });
+        SweepOutcome {
+            findings,
+            ..SweepOutcome::default()
+        }
+    }
+
+    /// A regular capture was checked: a slip whose re-captures have not come within
+    /// `RECAPTURE_WAIT_CAPTURES` is named from the sweeps alone.
+    pub(crate) fn handle_regular_capture(&mut self) -> SweepOutcome {
+        let Some(p) = self.pending.as_mut() else {
+            return SweepOutcome::default();
+        };
+        p.waited += 1;
+        if p.waited < RECAPTURE_WAIT_CAPTURES {
+            return SweepOutcome::default();
+        }
+        self.name_unanswered()
+    }
+
+    /// The run ended: a slip still waiting for its re-captures is named from the sweeps alone.
+    pub(crate) fn handle_end(&mut self) -> SweepOutcome {
+        self.name_unanswered()
+    }
+
+    fn name_unanswered(&mut self) -> SweepOutcome {
+        let Some(p) = self.pending.take() else {
+            return SweepOutcome::default();
+        };
+        let mut findings = Vec::new();
+        let named = self.name_slip(
+            p.at,
+            &p.crossing,
+            &p.fits,
+            Recapture::Unanswered {
+                entries: p.set.entries.clone(),
+            },
+            &mut findings,
+        );
+        SweepOutcome {
+            findings,
+            slip_at_s: named.at_s,
+            withdrawn_steps_s: named.withdrawn_steps_s,
+            ..SweepOutcome::default()
+        }
+    }
+
+    /// Holds the slip `x` found at `at` for its re-captures, when the rig takes them and two
+    /// earlier poses can show it; false when it is to be named now. The layer is latched
+    /// meanwhile (one question at a time).
+    pub(super) fn hold_for_recapture(
+        &mut self,
+        at: SweepAt,
+        x: &JointCrossing,
+        fits: &[JointFit],
+    ) -> bool {
+        let Some(set) = self.recapture_set(x) else {
+            return false;
+        };
+        self.latched.insert(Latch::Joint {
+            layer: at.layer_mdeg,
+        });
+        self.pending = Some(PendingSlip {
+            at,
+            crossing: *x,
+            fits: fits.to_vec(),
+            readings: vec![None; set.entries.len()],
+            set,
+            asked: false,
+            waited: 0,
+        });
+        true
+    }
+
+    /// Whether a slip waits for its re-captures.
+    pub(super) fn recapture_pending(&self) -> bool {
+        self.pending.is_some()
+    }
+
+    /// The poses to re-capture for the slip `x`: of the `RECAPTURE_SWEEPS` sweeps completed
+    /// `RECAPTURE_BACK_SWEEPS` or more before the one the slip is placed in, the one whose
+    /// `RECAPTURE_PER_SIDE` captures with the largest and as many with the smallest sensitivity
+    /// to the joint (θo within `RECAPTURE_MIN_COS_THETA_O`, not a reserved entry) show a slip
+    /// at the most standard errors. None without re-captures, or when the named offset would
+    /// not move them by `RECAPTURE_EXPECTED_Z` standard errors.
+    fn recapture_set(&self, x: &JointCrossing) -> Option<RecaptureSet> {
+        let noise = self.recapture?;
+        let j = x.joint;
+        let cut = self.slip_first_idx(x.since);
+        let mut spans: Vec<_> = self
+            .sweep_starts
+            .iter()
+            .filter(|s| s.last_idx < cut)
+            .collect();
+        spans.sort_by_key(|s| std::cmp::Reverse(s.last_idx));
+        let mut best: Option<(f64, RecaptureSet)> = None;
+        for span in spans
+            .into_iter()
+            .skip(RECAPTURE_BACK_SWEEPS.saturating_sub(1))
+            .take(RECAPTURE_SWEEPS)
+        {
+            let mut poses: Vec<(f64, usize, f64)> = self
+                .captures
+                .iter()
+                .filter(|c| {
+                    c.light == span.light
+                        && c.omega_o.z >= RECAPTURE_MIN_COS_THETA_O
+                        && !self.reserved.contains(&c.entry)
+                })
+                .filter_map(|c| {
+                    let s = self
+                        .sensitivities(&c.cmd, Model::Smooth)
+                        .or_else(|| self.sensitivities(&c.cmd, Model::Interpolant))
+                        .map(|s| s[j])
+                        .filter(|s| s.is_finite())?;
+                    Some((s, c.entry, c.y))
+                })
+                .collect();
+            if poses.len() < 2 * RECAPTURE_PER_SIDE {
+                continue;
+            }
+            poses.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+            let chosen: Vec<_> = poses[..RECAPTURE_PER_SIDE]
+                .iter()
+                .chain(&poses[poses.len() - RECAPTURE_PER_SIDE..])
+                .copied()
+                .collect();
+            let set = RecaptureSet {
+                entries: chosen.iter().map(|p| p.1).collect(),
+                up: RECAPTURE_PER_SIDE,
+                y0: chosen.iter().map(|p| p.2).collect(),
+                s: chosen.iter().map(|p| p.0).collect(),
+                var: chosen.iter().map(|p| noise.var_at(p.2)).collect(),
+            };
+            let (sensitivity, sd) = set.sensitivity_and_sd();
+            let z = sensitivity / sd;
+            if sensitivity > 0.0 && z.is_finite() && best.as_ref().is_none_or(|b| z > b.0) {
+                best = Some((z, set));
+            }
+        }
+        best.filter(|b| b.0 * x.mean.abs() >= RECAPTURE_EXPECTED_Z)
+            .map(|b| b.1)
+    }
+}
