@@ -28,7 +28,7 @@ const SENTINEL_ROUND_CAPTURES: u64 = 3;
 pub(crate) enum ProbeSetup {
     ProbePose(ProbePose),
     SentinelPose(SentinelPose),
-    Alarm(Alarm),
+    Alarm(Box<Alarm>),
 }
 
 /// The joint-3 sentinel's test settings, from `[probes]`.
@@ -284,7 +284,7 @@ impl ProbeStage {
                     setup.push(ProbeSetup::ProbePose(pose));
                 }
                 None if self.regular_checked == sweep => {
-                    setup.push(ProbeSetup::Alarm(
+                    setup.push(ProbeSetup::Alarm(Box::new(
                         Alarm::new(
                             AlarmKind::Drift,
                             Severity::Warning,
@@ -296,7 +296,7 @@ impl ProbeStage {
                             "Set [probes] entry to a bright plan entry off grazing and off the mirror direction and restart the daemon (the session resumes); until then nothing watches the lamp through probes.",
                             None,
                         ),
-                    ));
+                    )));
                 }
                 None => {}
             }
@@ -311,7 +311,7 @@ impl ProbeStage {
             Some(pose) => setup.push(ProbeSetup::SentinelPose(pose)),
             None if self.sentinel.unavailable && !self.sentinel.said => {
                 self.sentinel.said = true;
-                setup.push(ProbeSetup::Alarm(
+                setup.push(ProbeSetup::Alarm(Box::new(
                     Alarm::new(
                         AlarmKind::Positioning,
                         Severity::Info,
@@ -323,7 +323,7 @@ impl ProbeStage {
                         "Nothing to do if the sample is nearly isotropic; otherwise check the sample's mount by eye when convenient.",
                         None,
                     ),
-                ));
+                )));
             }
             None => {}
         }

@@ -1327,7 +1327,7 @@ impl Engine {
             match setup {
                 ProbeSetup::ProbePose(pose) => out.push(Output::ProbePose(pose)),
                 ProbeSetup::SentinelPose(pose) => out.push(Output::SentinelPose(pose)),
-                ProbeSetup::Alarm(a) => self.alarm(out, a),
+                ProbeSetup::Alarm(a) => self.alarm(out, *a),
             }
         }
         self.ask_probes_if_due(out);
