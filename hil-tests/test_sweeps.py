@@ -79,3 +79,32 @@ def test_a_fault_free_realistic_run_raises_no_drift_or_positioning_alarm(hil, tm
     s = json.load(open(session / "summary.json"))
     assert s["sweeps"]["tested"] == len(sweeps) and s["sweeps"]["last"] == sweeps[-1]
     assert "light sweeps: " in out and " tested; the last (light " in out, out
+
+
+def test_on_a_probe_taking_rig_a_slip_is_named_once_re_captures_confirm_it(hil, tmp_path):
+    """With probes, the slip the sweeps name waits for re-captures of earlier poses (four rising
+    and four falling with the joint, from a sweep well before it); they show the slip, and the
+    alarm says so. The rig is paced (25 ms a capture) so the live daemon keeps up with it."""
+    needs_simulator()
+    name = "slipconfirm"
+    rig = hil(name, [{"kind": "joint-offset", "at_capture": ONSET, "joint": 2, "offset_deg": 2.0}],
+              captures=CAPTURES, speed=7.0 / 0.025)
+    session = tmp_path / f"{name}-session"
+    code, out, err = run_daemon(rig, session, daemon_config(tmp_path, name, every=75), timeout=600)
+    assert code == 0, err[-2000:]
+    alarms = read_jsonl(session / "alarms.jsonl")
+    a = first(alarms, "joint-offset-suspected")
+    assert a is not None, [x["code"] for x in alarms]
+    assert a["evidence"]["joint"] == 2, a
+    r = a["evidence"]["recapture"]
+    assert r["status"] == "confirmed", a
+    assert len(r["entries"]) == 8 and all(e < ONSET for e in r["entries"]), r
+    assert 1.0 < r["offset_deg"] < 3.0 and r["se_deg"] < 0.5, r
+    assert "confirmed by a re-capture" in a["message"], a
+    assert ONSET <= a["idx"] <= ONSET + 600, a
+    assert first(alarms, "slip-refuted") is None, alarms
+    # the re-captures were asked for as probes of those entries, after the sweep that named it
+    probes = [j["out"] for j in read_jsonl(session / "journal.jsonl") if " PROBE " in j.get("out", "")]
+    asked = [int(p.split("entry=")[1].split()[0].split("*")[0]) for p in probes]
+    assert set(r["entries"]) <= set(asked), (r["entries"], asked[-12:])
+    assert_replay_identical(session, tmp_path)
