@@ -69,7 +69,7 @@ pub(crate) fn observability(
         // with probes the sweeps leave the gain level and the lamp's stability to them
         o.watched.push(
             if probes {
-                "arm joints 1 and 2, from the light sweeps (each light direction against the earlier ones)"
+                "arm joints 1 and 2, from the light sweeps (each light direction against the earlier ones), each slip they name confirmed by re-captures of earlier poses before it is alarmed"
             } else {
                 "gain steps, the lamp's stability from capture to capture (lamp-unstable, θi ≤ 60° from a layer's fourth light) and arm joints 1 and 2, from the light sweeps (each light direction against the earlier ones)"
             }
@@ -168,6 +168,13 @@ mod tests {
         let o = observability(true, true, AcquisitionOrder::LightOuter, true, true);
         assert!(o.blind.is_empty(), "{o:?}");
         assert!(o.watched.iter().any(|w| w.contains("lamp-unstable")));
+        // with probes a slip the sweeps name is confirmed by re-captures; without, it is not
+        assert!(o
+            .watched
+            .iter()
+            .any(|w| w.contains("joints 1 and 2") && w.contains("re-captures")));
+        let o = observability(true, false, AcquisitionOrder::LightOuter, true, true);
+        assert!(!o.watched.iter().any(|w| w.contains("re-captures")));
         let o = observability(true, false, AcquisitionOrder::LightOuter, true, true);
         assert!(o.watched.iter().any(|w| w.contains("colour")));
         assert!(o.watched.iter().any(|w| w.contains("joints 1 and 2")));

@@ -1269,12 +1269,12 @@ impl CsvRow for Alarm {
 }
 
 impl CsvRow for SweepRecord {
-    const HEADER: &'static str = "light,idx,t_s,captures,level_pct,level_expected_pct,level_se_pct,level_z,level_cusum,joint1_offset_deg,joint1_se_deg,joint1_z,joint1_cusum,joint2_offset_deg,joint2_se_deg,joint2_z,joint2_cusum,residual_sd";
+    const HEADER: &'static str = "light,idx,t_s,captures,level_pct,level_expected_pct,level_se_pct,level_z,level_cusum,joint1_offset_deg,joint1_se_deg,joint1_z,joint1_cusum,joint2_offset_deg,joint2_se_deg,joint2_z,joint2_cusum,residual_sd,wagon_offset_deg,wagon_se_deg,wagon_backlash_deg,wagon_backlash_se_deg";
     fn row(&self) -> String {
         let r = self;
         let j = |k: usize| r.joints.iter().find(|f| f.joint == k);
         format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.light,
             r.idx,
             r.t,
@@ -1292,7 +1292,11 @@ impl CsvRow for SweepRecord {
             opt(j(2).map(|f| f.se_deg)),
             opt(j(2).and_then(|f| f.z)),
             opt(j(2).map(|f| f.cusum)),
-            r.residual_sd
+            r.residual_sd,
+            opt(r.wagon.map(|w| w.offset_deg)),
+            opt(r.wagon.map(|w| w.offset_se_deg)),
+            opt(r.wagon.map(|w| w.backlash_deg)),
+            opt(r.wagon.map(|w| w.backlash_se_deg))
         )
     }
 }

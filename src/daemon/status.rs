@@ -701,6 +701,7 @@ mod tests {
                 }],
                 residual_sd: 0.01,
                 thresholds: [3.23, 3.57],
+                wagon: None,
                 model_layers: 2,
                 model_builds: 3,
             }),

@@ -5,9 +5,12 @@
 /// SplitMix64: a small deterministic generator. The core's Monte Carlo designs (and the test
 /// fixtures) draw from it so that the same seed gives the same numbers on every machine and
 /// with every crate version (a generator crate may change its streams between releases).
+// `pub` for the dev-only fixtures (`fixtures::Rng`); a release build does not export it
+#[cfg_attr(not(feature = "fixtures"), allow(unreachable_pub))]
 #[derive(Debug, Clone)]
 pub struct SplitMix64(pub u64);
 
+#[cfg_attr(not(feature = "fixtures"), allow(unreachable_pub))]
 impl SplitMix64 {
     pub fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);

@@ -189,11 +189,17 @@ impl SweepMonitor {
     }
 
     /// The smooth model's fit of the sweep just completed (the last span): each joint's offset
-    /// with its standard error, and the mean sensitivity. Kept for `attribute_level`.
-    pub(super) fn smooth_offsets(&mut self, sweep: &Sweep, reference: &Reference, known: &Known) {
+    /// with its standard error, and the mean sensitivity. Kept for `attribute_level`. Returns
+    /// the wagon's fit of the same sweep (the joints, the wagon and its backlash together).
+    pub(super) fn smooth_offsets(
+        &mut self,
+        sweep: &Sweep,
+        reference: &Reference,
+        known: &Known,
+    ) -> Option<WagonFit> {
         let (_, rows) = self.residuals(&sweep.current, reference, known, Model::Smooth);
         if rows.len() < self.spec.min_captures {
-            return;
+            return None;
         }
         let n = rows.len() as f64;
         let fit = self.pattern_fit(rows.iter().map(Row::joints).collect());
@@ -209,6 +215,20 @@ impl SweepMonitor {
             span.smooth = smooth;
             span.smooth_s = smooth_s;
         }
+        let fit = self.pattern_fit(rows.iter().filter_map(Row::with_wagon).collect());
+        let inv = fit.inv.as_ref()?;
+        let (w, b) = (fit.se(3)?, fit.se(4)?);
+        let corr = inv[(1, 3)] / (inv[(1, 1)] * inv[(3, 3)]).sqrt();
+        [fit.beta[3], w, fit.beta[4], b, corr]
+            .iter()
+            .all(|v| v.is_finite())
+            .then_some(WagonFit {
+                offset_deg: fit.beta[3],
+                offset_se_deg: w,
+                backlash_deg: fit.beta[4],
+                backlash_se_deg: b,
+                corr_joint1: corr,
+            })
     }
 
     /// Whether the level change of mean `level` (ln units) in θi layer `layer`, over the sweeps

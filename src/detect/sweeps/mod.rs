@@ -165,6 +165,19 @@ pub struct JointFit {
     pub cusum: f64,
 }
 
+/// The wagon in one sweep's smooth-model fit (degrees): its offset and its backlash (a lag
+/// against the last direction of motion), each with its standard error, and the correlation
+/// of the offset's estimate with joint 1's (the wagon moves the camera along the great circle
+/// through both directions, joint 1 moves both along it: near −1 they cannot be told apart).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct WagonFit {
+    pub offset_deg: f64,
+    pub offset_se_deg: f64,
+    pub backlash_deg: f64,
+    pub backlash_se_deg: f64,
+    pub corr_joint1: f64,
+}
+
 /// One line of `sweeps.jsonl`: a completed light sweep against the earlier ones.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SweepRecord {
@@ -187,6 +200,11 @@ pub struct SweepRecord {
     /// Residual standard deviation of the fit (ln units).
     pub residual_sd: f64,
     pub thresholds: [f64; 2],
+    /// The wagon's offset and backlash as the smooth model's fit of this sweep sees them, with
+    /// the joints fitted beside them: what the sweeps can tell of the wagon (its standard
+    /// errors are the identifiability the design allows). Not tested; none without a fit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wagon: Option<WagonFit>,
     /// θi layers of the interpolant the sensitivities came from, and how often it was built.
     pub model_layers: usize,
     pub model_builds: usize,
@@ -525,7 +543,7 @@ impl SweepMonitor {
             (all.iter().map(|e| (e - level).powi(2)).sum::<f64>() / (na - 1.0).max(1.0) / na)
                 .sqrt();
         let pattern = self.pattern_fit(rows.iter().map(Row::joints).collect());
-        self.smooth_offsets(&sweep, &reference, &known);
+        let wagon = self.smooth_offsets(&sweep, &reference, &known);
         let mut rec = SweepRecord {
             light,
             idx: sweep.last_idx,
@@ -543,6 +561,7 @@ impl SweepMonitor {
                 0.0
             },
             thresholds: [self.h_level, self.h_joint],
+            wagon,
             model_layers: 0,
             model_builds: self.model_builds,
         };
