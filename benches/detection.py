@@ -91,7 +91,10 @@ def brief(x):
     if x is None:
         return None
     e = x.get("evidence") or {}
-    return {"idx": x["idx"], "code": x["code"], "joint": e.get("joint"), "offset_deg": e.get("offset_deg"),
+    # the wagon is axis 4 (matrix.Truth); its lag is its size
+    wagon = x["code"] == "wagon-backlash-suspected"
+    return {"idx": x["idx"], "code": x["code"], "joint": 4 if wagon else e.get("joint"),
+            "offset_deg": e.get("backlash_deg") if wagon else e.get("offset_deg"),
             "rate_pct_per_h": e.get("rate_pct_per_h"), "level_pct": e.get("level_pct")}
 
 
@@ -119,7 +122,8 @@ def score(run: M.Run, session: str) -> dict:
 
     key = "probe_drift" if run.every else "isotropy_drift"
     pd = summary.get(key) or {}
-    joint = next((x for x in geo if x["idx"] >= onset and x["code"] == "joint-offset-suspected"), None)
+    joint = next((x for x in geo if x["idx"] >= onset
+                  and x["code"] in ("joint-offset-suspected", "wagon-backlash-suspected")), None)
     ch = summary.get("checked") or {}
     rec = {"id": run.id, "row": run.row.name, "material": run.material, "model": run.label, "seed": run.seed,
            "every": run.every,

@@ -26,6 +26,10 @@ import matrix as M  # noqa: E402
 LAYERS_DEG = (0, 15, 30, 45, 60, 75)
 
 
+def sd(v: list[float]) -> float:
+    return st.stdev(v) if len(v) > 1 else float("nan")
+
+
 def sweeps_of(binary: str, lab: str, run: M.Run) -> list[dict]:
     s = os.path.join(lab, "runs", run.id, "s")
     out = tempfile.mkdtemp(prefix="gw-wagon-")
@@ -77,24 +81,41 @@ def main() -> int:
               f"{st.median(x['backlash_se_deg'] for x in w):.3f} | "
               f"{st.median(x['corr_joint1'] for x in w):.2f} |")
     print()
-    print("| row | runs | sweeps | offset (°), mean | offset / SE, mean | backlash (°), mean | backlash / SE, mean | joint 1 (°), mean |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| row | runs | sweeps | offset (°), mean | offset / SE, mean | backlash (°), mean | backlash / SE, mean | joint 1 (°), mean | first 3 sweeps: offset / SE | backlash / SE | joint 1 / SE |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     rows: dict[str, list] = {}
     for run, recs in zip(runs, records):
         onset = run.row.truth.onset if run.row.truth else None
         after = [r for r in recs if r.get("wagon") and (onset is None or r["idx"] >= onset + 81)]
+        if onset is None:
+            after = after[20:]
         rows.setdefault(run.row.name, []).append((run, after))
+    # a fault's first three sweeps after its onset (a fault-free run's every sweep from the 21st)
+    def head(items, after):
+        return after if items[0][0].row.truth is None else after[:3]
+
+    def first3(items, v, se):
+        return [r["wagon"][v] / r["wagon"][se] for _, after in items for r in head(items, after)]
+
+    def first3j(items):
+        return [f["offset_deg"] / f["se_deg"] for _, after in items for r in head(items, after)
+                for f in r["joints"] if f["joint"] == 1 and f["se_deg"] > 0]
+
     for name, items in sorted(rows.items()):
         ws = [r["wagon"] for _, after in items for r in after]
         j1 = [f["offset_deg"] for _, after in items for r in after for f in r["joints"] if f["joint"] == 1]
         if not ws:
             continue
-        m = lambda v: sum(v) / len(v)  # noqa: E731
+        def m(v):
+            return sum(v) / len(v) if v else float("nan")
         print(f"| {name} | {len(items)} | {len(ws)} | {m([w['offset_deg'] for w in ws]):+.2f} | "
               f"{m([w['offset_deg'] / w['offset_se_deg'] for w in ws]):+.1f} | "
               f"{m([w['backlash_deg'] for w in ws]):+.2f} | "
               f"{m([w['backlash_deg'] / w['backlash_se_deg'] for w in ws]):+.1f} | "
-              f"{m(j1) if j1 else float('nan'):+.2f} |")
+              f"{m(j1) if j1 else float('nan'):+.2f} | "
+              f"{m(first3(items, 'offset_deg', 'offset_se_deg')):+.1f} ± {sd(first3(items, 'offset_deg', 'offset_se_deg')):.1f} | "
+              f"{m(first3(items, 'backlash_deg', 'backlash_se_deg')):+.1f} ± {sd(first3(items, 'backlash_deg', 'backlash_se_deg')):.1f} | "
+              f"{m(first3j(items)):+.1f} ± {sd(first3j(items)):.1f} |")
     return 0
 
 

@@ -136,11 +136,13 @@ pub enum AlarmCode {
     UnannouncedFiles,
     /// The controller does not speak this protocol version.
     UnsupportedVersion,
+    /// The wagon lags behind its commanded angle against its last direction of motion.
+    WagonBacklashSuspected,
 }
 
 impl AlarmCode {
     /// Every code.
-    pub(crate) const ALL: [AlarmCode; 47] = [
+    pub(crate) const ALL: [AlarmCode; 48] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
@@ -188,6 +190,7 @@ impl AlarmCode {
         AlarmCode::TrendUnresolved,
         AlarmCode::UnannouncedFiles,
         AlarmCode::UnsupportedVersion,
+        AlarmCode::WagonBacklashSuspected,
     ];
 
     /// The name in the result files.
@@ -240,6 +243,7 @@ impl AlarmCode {
             AlarmCode::TrendUnresolved => "trend-unresolved",
             AlarmCode::UnannouncedFiles => "unannounced-files",
             AlarmCode::UnsupportedVersion => "unsupported-version",
+            AlarmCode::WagonBacklashSuspected => "wagon-backlash-suspected",
         }
     }
 
@@ -295,6 +299,7 @@ impl AlarmCode {
             AlarmCode::TrendUnresolved => "a trend in the isotropy classes that a stationary light-side pattern could also make",
             AlarmCode::UnannouncedFiles => "files in the capture folder no CAPTURE line named",
             AlarmCode::UnsupportedVersion => "the controller does not speak this protocol version",
+            AlarmCode::WagonBacklashSuspected => "the images show the wagon lagging behind its commanded angle against its last direction of motion",
         }
     }
 

@@ -104,6 +104,8 @@ pub enum Evidence {
     UnresolvedTrend(UnresolvedTrend),
     /// `slip-refuted`.
     SlipRefuted(SlipRefuted),
+    /// `wagon-backlash-suspected`.
+    WagonBacklash(WagonBacklash),
     /// `lamp-unstable` and `lamp-unstable-cleared` from the probes.
     LampScatter(LampScatter),
     /// `lamp-unstable` and `lamp-unstable-cleared` from the light sweeps.
@@ -315,6 +317,24 @@ pub struct RecaptureReading {
     pub sensitivity_pct_per_deg: f64,
     pub offset_deg: f64,
     pub se_deg: f64,
+}
+
+/// The wagon's lag named by the light sweeps: its estimate (degrees) with its standard error
+/// and the sweeps behind it, the CUSUM run's mean and length, the wagon's constant offset in the
+/// sweep that named it (not tested), the capture that ended the run's first sweep, the
+/// statistic and its threshold.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WagonBacklash {
+    pub source: Source,
+    pub backlash_deg: f64,
+    pub se_deg: f64,
+    pub estimate_sweeps: usize,
+    pub run_mean_deg: f64,
+    pub offset_deg: f64,
+    pub sweeps: usize,
+    pub since_idx: u64,
+    pub statistic: f64,
+    pub threshold: f64,
 }
 
 /// A slip the light sweeps' pattern named (`joint`, `offset_deg`), refuted by re-captures.
@@ -535,6 +555,7 @@ impl Evidence {
             C::GainDrift => parse(&v, Evidence::GainRate),
             C::TrendUnresolved => parse(&v, Evidence::UnresolvedTrend),
             C::SlipRefuted => parse(&v, Evidence::SlipRefuted),
+            C::WagonBacklashSuspected => parse(&v, Evidence::WagonBacklash),
             C::LampUnstable | C::LampUnstableCleared => {
                 parse(&v, Evidence::LampScatter).or_else(|| parse(&v, Evidence::SweepScatter))
             }
@@ -597,6 +618,7 @@ impl Evidence {
             Evidence::GainRate(_) => code == C::GainDrift,
             Evidence::UnresolvedTrend(_) => code == C::TrendUnresolved,
             Evidence::SlipRefuted(_) => code == C::SlipRefuted,
+            Evidence::WagonBacklash(_) => code == C::WagonBacklashSuspected,
             Evidence::LampScatter(_) | Evidence::SweepScatter(_) => {
                 matches!(code, C::LampUnstable | C::LampUnstableCleared)
             }

@@ -4,7 +4,7 @@
 use super::evidence::{self, Evidence, Source};
 use crate::checks::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::detect::sweeps::{
-    JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt, SweepFinding,
+    JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt, SweepFinding, WagonBacklash,
 };
 
 /// The alarm a finding of the sweep checks raises.
@@ -38,6 +38,7 @@ pub(crate) fn alarm(f: &SweepFinding) -> Alarm {
             offset_deg,
             reading,
         } => slip_refuted(at, *joint, *offset_deg, reading),
+        SweepFinding::WagonBacklash { at, backlash } => wagon_backlash(at, backlash),
         SweepFinding::LampUnstable {
             scatter_pct,
             limit_pct,
@@ -313,6 +314,44 @@ fn joint_slip(at: &SweepAt, x: &JointSlip) -> Alarm {
         &format!(
             "Pause the run; check the sample clamp and arm joint {} (re-home the joint if it slipped, re-seat the sample if it moved), then resume; every capture since {} (the light sweep before the first one that showed it) is on the retake list.",
             x.joint, x.from_idx,
+        ),
+        Some(Affects::Since { from_idx: x.from_idx, handling: Handling::Retake }),
+    )
+}
+
+fn wagon_backlash(at: &SweepAt, x: &WagonBacklash) -> Alarm {
+    Alarm::new(
+        AlarmKind::Positioning,
+        Severity::Warning,
+        AlarmCode::WagonBacklashSuspected,
+        format!(
+            "the wagon lags about {:.2}° (± {:.2}°, from {} light sweep(s) against the captures before it) behind its commanded angle against the direction it last moved: the pattern across the cameras of light sweep {} and the {} before it follows the wagon's sensitivity signed by its direction of motion, which no arm joint and no constant offset makes (CUSUM {:.1} > {:.1}; the wagon's constant offset in that sweep {:+.2}°, not tested)",
+            x.backlash_deg,
+            x.se_deg,
+            x.estimate_sweeps,
+            at.light,
+            x.sweeps.saturating_sub(1),
+            x.statistic,
+            x.threshold,
+            x.offset_deg,
+        ),
+    )
+    .with(Evidence::WagonBacklash(evidence::WagonBacklash {
+        source: Source::LightSweeps,
+        backlash_deg: x.backlash_deg,
+        se_deg: x.se_deg,
+        estimate_sweeps: x.estimate_sweeps,
+        run_mean_deg: x.run_mean_deg,
+        offset_deg: x.offset_deg,
+        sweeps: x.sweeps,
+        since_idx: x.since_idx,
+        statistic: x.statistic,
+        threshold: x.threshold,
+    }))
+    .advise(
+        &format!(
+            "Check the wagon's drive for play (belt, gear, coupling): take it up, or have the controller approach every camera position from one side; every capture since {} (the light sweep before the first one that showed it) is on the retake list.",
+            x.from_idx,
         ),
         Some(Affects::Since { from_idx: x.from_idx, handling: Handling::Retake }),
     )

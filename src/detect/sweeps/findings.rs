@@ -24,6 +24,25 @@ pub(crate) struct LevelRun {
     pub threshold: f64,
 }
 
+/// The wagon named as lagging (`wagon`): the lag's estimate (degrees) with its standard error
+/// and the sweeps behind it, the CUSUM run's own mean and length, the wagon's offset in the
+/// sweep that named it (untested, for the operator), the capture that ended the run's first
+/// sweep (`since_idx`), the first capture the lag can have affected (`from_idx`), the statistic
+/// and the threshold it crossed.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct WagonBacklash {
+    pub backlash_deg: f64,
+    pub se_deg: f64,
+    pub estimate_sweeps: usize,
+    pub run_mean_deg: f64,
+    pub offset_deg: f64,
+    pub sweeps: usize,
+    pub since_idx: u64,
+    pub from_idx: u64,
+    pub statistic: f64,
+    pub threshold: f64,
+}
+
 /// A joint named as slipped: its estimated offset (degrees) with its standard error and the
 /// sweeps behind the estimate, the CUSUM run's own mean and length, the capture that ended the
 /// run's first sweep (`since_idx`), the first capture the slip can have affected (`from_idx`),
@@ -48,11 +67,10 @@ pub(crate) struct JointSlip {
     pub recapture: Recapture,
 }
 
-/// Whether a slip the sweeps name was checked by re-capturing two earlier poses
-/// (`SweepMonitor::set_recapture`).
+/// Whether a slip the sweeps name was checked by re-capturing earlier poses (`recapture`).
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) enum Recapture {
-    /// Not asked: the rig takes no probes, or no two earlier poses differ enough in their
+    /// Not asked: the rig takes no probes, or no earlier sweep's poses differ enough in their
     /// sensitivity to the joint to show a slip of the named size.
     NotAsked,
     /// The re-captures show the slip.
@@ -120,6 +138,11 @@ pub(crate) enum SweepFinding {
         offset_deg: f64,
         reading: RecaptureReading,
     },
+    /// The wagon lags behind its commanded angle against its last direction of motion.
+    WagonBacklash {
+        at: SweepAt,
+        backlash: WagonBacklash,
+    },
     /// (No probes) The captures scatter about the isotropy model by at least `scatter_pct` (the
     /// smallest residual SD of `sweeps` consecutive judged sweeps, the first from capture
     /// `from_idx`), beyond `limit_pct`: the lamp's gain moves from capture to capture.
@@ -149,6 +172,7 @@ impl SweepFinding {
             | SweepFinding::GainStepWithdrawn { at, .. }
             | SweepFinding::JointSlip { at, .. }
             | SweepFinding::SlipRefuted { at, .. }
+            | SweepFinding::WagonBacklash { at, .. }
             | SweepFinding::LampUnstable { at, .. }
             | SweepFinding::LampSteady { at, .. } => at,
         }

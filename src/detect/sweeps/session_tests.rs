@@ -18,6 +18,9 @@ enum Fault {
     /// from this one on look as if the joint (0-based) were off by the degrees, whenever they
     /// are taken (a re-capture of an earlier light's pose shows nothing). The onset is unused.
     LightPattern(usize, f64, usize),
+    /// The wagon lags this many degrees behind its commanded angle against its last direction
+    /// of motion.
+    WagonBacklash(f64),
 }
 
 /// The joints named as slipped, with the sweep each was named at.
@@ -107,6 +110,19 @@ fn simulate_with(
     let mut m = SweepMonitor::new(SweepSpec::default(), rig.clone(), plan.direction_count());
     m.set_recapture(recapture.map(|sd| RecaptureNoise { sd, y_ref: None }));
     let dirs = plan.directions().to_vec();
+    // the wagon's last commanded direction of motion at each plan entry (the plan's order)
+    let mut wagon_dirs = Vec::with_capacity(plan.capture_count());
+    let (mut prev, mut dir) = (None::<f64>, 0.0);
+    for e in 0..plan.capture_count() {
+        let pe = plan.entry(e).unwrap();
+        if let Some((_, pose)) = plan_pose(&rig, &dirs[pe.light], &dirs[pe.camera]) {
+            if let Some(w) = prev.filter(|w| *w != pose.wagon_deg) {
+                dir = (pose.wagon_deg - w).signum();
+            }
+            prev = Some(pose.wagon_deg);
+        }
+        wagon_dirs.push(dir);
+    }
     // plan entry `e` taken at capture `at` (the fault's state and the noise are the time's)
     let render = |e: usize, at: usize| {
         let pe = plan.entry(e).unwrap();
@@ -118,6 +134,7 @@ fn simulate_with(
             match fault {
                 Fault::None | Fault::LightPattern(..) => {}
                 Fault::Joint(j, d) => actual.joints_deg[j] += d,
+                Fault::WagonBacklash(b) => actual.wagon_deg -= b * wagon_dirs[e],
                 Fault::Step(g) => gain = g,
                 Fault::Flicker(sd, until) if at < until => {
                     gain = (sd * normal(seed ^ 0xF11C, at as u64)).exp();
@@ -309,6 +326,53 @@ fn a_joint_offset_from_mid_run_names_that_joint() {
             }
         }
     }
+}
+
+/// The wagon named in a session's findings: the sweep and what it found.
+fn wagon(findings: &[SweepFinding]) -> Vec<(&SweepAt, &WagonBacklash)> {
+    findings
+        .iter()
+        .filter_map(|f| match f {
+            SweepFinding::WagonBacklash { at, backlash } => Some((at, backlash)),
+            _ => None,
+        })
+        .collect()
+}
+
+/// A lag of the wagon against its direction of motion is named as the wagon's, once, with
+/// its size within ±30 % and no joint named before it; a joint's offset is never taken for it.
+#[test]
+fn a_wagon_lag_from_mid_run_names_the_wagon_and_a_joint_offset_does_not() {
+    for (lag, onset) in [(1.0, ONSET), (0.6, 40 * 81 + 40)] {
+        let (_, findings) = run(Fault::WagonBacklash(lag), onset, LAST + 6, 1, true);
+        let named = wagon(&findings);
+        assert_eq!(named.len(), 1, "lag {lag}° from {onset}: {findings:?}");
+        let (at, w) = named[0];
+        assert!(
+            at.last_idx as usize >= onset && (at.last_idx as usize) < onset + 6 * 81,
+            "{at:?}"
+        );
+        assert!((w.backlash_deg / lag - 1.0).abs() <= 0.3, "{w:?}");
+        assert!(w.se_deg > 0.0 && w.estimate_sweeps >= 1, "{w:?}");
+        assert!(
+            w.from_idx as usize <= onset && w.from_idx as usize + 2 * 81 > onset,
+            "{w:?}"
+        );
+        assert!(
+            slips(&findings).all(|(s, _)| s.last_idx > at.last_idx),
+            "{findings:?}"
+        );
+    }
+    for (joint, deg) in [(0usize, 2.0), (1, 2.0), (1, -1.0)] {
+        let (_, findings) = run(Fault::Joint(joint, deg), ONSET, LAST + 6, 1, true);
+        assert!(
+            wagon(&findings).is_empty(),
+            "joint {}: {findings:?}",
+            joint + 1
+        );
+    }
+    let (_, findings) = run(Fault::None, usize::MAX, LAST + 6, 2, true);
+    assert!(wagon(&findings).is_empty(), "{findings:?}");
 }
 
 /// The slopes a slip's size is fitted with: on the noisy session, the smooth model's
