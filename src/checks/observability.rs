@@ -69,9 +69,9 @@ pub(crate) fn observability(
         // with probes the sweeps leave the gain level and the lamp's stability to them
         o.watched.push(
             if probes {
-                "arm joints 1 and 2, from the light sweeps (each light direction against the earlier ones), each slip they name confirmed by re-captures of earlier poses before it is alarmed"
+                "arm joints 1 and 2 and the wagon's lag against its direction of motion (not its constant offset), from the light sweeps (each light direction against the earlier ones), each joint slip they name confirmed by re-captures of earlier poses before it is alarmed"
             } else {
-                "gain steps, the lamp's stability from capture to capture (lamp-unstable, θi ≤ 60° from a layer's fourth light) and arm joints 1 and 2, from the light sweeps (each light direction against the earlier ones)"
+                "gain steps, the lamp's stability from capture to capture (lamp-unstable, θi ≤ 60° from a layer's fourth light), arm joints 1 and 2 and the wagon's lag against its direction of motion (not its constant offset), from the light sweeps (each light direction against the earlier ones)"
             }
             .into(),
         );
@@ -178,6 +178,7 @@ mod tests {
         let o = observability(true, false, AcquisitionOrder::LightOuter, true, true);
         assert!(o.watched.iter().any(|w| w.contains("colour")));
         assert!(o.watched.iter().any(|w| w.contains("joints 1 and 2")));
+        assert!(o.watched.iter().any(|w| w.contains("the wagon's lag")));
     }
 
     #[test]
