@@ -353,20 +353,11 @@ impl SweepMonitor {
         };
         // the sweep taken before the change point may hold the slip's start without showing it
         // (`slip_first_idx`), so the reference stops before it too
-        let cut = self.slip_first_idx(run[k].last_idx);
-        let past: Vec<usize> = (0..self.captures.len())
-            .filter(|&i| {
-                let c = &self.captures[i];
-                c.idx < cut && self.completed.get(c.light).copied().unwrap_or(false)
-            })
-            .collect();
-        let reference = self.backfit(&past, known);
+        let reference = self.reference_before(self.slip_first_idx(run[k].last_idx), known);
         let refits: Vec<(f64, f64)> = run[k..]
             .iter()
             .filter_map(|s| {
-                let current: Vec<usize> = (0..self.captures.len())
-                    .filter(|&i| self.captures[i].light == s.light)
-                    .collect();
+                let current = self.captures_of_light(s.light);
                 // the size from the smooth model's sensitivities, the wagon's among them; where
                 // that fit is too loose (a θi layer with too few lights for the model to know
                 // its slope in θi), the interpolant's

@@ -475,6 +475,26 @@ impl SweepMonitor {
             .map_or(first, |s| s.first_idx)
     }
 
+    /// The F + L + C reference of the completed sweeps' captures taken before capture `cut`:
+    /// what a slip's or a lag's sweeps are refitted against, so that none of their own
+    /// captures is in it.
+    fn reference_before(&self, cut: u64, known: &Known) -> Reference {
+        let past: Vec<usize> = (0..self.captures.len())
+            .filter(|&i| {
+                let c = &self.captures[i];
+                c.idx < cut && self.completed.get(c.light).copied().unwrap_or(false)
+            })
+            .collect();
+        self.backfit(&past, known)
+    }
+
+    /// The captures (indices into the list) of light direction `light`.
+    fn captures_of_light(&self, light: usize) -> Vec<usize> {
+        (0..self.captures.len())
+            .filter(|&i| self.captures[i].light == light)
+            .collect()
+    }
+
     /// Controller time of `slip_first_idx(last_idx)` (seconds).
     fn slip_first_t(&self, last_idx: u64) -> Option<f64> {
         let first = self.slip_first_idx(last_idx);

@@ -127,24 +127,18 @@ impl SweepMonitor {
     /// standard error and the sweeps behind it; `None` without a reference or a fit.
     fn backlash_estimate(&self, since: u64, known: &Known) -> Option<(f64, f64, usize)> {
         let cut = self.slip_first_idx(since);
-        let past: Vec<usize> = (0..self.captures.len())
-            .filter(|&i| {
-                let c = &self.captures[i];
-                c.idx < cut && self.completed.get(c.light).copied().unwrap_or(false)
-            })
-            .collect();
-        if past.is_empty() {
+        let in_reference =
+            |c: &SweepCapture| c.idx < cut && self.completed.get(c.light).copied().unwrap_or(false);
+        if !self.captures.iter().any(in_reference) {
             return None;
         }
-        let reference = self.backfit(&past, known);
+        let reference = self.reference_before(cut, known);
         let fits: Vec<(f64, f64)> = self
             .sweep_starts
             .iter()
             .filter(|s| s.last_idx >= since)
             .filter_map(|s| {
-                let current: Vec<usize> = (0..self.captures.len())
-                    .filter(|&i| self.captures[i].light == s.light)
-                    .collect();
+                let current = self.captures_of_light(s.light);
                 let (_, rows) = self.residuals(&current, &reference, known, Model::Smooth);
                 let fit = self.pattern_fit(rows.iter().filter_map(Row::with_wagon).collect());
                 let se = fit
