@@ -91,10 +91,11 @@ def brief(x):
     if x is None:
         return None
     e = x.get("evidence") or {}
-    # the wagon is axis 4 (matrix.Truth); its lag is its size
-    wagon = x["code"] == "wagon-backlash-suspected"
+    # the wagon is axis 4 (matrix.Truth); its lag's size is the lag, its offset's the offset
+    lag = x["code"] == "wagon-backlash-suspected"
+    wagon = lag or x["code"] == "wagon-offset-suspected"
     return {"idx": x["idx"], "code": x["code"], "joint": 4 if wagon else e.get("joint"),
-            "offset_deg": e.get("backlash_deg") if wagon else e.get("offset_deg"),
+            "offset_deg": e.get("backlash_deg") if lag else e.get("offset_deg"),
             "rate_pct_per_h": e.get("rate_pct_per_h"), "level_pct": e.get("level_pct")}
 
 
@@ -123,7 +124,7 @@ def score(run: M.Run, session: str) -> dict:
     key = "probe_drift" if run.every else "isotropy_drift"
     pd = summary.get(key) or {}
     joint = next((x for x in geo if x["idx"] >= onset
-                  and x["code"] in ("joint-offset-suspected", "wagon-backlash-suspected")), None)
+                  and x["code"] in ("joint-offset-suspected", "wagon-backlash-suspected", "wagon-offset-suspected")), None)
     ch = summary.get("checked") or {}
     rec = {"id": run.id, "row": run.row.name, "material": run.material, "model": run.label, "seed": run.seed,
            "every": run.every,

@@ -15,8 +15,9 @@ How a run is judged (the onset is the fault's first capture; a fault-free run's 
   `joint-offset-suspected` follows the onset (a `gain-step` it explains is then withdrawn);
 - a decay is flagged by any drift alarm; its final rate is compared with the mean ln-gain slope
   of the true decay over the run;
-- a positioning fault is named right when the first `joint-offset-suspected` or
-  `wagon-backlash-suspected` after the onset names its axis (the wagon is axis 4) with its sign
+- a positioning fault is named right when the first `joint-offset-suspected`,
+  `wagon-backlash-suspected` or `wagon-offset-suspected` after the onset names its axis (the
+  wagon is axis 4) with its sign
   within 600 captures; named wrong when a positioning alarm after the onset names another axis
   or sign (or comes late);
 - a flickering lamp is flagged by `lamp-unstable` within 1,000 captures;
@@ -249,7 +250,8 @@ def _catches_lines(records) -> list[list[str]]:
         lines.append([f"lamp flicker 3 %, within {FLICKER_WITHIN} captures", "every 75" if every else "none",
                       share(lambda r: r in rs and r["fault"]["kind"] == "unstable",
                             lambda r: r["unstable_after"] is not None and delay(r, "unstable_after") <= FLICKER_WITHIN)])
-        # the wagon's lag (backlash) and its constant offset are told apart: the sweeps name the one
+        # the wagon's lag (backlash) and its constant offset are separate rows: the sweeps name the
+        # lag, a re-captured pair (probes) the offset
         for label, axis, lag in (("joint 1 slip", 1, None), ("joint 2 slip", 2, None),
                                  ("wagon backlash", 4, True), ("wagon offset", 4, False)):
             lines.append([f"{label}, named right within {JOINT_WITHIN} captures", "every 75" if every else "none",

@@ -99,7 +99,8 @@ ROWS = {r.name: r for r in _rows()}
 # with probes every 75 captures (the cadence `goniowatch plan` designs for the anisotropic
 # configuration, 2.6 % of the run time), on every isotropic material and model
 PROBE_ROWS = ("no fault", "step −1.5 % at mid-run", "step −3 % early", "decay 0.5 %/h", "flicker 3 % per capture",
-              "joint 1 +1° at mid-run", "joint 2 +1° at mid-run", "wagon +1° at mid-run")
+              "joint 1 +1° at mid-run", "joint 2 +1° at mid-run", "wagon +1° at mid-run", "wagon −1° at mid-run",
+              "wagon +1° early", "wagon backlash 1° at mid-run")
 # anisotropic samples need probes for their lamp, and get the joint-3 sentinel with them
 ANISO_ROWS = ("no fault", "step −3 % at mid-run", "joint 3 +1° at mid-run")
 
@@ -157,7 +158,7 @@ def _runs() -> list[Run]:
             runs += [Run(ROWS["no fault"], material, model, s) for s in range(1, 21)]
             runs += [Run(r, material, model, s) for r in ROWS.values() if r.truth for s in (1, 2)]
             runs += [Run(ROWS[n], material, model, s, every=75) for n in PROBE_ROWS
-                     for s in (range(1, 21) if n == "no fault" else (1,))]
+                     for s in (range(1, 21) if n == "no fault" else (1, 2))]
             # out of sample: fault-free at 64 × 64 pixels (the archive demo's size), where nothing
             # was tuned
             runs += [Run(ROWS["no fault"], material, model, s, image=64) for s in (1, 2, 3)]

@@ -7,8 +7,9 @@ A .chk file names a run of benches/matrix.py and what it must show:
 - `expect = "quiet"`: no drift or positioning alarm of warning severity or above in the run;
 - `expect = "caught"`: a drift alarm of the fault's sign within `within` captures of the onset,
   none before it; with `rate_within_pct_per_h`, the final rate that close to the truth;
-- `expect = "named"`: the first `joint-offset-suspected` (or `wagon-backlash-suspected`, axis
-  4) after the onset names the fault's axis and sign within `within` captures, none before it;
+- `expect = "named"`: the first `joint-offset-suspected` (or `wagon-backlash-suspected` or
+  `wagon-offset-suspected`, axis 4) after the onset names the fault's axis and sign within
+  `within` captures, none before it;
   with `size_within`, the estimate within that fraction of the truth;
 - `expect = "encoder"`: an `encoder-mismatch` after the onset, and neither a drift nor a joint
   alarm anywhere.

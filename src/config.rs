@@ -430,6 +430,7 @@ pub(crate) const KEY_RANGES: &[KeyRange] = &[
     closed("checks.sweeps.min_captures", 4.0, 1e4),
     closed("checks.sweeps.sensitivity_step_deg", 0.01, 10.0),
     above("checks.sweeps.unstable_scatter_pct", 0.0, 100.0),
+    closed("checks.sweeps.wagon_watch_sweeps", 0.0, 1e4),
     closed("checks.colour_drift.lamp_cct_k", 1000.0, 20_000.0),
     closed("checks.colour_drift.tolerance_k_per_h", 0.0, 10_000.0),
     above("checks.colour_drift.z", 0.0, 100.0),
@@ -759,6 +760,10 @@ impl Config {
             (
                 "checks.sweeps.unstable_scatter_pct",
                 sw.unstable_scatter_pct,
+            ),
+            (
+                "checks.sweeps.wagon_watch_sweeps",
+                sw.wagon_watch_sweeps as f64,
             ),
             ("checks.colour_drift.lamp_cct_k", c.colour_drift.lamp_cct_k),
             (

@@ -138,11 +138,13 @@ pub enum AlarmCode {
     UnsupportedVersion,
     /// The wagon lags behind its commanded angle against its last direction of motion.
     WagonBacklashSuspected,
+    /// Re-captures show the wagon standing off its commanded angle.
+    WagonOffsetSuspected,
 }
 
 impl AlarmCode {
     /// Every code.
-    pub(crate) const ALL: [AlarmCode; 48] = [
+    pub(crate) const ALL: [AlarmCode; 49] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
@@ -191,6 +193,7 @@ impl AlarmCode {
         AlarmCode::UnannouncedFiles,
         AlarmCode::UnsupportedVersion,
         AlarmCode::WagonBacklashSuspected,
+        AlarmCode::WagonOffsetSuspected,
     ];
 
     /// The name in the result files.
@@ -244,6 +247,7 @@ impl AlarmCode {
             AlarmCode::UnannouncedFiles => "unannounced-files",
             AlarmCode::UnsupportedVersion => "unsupported-version",
             AlarmCode::WagonBacklashSuspected => "wagon-backlash-suspected",
+            AlarmCode::WagonOffsetSuspected => "wagon-offset-suspected",
         }
     }
 
@@ -300,6 +304,7 @@ impl AlarmCode {
             AlarmCode::UnannouncedFiles => "files in the capture folder no CAPTURE line named",
             AlarmCode::UnsupportedVersion => "the controller does not speak this protocol version",
             AlarmCode::WagonBacklashSuspected => "the images show the wagon lagging behind its commanded angle against its last direction of motion",
+            AlarmCode::WagonOffsetSuspected => "re-captures of two earlier poses show the wagon standing off its commanded angle",
         }
     }
 

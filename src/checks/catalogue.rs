@@ -86,6 +86,7 @@ pub fn entry(code: AlarmCode) -> CodeEntry {
         C::TimeSteppedBack => (K::Link, WARNING, &["step_s", "announced_t", "previous_t", "shift_s"], "Check the clock of the rig's computer and keep it from stepping during a run; the step is removed from the times."),
         C::UnannouncedFiles => (K::CaptureQuality, WARNING, &["files"], "Check the controller's capture log against the folder: files the controller never announced are not checked."),
         C::WagonBacklashSuspected => (K::Positioning, WARNING, &["backlash_deg", "se_deg", "offset_deg", "source", "since_idx", "statistic", "threshold"], "Check the wagon's drive for play (belt, gear, coupling): take it up, or have the controller approach every camera position from one side; the captures since the lag began are on the retake list."),
+        C::WagonOffsetSuspected => (K::Positioning, WARNING, &["offset_deg", "se_deg", "entries", "change_pct", "sensitivity_pct_per_deg", "joint_leak", "originals_lights", "readings", "sweeps_z", "source", "since_idx", "statistic", "threshold"], "Pause the run; check the wagon against its reference mark on the arc (re-home it if it slipped), then resume; the captures since the last reading in control are on the retake list."),
         C::UnsupportedVersion => (K::Link, CRITICAL, &[], "Update the controller's firmware or goniowatch so that both speak the same protocol version."),
     };
     CodeEntry {

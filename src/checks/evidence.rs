@@ -106,6 +106,8 @@ pub enum Evidence {
     SlipRefuted(SlipRefuted),
     /// `wagon-backlash-suspected`.
     WagonBacklash(WagonBacklash),
+    /// `wagon-offset-suspected`.
+    WagonOffset(WagonOffset),
     /// `lamp-unstable` and `lamp-unstable-cleared` from the probes.
     LampScatter(LampScatter),
     /// `lamp-unstable` and `lamp-unstable-cleared` from the light sweeps.
@@ -337,6 +339,28 @@ pub struct WagonBacklash {
     pub threshold: f64,
 }
 
+/// The wagon's offset named by re-captures of two poses: its estimate and standard error
+/// (degrees), the two plan entries and the light sweeps of their originals, the change of their
+/// difference (%) and its sensitivity to the wagon (%/°), what a degree of joint 1 and of
+/// joint 2 reads as (degrees of wagon), the readings behind the estimate, the first capture it
+/// can have affected, the CUSUM and its threshold.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WagonOffset {
+    pub source: Source,
+    pub offset_deg: f64,
+    pub se_deg: f64,
+    pub entries: [usize; 2],
+    pub change_pct: f64,
+    pub sensitivity_pct_per_deg: f64,
+    pub joint_leak: [f64; 2],
+    pub originals_lights: [usize; 2],
+    pub readings: usize,
+    pub sweeps_z: Option<f64>,
+    pub since_idx: u64,
+    pub statistic: f64,
+    pub threshold: f64,
+}
+
 /// A slip the light sweeps' pattern named (`joint`, `offset_deg`), refuted by re-captures.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SlipRefuted {
@@ -556,6 +580,7 @@ impl Evidence {
             C::TrendUnresolved => parse(&v, Evidence::UnresolvedTrend),
             C::SlipRefuted => parse(&v, Evidence::SlipRefuted),
             C::WagonBacklashSuspected => parse(&v, Evidence::WagonBacklash),
+            C::WagonOffsetSuspected => parse(&v, Evidence::WagonOffset),
             C::LampUnstable | C::LampUnstableCleared => {
                 parse(&v, Evidence::LampScatter).or_else(|| parse(&v, Evidence::SweepScatter))
             }
@@ -619,6 +644,7 @@ impl Evidence {
             Evidence::UnresolvedTrend(_) => code == C::TrendUnresolved,
             Evidence::SlipRefuted(_) => code == C::SlipRefuted,
             Evidence::WagonBacklash(_) => code == C::WagonBacklashSuspected,
+            Evidence::WagonOffset(_) => code == C::WagonOffsetSuspected,
             Evidence::LampScatter(_) | Evidence::SweepScatter(_) => {
                 matches!(code, C::LampUnstable | C::LampUnstableCleared)
             }

@@ -557,13 +557,16 @@ impl Checker {
         let reserved: Vec<usize> = round
             .map(|(lamp, sentinel)| std::iter::once(lamp).chain(sentinel).collect())
             .unwrap_or_default();
-        // the re-captures' noise scales from the lamp probe's luminance once it is known
+        // the re-captures' noise scales from the lamp probe's luminance once it is known, and is
+        // at least what the probes measure (a probe is a re-capture against its original: a
+        // flickering lamp scatters both alike)
+        let measured = self.probes.drift().scatter().filter(|s| s.is_finite());
         let recapture = self.recapture.map(|n| RecaptureNoise {
             y_ref: round
                 .and_then(|(lamp, _)| self.ledger.get(lamp))
                 .map(|c| c.xyz[1])
                 .filter(|y| *y > 0.0 && y.is_finite()),
-            ..n
+            sd: measured.map_or(n.sd, |m| n.sd.max(m)),
         });
         if let Some(sweeps) = self.sweeps.as_mut() {
             let mount = self.drift.as_ref().and_then(|d| d.mount());
@@ -672,6 +675,7 @@ impl Checker {
             self.plan.order(),
             self.spec.sweeps.enabled,
             self.probes.watches_joint3(),
+            self.spec.sweeps.wagon_watch_sweeps > 0,
         )
     }
 

@@ -34,13 +34,15 @@ fn blind(what: &str, why: &str, remedy: &str) -> BlindSpot {
 /// The detectors a session runs and what they cannot see: `isotropic` as declared in
 /// `[sample]`, `probes` whether drift probes are enabled, `sweeps` whether the light-sweep
 /// checks are enabled in the config, `sentinel` whether probes of an anisotropic sample are
-/// followed by a joint-3 sentinel (`[probes] sentinel`).
+/// followed by a joint-3 sentinel (`[probes] sentinel`), `wagon_watch` whether a probe-taking
+/// rig's sweeps re-capture a pair for the wagon (`[checks.sweeps] wagon_watch_sweeps`).
 pub(crate) fn observability(
     isotropic: bool,
     probes: bool,
     order: AcquisitionOrder,
     sweeps: bool,
     sentinel: bool,
+    wagon_watch: bool,
 ) -> Observability {
     let light_outer = !matches!(order, AcquisitionOrder::CameraOuter);
     let sweeps_run = isotropic && sweeps && light_outer;
@@ -69,7 +71,7 @@ pub(crate) fn observability(
         // with probes the sweeps leave the gain level and the lamp's stability to them
         o.watched.push(
             if probes {
-                "arm joints 1 and 2 and the wagon's lag against its direction of motion (not its constant offset), from the light sweeps (each light direction against the earlier ones), each joint slip they name confirmed by re-captures of earlier poses before it is alarmed"
+                "arm joints 1 and 2 and the wagon's lag against its direction of motion, from the light sweeps (each light direction against the earlier ones), each joint slip they name confirmed by re-captures of earlier poses before it is alarmed"
             } else {
                 "gain steps, the lamp's stability from capture to capture (lamp-unstable, θi ≤ 60° from a layer's fourth light), arm joints 1 and 2 and the wagon's lag against its direction of motion (not its constant offset), from the light sweeps (each light direction against the earlier ones)"
             }
@@ -78,6 +80,21 @@ pub(crate) fn observability(
     }
     let probes_remedy =
         "enable drift probes ([probes] every = N): a re-capture of one pose every N captures; `goniowatch plan` prints the N that meets the detection target";
+    if sweeps_run && probes && wagon_watch {
+        o.watched.push(
+            "the wagon's constant offset, from a pair of earlier poses re-captured every few light sweeps (about 1 % of the run), told from a joint-1 slip by the light sweeps".into(),
+        );
+    } else if sweeps_run {
+        o.blind.push(blind(
+            "the wagon's constant offset",
+            "its pattern across a sweep's cameras is joint 1's along the arc, and the light sweeps' reference takes it up within a few sweeps; a re-capture of an earlier pose shows it",
+            if probes {
+                "set [checks.sweeps] wagon_watch_sweeps = 3: a pair of earlier poses re-captured every 3 light sweeps"
+            } else {
+                probes_remedy
+            },
+        ));
+    }
     if !probes && !sweeps_run {
         o.blind.push(blind(
             "the lamp's stability from capture to capture (flicker)",
@@ -154,18 +171,22 @@ mod tests {
 
     #[test]
     fn an_isotropic_light_outer_session_watches_flicker_from_the_sweeps_or_the_probes() {
-        let o = observability(true, false, AcquisitionOrder::LightOuter, true, true);
-        assert!(o.blind.is_empty(), "{o:?}");
+        let o = observability(true, false, AcquisitionOrder::LightOuter, true, true, true);
+        // the one blind spot: the wagon's constant offset, which needs re-captures
+        assert!(
+            o.blind.len() == 1 && o.blind[0].what.contains("constant offset"),
+            "{o:?}"
+        );
         assert!(o
             .watched
             .iter()
             .any(|w| w.contains("lamp-unstable") && w.contains("light sweeps")));
         assert!(o.watched.iter().any(|w| w.contains("trend-unresolved")));
         // the sweeps off: flicker is a blind spot, with the probes as the remedy
-        let o = observability(true, false, AcquisitionOrder::LightOuter, false, true);
+        let o = observability(true, false, AcquisitionOrder::LightOuter, false, true, true);
         let f = o.blind.iter().find(|b| b.what.contains("flicker")).unwrap();
         assert!(f.remedy.contains("[probes]"));
-        let o = observability(true, true, AcquisitionOrder::LightOuter, true, true);
+        let o = observability(true, true, AcquisitionOrder::LightOuter, true, true, true);
         assert!(o.blind.is_empty(), "{o:?}");
         assert!(o.watched.iter().any(|w| w.contains("lamp-unstable")));
         // with probes a slip the sweeps name is confirmed by re-captures; without, it is not
@@ -173,17 +194,35 @@ mod tests {
             .watched
             .iter()
             .any(|w| w.contains("joints 1 and 2") && w.contains("re-captures")));
-        let o = observability(true, false, AcquisitionOrder::LightOuter, true, true);
+        let o = observability(true, false, AcquisitionOrder::LightOuter, true, true, true);
         assert!(!o.watched.iter().any(|w| w.contains("re-captures")));
-        let o = observability(true, false, AcquisitionOrder::LightOuter, true, true);
+        let o = observability(true, false, AcquisitionOrder::LightOuter, true, true, true);
         assert!(o.watched.iter().any(|w| w.contains("colour")));
         assert!(o.watched.iter().any(|w| w.contains("joints 1 and 2")));
         assert!(o.watched.iter().any(|w| w.contains("the wagon's lag")));
+        // without probes the wagon's constant offset is a blind spot with its remedy; with
+        // them the re-captured pair watches it
+        assert!(o
+            .blind
+            .iter()
+            .any(|b| b.what.contains("constant offset") && b.remedy.contains("[probes] every")));
+        let o = observability(true, true, AcquisitionOrder::LightOuter, true, true, true);
+        assert!(o
+            .watched
+            .iter()
+            .any(|w| w.contains("the wagon's constant offset")));
+        let o = observability(true, true, AcquisitionOrder::LightOuter, true, true, false);
+        assert!(
+            o.blind
+                .iter()
+                .any(|b| b.what.contains("constant offset")
+                    && b.remedy.contains("wagon_watch_sweeps"))
+        );
     }
 
     #[test]
     fn an_anisotropic_sample_without_probes_says_the_lamp_is_unwatched_and_how_to_watch_it() {
-        let o = observability(false, false, AcquisitionOrder::LightOuter, true, true);
+        let o = observability(false, false, AcquisitionOrder::LightOuter, true, true, true);
         let gain = o
             .blind
             .iter()
@@ -198,7 +237,7 @@ mod tests {
             .any(|b| b.what.contains("joints 1, 2 and 3") && b.remedy.contains("sentinel")));
         // with probes the gain and the colour are watched, and joint 3 by the sentinel;
         // joints 1 and 2 still not
-        let o = observability(false, true, AcquisitionOrder::LightOuter, true, true);
+        let o = observability(false, true, AcquisitionOrder::LightOuter, true, true, true);
         assert!(!o.blind.iter().any(|b| b.what.contains("gain drift")));
         assert!(!o.blind.iter().any(|b| b.what.contains("colour")));
         assert!(o.watched.iter().any(|w| w.contains("joint 3")));
@@ -207,7 +246,7 @@ mod tests {
             .iter()
             .any(|b| b.what.starts_with("arm joints 1 and 2")));
         // the sentinel off: joint 3 is blind again
-        let o = observability(false, true, AcquisitionOrder::LightOuter, true, false);
+        let o = observability(false, true, AcquisitionOrder::LightOuter, true, false, true);
         assert!(o.blind.iter().any(|b| b.what.contains("joints 1, 2 and 3")));
         assert!(o
             .watched
@@ -217,13 +256,13 @@ mod tests {
 
     #[test]
     fn a_camera_outer_order_loses_the_sweeps() {
-        let o = observability(true, false, AcquisitionOrder::CameraOuter, true, true);
+        let o = observability(true, false, AcquisitionOrder::CameraOuter, true, true, true);
         assert!(o
             .blind
             .iter()
             .any(|b| b.what.contains("joints 1 and 2") && b.why.contains("light-outer")));
         assert!(o.blind.iter().any(|b| b.what == "lamp gain steps"));
-        let o = observability(true, true, AcquisitionOrder::CameraOuter, true, true);
+        let o = observability(true, true, AcquisitionOrder::CameraOuter, true, true, true);
         assert!(!o.blind.iter().any(|b| b.what == "lamp gain steps"));
     }
 }

@@ -5,6 +5,7 @@ use super::evidence::{self, Evidence, Source};
 use crate::checks::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::detect::sweeps::{
     JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt, SweepFinding, WagonBacklash,
+    WagonOffset,
 };
 
 /// The alarm a finding of the sweep checks raises.
@@ -39,6 +40,7 @@ pub(crate) fn alarm(f: &SweepFinding) -> Alarm {
             reading,
         } => slip_refuted(at, *joint, *offset_deg, reading),
         SweepFinding::WagonBacklash { at, backlash } => wagon_backlash(at, backlash),
+        SweepFinding::WagonOffset { offset, .. } => wagon_offset(offset),
         SweepFinding::LampUnstable {
             scatter_pct,
             limit_pct,
@@ -357,6 +359,56 @@ fn wagon_backlash(at: &SweepAt, x: &WagonBacklash) -> Alarm {
     )
 }
 
+fn wagon_offset(x: &WagonOffset) -> Alarm {
+    Alarm::new(
+        AlarmKind::Positioning,
+        Severity::Warning,
+        AlarmCode::WagonOffsetSuspected,
+        format!(
+            "the wagon stands about {:+.2}° (± {:.2}°, from {} reading(s)) off its commanded angle: two earlier poses (entries {} and {}, of light sweeps {} and {}), re-captured back to back, moved {:+.2} % against each other, at {:+.2} %/° of wagon (CUSUM {:.1} > {:.1}); a stationary effect of the geometry does not move a re-captured pose, the lamp cancels between the two, and a degree of joint 1 or 2 would read as {:+.2}° or {:+.2}° of wagon; {}",
+            x.offset_deg,
+            x.se_deg,
+            x.readings,
+            x.entries[0],
+            x.entries[1],
+            x.originals_lights[0],
+            x.originals_lights[1],
+            x.change_pct,
+            x.sensitivity_pct_per_deg,
+            x.statistic,
+            x.threshold,
+            x.joint_leak[0],
+            x.joint_leak[1],
+            match x.sweeps_z {
+                Some(z) => format!("the light sweeps since then show the wagon's offset, not a joint's, at {z:.1} standard deviations"),
+                None => format!("the light sweeps since then name no axis: joint 1 by {:+.2}° would read the same", x.offset_deg / x.joint_leak[0]),
+            },
+        ),
+    )
+    .with(Evidence::WagonOffset(evidence::WagonOffset {
+        source: Source::Recaptures,
+        offset_deg: x.offset_deg,
+        se_deg: x.se_deg,
+        entries: x.entries,
+        change_pct: x.change_pct,
+        sensitivity_pct_per_deg: x.sensitivity_pct_per_deg,
+        joint_leak: x.joint_leak,
+        originals_lights: x.originals_lights,
+        readings: x.readings,
+        sweeps_z: x.sweeps_z,
+        since_idx: x.since_idx,
+        statistic: x.statistic,
+        threshold: x.threshold,
+    }))
+    .advise(
+        &format!(
+            "Pause the run; check the wagon against its reference mark on the arc (re-home it if it slipped), then resume; every capture since {} (after the last reading in control) is on the retake list.",
+            x.since_idx,
+        ),
+        Some(Affects::Since { from_idx: x.since_idx, handling: Handling::Retake }),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -512,5 +564,57 @@ mod tests {
         assert!(
             matches!(&a.evidence, Evidence::JointSlip(e) if e.attributed_level_pct == Some(-0.8))
         );
+    }
+
+    #[test]
+    fn a_wagon_offset_names_the_wagon_with_the_joint_it_could_be_and_retakes_from_its_start() {
+        let x = WagonOffset {
+            offset_deg: 1.0,
+            se_deg: 0.1,
+            entries: [650, 210],
+            change_pct: 6.0,
+            sensitivity_pct_per_deg: 6.0,
+            joint_leak: [-1.5, 0.25],
+            originals_lights: [8, 2],
+            readings: 2,
+            sweeps_z: Some(6.5),
+            statistic: 4.5,
+            threshold: 2.7,
+            since_idx: 3564,
+        };
+        let a = alarm(&SweepFinding::WagonOffset {
+            at: AT,
+            offset: x.clone(),
+        });
+        assert_eq!(a.code, AlarmCode::WagonOffsetSuspected);
+        assert_eq!(
+            (a.kind, a.severity),
+            (AlarmKind::Positioning, Severity::Warning)
+        );
+        assert_eq!(a.idx, Some(AT.last_idx));
+        assert_eq!(
+            a.affects,
+            Some(Affects::Since {
+                from_idx: 3564,
+                handling: Handling::Retake
+            })
+        );
+        assert!(
+            a.message.contains("+1.00°") && a.message.contains("at 6.5 standard deviations"),
+            "{}",
+            a.message
+        );
+        assert!(
+            matches!(&a.evidence, Evidence::WagonOffset(e) if e.source == Source::Recaptures && e.sweeps_z == Some(6.5))
+        );
+        // not attributed by the sweeps: the joint-1 slip that would read the same is named
+        let a = alarm(&SweepFinding::WagonOffset {
+            at: AT,
+            offset: WagonOffset {
+                sweeps_z: None,
+                ..x
+            },
+        });
+        assert!(a.message.contains("joint 1 by -0.67°"), "{}", a.message);
     }
 }

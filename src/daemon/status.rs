@@ -705,6 +705,7 @@ mod tests {
                 model_layers: 2,
                 model_builds: 3,
             }),
+            wagon_watch: None,
         });
         let text = metrics(&s4);
         assert!(text.contains("goniowatch_sweeps_tested 12\n"), "{text}");

@@ -266,6 +266,8 @@ pub(crate) struct ProbeDrift {
     segment_idx: Vec<Option<u64>>,
     rate_alarm: bool,
     unstable: bool,
+    /// The last scatter measured by `stability` (ln units).
+    scatter: Option<f64>,
     estimate: Option<DriftEstimate>,
 }
 
@@ -315,8 +317,15 @@ impl ProbeDrift {
             segment_idx: Vec::new(),
             rate_alarm: false,
             unstable: false,
+            scatter: None,
             estimate: None,
         }
+    }
+
+    /// The probes' scatter about their line (ln units, one probe against its original) over
+    /// the last `UNSTABLE_WINDOW` probes of a segment, once measured.
+    pub(crate) fn scatter(&self) -> Option<f64> {
+        self.scatter
     }
 
     pub(crate) fn estimate(&self) -> Option<DriftEstimate> {
@@ -427,6 +436,7 @@ impl ProbeDrift {
         if !scatter.is_finite() {
             return None;
         }
+        self.scatter = Some(scatter);
         if !self.unstable && scatter > UNSTABLE_FACTOR * design {
             self.unstable = true;
             Some(DriftEvent::Unstable {

@@ -43,6 +43,30 @@ pub(crate) struct WagonBacklash {
     pub threshold: f64,
 }
 
+/// The wagon's offset named by re-capturing two poses (`wagon_watch`): its estimate (degrees)
+/// with its standard error, the two plan entries,
+/// the change of their difference (%) and its sensitivity to the wagon (%/°), what a degree of
+/// joint 1 and of joint 2 would read as (degrees of wagon), the light sweeps of the originals,
+/// the readings behind the estimate, the CUSUM and its threshold, and the first capture it can
+/// have affected (the one after the sweep of the last reading in control).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct WagonOffset {
+    pub offset_deg: f64,
+    pub se_deg: f64,
+    pub entries: [usize; 2],
+    pub change_pct: f64,
+    pub sensitivity_pct_per_deg: f64,
+    pub joint_leak: [f64; 2],
+    pub originals_lights: [usize; 2],
+    pub readings: usize,
+    /// The light sweeps' departure of the wagon's offset over the same span (standard
+    /// deviations, `wagon_watch::attribute`); None when they named no axis in time.
+    pub sweeps_z: Option<f64>,
+    pub statistic: f64,
+    pub threshold: f64,
+    pub since_idx: u64,
+}
+
 /// A joint named as slipped: its estimated offset (degrees) with its standard error and the
 /// sweeps behind the estimate, the CUSUM run's own mean and length, the capture that ended the
 /// run's first sweep (`since_idx`), the first capture the slip can have affected (`from_idx`),
@@ -143,6 +167,8 @@ pub(crate) enum SweepFinding {
         at: SweepAt,
         backlash: WagonBacklash,
     },
+    /// The wagon stands off its commanded angle (re-captures of two poses).
+    WagonOffset { at: SweepAt, offset: WagonOffset },
     /// (No probes) The captures scatter about the isotropy model by at least `scatter_pct` (the
     /// smallest residual SD of `sweeps` consecutive judged sweeps, the first from capture
     /// `from_idx`), beyond `limit_pct`: the lamp's gain moves from capture to capture.
@@ -173,6 +199,7 @@ impl SweepFinding {
             | SweepFinding::JointSlip { at, .. }
             | SweepFinding::SlipRefuted { at, .. }
             | SweepFinding::WagonBacklash { at, .. }
+            | SweepFinding::WagonOffset { at, .. }
             | SweepFinding::LampUnstable { at, .. }
             | SweepFinding::LampSteady { at, .. } => at,
         }

@@ -182,6 +182,7 @@ impl SweepMonitor {
         for c in self.joint_cusum.iter_mut() {
             c.reset();
         }
+        self.wagon_watch.restart();
         NamedSlip {
             at_s,
             withdrawn_steps_s,
@@ -218,6 +219,9 @@ impl SweepMonitor {
         let fit = self.pattern_fit(rows.iter().filter_map(Row::with_wagon).collect());
         let inv = fit.inv.as_ref()?;
         let (w, b) = (fit.se(3)?, fit.se(4)?);
+        if let Some(span) = self.sweep_starts.last_mut() {
+            span.wagon_offset = (fit.beta[3], w);
+        }
         let corr = inv[(1, 3)] / (inv[(1, 1)] * inv[(3, 3)]).sqrt();
         [fit.beta[3], w, fit.beta[4], b, corr]
             .iter()

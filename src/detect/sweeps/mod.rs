@@ -52,13 +52,16 @@ mod session_tests;
 #[cfg(test)]
 mod tests;
 mod wagon;
+mod wagon_watch;
 
 pub(crate) use findings::{
     JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt, SweepFinding, WagonBacklash,
+    WagonOffset,
 };
 use level::ScaleHistory;
 use model::{Model, PatternFit, Reference, Row};
 pub(crate) use recapture::RecaptureNoise;
+pub(crate) use wagon_watch::WagonWatchSummary;
 
 /// `[checks.sweeps]` in the config.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -93,6 +96,9 @@ pub struct SweepSpec {
     /// more than this (%, the residual SD of each of `SCATTER_SWEEPS` consecutive judged
     /// sweeps): a lamp whose gain moves from capture to capture (flicker).
     pub unstable_scatter_pct: f64,
+    /// On a rig that takes probes: re-capture two poses chosen for the wagon's sensitivity
+    /// every this many light sweeps (`wagon_watch`, about 2 captures each); 0 leaves it out.
+    pub wagon_watch_sweeps: usize,
 }
 
 impl Default for SweepSpec {
@@ -109,6 +115,7 @@ impl Default for SweepSpec {
             min_captures: 12,
             sensitivity_step_deg: 1.0,
             unstable_scatter_pct: 2.0,
+            wagon_watch_sweeps: 3,
         }
     }
 }
@@ -349,6 +356,8 @@ pub(crate) struct SweepMonitor {
     pending: Option<recapture::PendingSlip>,
     /// Per θi layer, the patterns the re-captures refuted.
     refuted: HashMap<i64, usize>,
+    /// The wagon's offset from re-captures of two poses (a probe-taking rig).
+    wagon_watch: wagon_watch::WagonWatch,
 }
 
 /// Where a completed sweep lies in the session, and the joint offsets its pattern fit gave
@@ -367,6 +376,9 @@ struct SweepSpan {
     /// by (`SweepMonitor::attribute_level`). NaN where there is no fit.
     smooth: [(f64, f64); 2],
     smooth_s: [f64; 2],
+    /// The wagon's offset and its standard error in the same fit with the wagon's columns
+    /// (`WagonFit`): what a re-captured pair's change is attributed by (`wagon_watch`).
+    wagon_offset: (f64, f64),
 }
 
 /// What testing one completed sweep gave.
@@ -393,6 +405,9 @@ pub struct SweepSummary {
     pub tested: usize,
     /// The latest sweep's record.
     pub last: Option<SweepRecord>,
+    /// The wagon's re-captured pair (a probe-taking rig with the watch on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wagon_watch: Option<WagonWatchSummary>,
 }
 
 impl SweepMonitor {
@@ -436,6 +451,7 @@ impl SweepMonitor {
             reserved: Vec::new(),
             pending: None,
             refuted: HashMap::new(),
+            wagon_watch: Default::default(),
         }
     }
 
@@ -509,6 +525,7 @@ impl SweepMonitor {
         SweepSummary {
             tested: self.tested,
             last: self.last.clone(),
+            wagon_watch: self.wagon_watch_summary(),
         }
     }
 
@@ -562,6 +579,7 @@ impl SweepMonitor {
             offsets: [f64::NAN; 2],
             smooth: [(f64::NAN, f64::NAN); 2],
             smooth_s: [f64::NAN; 2],
+            wagon_offset: (f64::NAN, f64::NAN),
         });
         let known = Known { mount, gain };
         let reference = self.backfit(&sweep.past, &known);
@@ -658,6 +676,8 @@ impl SweepMonitor {
         if level_test {
             self.test_scatter(&sweep, &rec, &mut findings);
         }
+        let watched = self.wagon_watch_sweep(&sweep, &known, &mut findings);
+        let named = named.or(watched);
         let NamedSlip {
             at_s: slip_at_s,
             withdrawn_steps_s,

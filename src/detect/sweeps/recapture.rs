@@ -92,7 +92,7 @@ pub(crate) struct RecaptureNoise {
 
 impl RecaptureNoise {
     /// The variance of r for a pose of luminance `y`: shot noise below the reference.
-    fn var_at(&self, y: f64) -> f64 {
+    pub(super) fn var_at(&self, y: f64) -> f64 {
         let scale = self.y_ref.map_or(1.0, |r| (r / y).max(1.0));
         self.sd * self.sd * scale
     }
@@ -155,36 +155,47 @@ impl SweepMonitor {
         self.reserved = entries.to_vec();
     }
 
-    /// The entries to re-capture now, once per slip.
+    /// The entries to re-capture now, once per question: a waiting slip's first, then the
+    /// wagon watch's pair (`wagon_watch`).
     pub(crate) fn recapture_wanted(&self) -> Option<Vec<usize>> {
         self.pending
             .as_ref()
             .filter(|p| !p.asked)
             .map(|p| p.set.entries.clone())
+            .or_else(|| self.wagon_watch.wanted())
     }
 
-    /// The re-captures were asked for.
+    /// The re-captures `recapture_wanted` gave were asked for.
     pub(crate) fn handle_recapture_asked(&mut self) {
-        if let Some(p) = self.pending.as_mut() {
-            p.asked = true;
+        match self.pending.as_mut().filter(|p| !p.asked) {
+            Some(p) => p.asked = true,
+            None => self.wagon_watch.asked(),
         }
     }
 
-    /// Whether a probe of `entry` is a re-capture the pending slip waits for.
+    /// Whether a probe of `entry` is a re-capture the pending slip or the wagon watch waits
+    /// for.
     pub(crate) fn awaits_recapture(&self, entry: usize) -> bool {
-        self.pending.as_ref().is_some_and(|p| {
-            p.asked
-                && p.set
-                    .entries
-                    .iter()
-                    .zip(&p.readings)
-                    .any(|(e, r)| *e == entry && r.is_none())
-        })
+        self.wagon_watch.awaits(entry)
+            || self.pending.as_ref().is_some_and(|p| {
+                p.asked
+                    && p.set
+                        .entries
+                        .iter()
+                        .zip(&p.readings)
+                        .any(|(e, r)| *e == entry && r.is_none())
+            })
     }
 
     /// A re-capture of `entry` was checked with luminance `y` (a dark or unusable one gives no
-    /// reading: the wait runs out). Once both are in, the slip is named or refuted.
+    /// reading: the wait runs out). Once both are in, the slip is named or refuted, or the
+    /// wagon watch's reading judged.
     pub(crate) fn handle_recapture(&mut self, entry: usize, y: f64) -> SweepOutcome {
+        if self.wagon_watch.awaits(entry) {
+            // its reading is judged here, named at a sweep's end (`wagon_watch`)
+            self.handle_wagon_recapture(entry, y);
+            return SweepOutcome::default();
+        }
         let Some(p) = self.pending.as_mut() else {
             return SweepOutcome::default();
         };
@@ -256,6 +267,7 @@ impl SweepMonitor {
     /// A regular capture was checked: a slip whose re-captures have not come within
     /// `RECAPTURE_WAIT_CAPTURES` is named from the sweeps alone.
     pub(crate) fn handle_regular_capture(&mut self) -> SweepOutcome {
+        self.wagon_watch_wait();
         let Some(p) = self.pending.as_mut() else {
             return SweepOutcome::default();
         };
@@ -354,6 +366,7 @@ impl SweepMonitor {
                     c.light == span.light
                         && c.omega_o.z >= RECAPTURE_MIN_COS_THETA_O
                         && !self.reserved.contains(&c.entry)
+                        && !self.wagon_watch.holds(c.entry)
                 })
                 .filter_map(|c| {
                     let s = self

@@ -60,6 +60,7 @@ fn with_smooth_fits(fits: &[(i64, f64, f64, f64)]) -> SweepMonitor {
             offsets: [0.0; 2],
             smooth: [(b, se), (0.01 * (k % 3) as f64, 0.05)],
             smooth_s: [s, 0.002],
+            wagon_offset: (f64::NAN, f64::NAN),
         });
     }
     m

@@ -7,15 +7,15 @@
 //! nor that of a constant wagon offset, and the F + L + C reference, which averages both
 //! directions, does not absorb it. The smooth model's fit of each sweep (joints, wagon offset
 //! and lag together, `WagonFit`) gives the lag with its standard error; a one-sided CUSUM (a
-//! lag, never a lead) of it, scaled by its own in-control history as the joints' are, names
-//! the wagon once per run.
+//! lag, never a lead) of it, scaled by the robust scale of its θi layer's earlier lags (the
+//! lower layer's, doubled, until the layer has `min_sweeps`), names the wagon once per run.
 //!
-//! A constant wagon offset is not tested: it moves ωo along the great circle through both
-//! directions, as joint 1 moves both, and the reference absorbs most of it within a few sweeps
-//! (benches/wagon_identifiability.py: the first three sweeps after a ±1° offset show it at
-//! 2–5 standard errors, a joint-1 slip leaks into it by up to 1.5, and fault-free sweeps
+//! The sweeps do not test a constant wagon offset: it moves ωo along the great circle through
+//! both directions, as joint 1 moves both, and the reference absorbs most of it within a few
+//! sweeps (benches/wagon_identifiability.py: the first three sweeps after a ±1° offset show it
+//! at 2–5 standard errors, a joint-1 slip leaks into it by up to 1.5, and fault-free sweeps
 //! scatter by 2.6), so the per-sweep `wagon` record carries its fit for the operator and the
-//! lab, untested.
+//! lab. On a probe-taking rig a re-captured pair watches it (`wagon_watch`).
 
 use super::level::PRIOR_SAFETY;
 use super::model::SMOOTH_SE_MAX_DEG;

@@ -1,0 +1,631 @@
+//! The wagon's offset from re-captures of two poses (a rig that takes probes).
+//!
+//! The light sweeps cannot name a constant wagon offset: it moves ωo along the great circle
+//! through both directions, as joint 1 moves both, and the F + L + C reference takes most of it
+//! up within a few sweeps (`wagon`). A re-capture can see it: a pose taken again shows the
+//! wagon's offset since its original as s_w·δ (s_w = ∂ ln Y / ∂w), and a stationary effect of
+//! the geometry not at all.
+//!
+//! The watch chooses two earlier poses, from the last `PAIR_WINDOW_SWEEPS` completed sweeps,
+//! whose luminance moves most against each other with the wagon at the re-capture noise (the
+//! smooth model's sensitivities; θo between 10° and 65°, not a probe's entry), while their
+//! difference moves with joint 2 by at most `MAX_JOINT_LEAK` of that and its response to a
+//! degree departs from its slope by at most `MAX_CURVATURE`. Joint 1 cannot be held out so:
+//! it moves the camera along the arc as the wagon does, and the light besides, and the pairs
+//! with the most wagon sensitivity move with joint 1 by −1.0 to −1.4 times as much. With
+//! d = ln(Y_a/Y_a0) − ln(Y_b/Y_b0), the two re-captured back to back, the lamp's gain cancels
+//! between the re-captures, and what it was at the two originals is a constant of the pair.
+//! The pair is asked for right after it is chosen and after each sweep until `MIN_SEGMENT`
+//! readings are in, then every `wagon_watch_sweeps` sweeps (`[checks.sweeps]`; on the UBO plan
+//! about 60 captures, under 1 % of the run), and after the next sweep when a reading departs
+//! by `AGAIN_Z`.
+//!
+//! Each reading against the mean of the readings in control, in units of their SD (floored at
+//! the noise model's, widened into a prediction interval), clipped, feeds a two-sided CUSUM
+//! whose threshold comes from the false-alarm budget over the run's questions; a crossing needs
+//! two readings (one glitched capture cannot make one) and a mean of `MIN_OFFSET_TOLERANCES`
+//! joint tolerances. It is a change of the camera's pose, the wagon's or joint 1's, and the
+//! light sweeps say which (`attribute_departure`): joint 1 moves the light too, which the
+//! sweeps see. A joint slip the sweeps name restarts the watch's reference: the pose changed,
+//! and the slip's alarm covers it.
+//!
+//! What it cannot see: an offset the wagon had before the pair's originals (a calibration error
+//! from the start), and an offset smaller than its noise allows on a sample whose luminance
+//! barely changes with the view (the summary gives the pair's standard error per reading).
+
+use super::level::ScaleHistory;
+use super::model::{Model, Row, ATTRIBUTION_Z, SMOOTH_SE_MAX_DEG};
+use super::recapture::RecaptureNoise;
+use super::*;
+
+/// The wagon is named only when the CUSUM run's mean is at least this many joint tolerances of
+/// wagon (0.5° at the default 0.25°).
+pub(super) const MIN_OFFSET_TOLERANCES: f64 = 2.0;
+/// Readings in the segment before the CUSUM runs.
+pub(super) const MIN_SEGMENT: usize = 4;
+/// The pair's sensitivity to each arm joint, against its sensitivity to the wagon, at most: a
+/// joint slip of 2° reads as at most 0.5° of wagon.
+pub(super) const MAX_JOINT_LEAK: f64 = 0.25;
+/// A pair is chosen only when a 1° offset moves a reading by this many standard deviations of
+/// the noise model.
+pub(super) const MIN_Z_PER_DEG: f64 = 2.0;
+/// The pair's poses come from the completed sweeps among the last this many.
+pub(super) const PAIR_WINDOW_SWEEPS: usize = 12;
+/// A departure the light sweeps have not attributed after this many sweeps is named as the
+/// wagon's, with the joint-1 offset that would read the same.
+pub(super) const MAX_ATTRIBUTION_SWEEPS: usize = 3;
+/// A reading this many standard deviations from the segment is asked again after the next
+/// sweep rather than after `wagon_watch_sweeps`.
+const AGAIN_Z: f64 = 2.0;
+/// Questions a run asks, about (the CUSUM threshold's false-alarm budget).
+const QUESTIONS_PER_RUN: f64 = 30.0;
+/// Re-captured poses are at most this far from the normal on the camera side (cos θo): at
+/// grazing view the captures are dim and their luminance turns fastest with a jitter ...
+const MIN_COS_THETA_O: f64 = 0.42; // θo ≤ 65°
+/// ... and at least this far: at the pole a camera's luminance turns with the wagon to second
+/// order, whichever way it moves.
+const MAX_COS_THETA_O: f64 = 0.985; // θo ≥ 10°
+/// The pair's response to a degree of wagon departs from its slope by at most this fraction of
+/// it (the smooth model's second difference): the size is read off the slope.
+const MAX_CURVATURE: f64 = 0.25;
+
+/// The two poses the watch re-captures.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct WagonPair {
+    /// Plan entries: the one rising with the wagon, then the falling one.
+    pub entries: [usize; 2],
+    /// Their commanded poses (for the current model's sensitivities).
+    cmd: [[f64; 4]; 2],
+    /// The originals' luminance and light directions.
+    y0: [f64; 2],
+    lights: [usize; 2],
+    /// ln Y per degree of wagon, joint 1 and joint 2 of the difference, when chosen.
+    s: [f64; 3],
+    /// The variance of d from the noise model.
+    var: f64,
+    /// The last capture before the pair was chosen.
+    chosen_idx: u64,
+}
+
+/// One question: the pair asked for, and its two readings.
+#[derive(Debug, Clone)]
+struct Question {
+    asked: bool,
+    waited: u64,
+    readings: [Option<f64>; 2],
+    /// The sweep it was asked after.
+    at: SweepAt,
+}
+
+/// A departure of the pair waiting for the light sweeps to say which axis moved.
+#[derive(Debug, Clone, Copy)]
+struct Departed {
+    /// The question it crossed at.
+    at: SweepAt,
+    /// The CUSUM run's mean change (ln units) and its standard error, and its readings.
+    change: f64,
+    change_se: f64,
+    readings: usize,
+    statistic: f64,
+    threshold: f64,
+    /// The first capture it can have affected, and the last capture of the sweep its run's
+    /// first reading was asked after (every sweep after it is the changed pose's).
+    since_idx: u64,
+    run_start: u64,
+    /// The pair's sensitivities [wagon, joint 1, joint 2] when it crossed.
+    s: [f64; 3],
+    /// Sweeps completed since.
+    sweeps: usize,
+}
+
+/// The watch as the summary reports it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WagonWatchSummary {
+    /// The two plan entries re-captured (none while no pair qualifies).
+    pub entries: Option<[usize; 2]>,
+    /// The pair's change per degree of wagon (%/°), and per degree of joints 1 and 2.
+    pub sensitivity_pct_per_deg: f64,
+    pub joint_sensitivity_pct_per_deg: [f64; 2],
+    /// Questions answered.
+    pub readings: usize,
+    /// The latest reading as a wagon offset against the segment (degrees), and the standard
+    /// error of one reading.
+    pub offset_deg: f64,
+    pub se_deg: f64,
+}
+
+/// The watch's state.
+#[derive(Debug, Clone, Default)]
+pub(super) struct WagonWatch {
+    pair: Option<WagonPair>,
+    question: Option<Question>,
+    /// Completed sweeps since the last question was asked for.
+    sweeps_since: usize,
+    /// The readings in control (held back while a CUSUM run is under way).
+    segment: ScaleHistory,
+    cusum: Cusum,
+    /// The sweep each answered question was asked after (its last capture), in order.
+    asked_after: Vec<u64>,
+    readings: usize,
+    /// The latest reading against the segment (ln units).
+    last_e: Option<f64>,
+    departed: Option<Departed>,
+    /// The latest reading's standardised departure from the segment.
+    last_z: f64,
+}
+
+impl WagonWatch {
+    /// Whether `entry` is one of the pair's (not offered for other re-captures).
+    pub(super) fn holds(&self, entry: usize) -> bool {
+        self.pair
+            .as_ref()
+            .is_some_and(|p| p.entries.contains(&entry))
+    }
+
+    /// The entries to ask for, once per question.
+    pub(super) fn wanted(&self) -> Option<Vec<usize>> {
+        let p = self.pair.as_ref()?;
+        self.question
+            .as_ref()
+            .filter(|q| !q.asked)
+            .map(|_| p.entries.to_vec())
+    }
+
+    pub(super) fn asked(&mut self) {
+        if let Some(q) = self.question.as_mut() {
+            q.asked = true;
+        }
+    }
+
+    /// Whether a probe of `entry` is a re-capture the question waits for.
+    pub(super) fn awaits(&self, entry: usize) -> bool {
+        let (Some(p), Some(q)) = (self.pair.as_ref(), self.question.as_ref()) else {
+            return false;
+        };
+        q.asked
+            && p.entries
+                .iter()
+                .zip(&q.readings)
+                .any(|(e, r)| *e == entry && r.is_none())
+    }
+
+    /// A joint slip was named: the pose changed, the segment starts again.
+    pub(super) fn restart(&mut self) {
+        self.segment = ScaleHistory::default();
+        self.cusum.reset();
+        self.departed = None;
+    }
+
+    /// Sweeps between questions: one while the segment fills and after a reading beyond
+    /// `AGAIN_Z` (a departure is asked again at once), `every` otherwise.
+    fn cadence(&self, every: usize) -> usize {
+        if self.segment.len() < MIN_SEGMENT || self.last_z.abs() > AGAIN_Z {
+            1
+        } else {
+            every.max(1)
+        }
+    }
+
+    /// The segment's mean and the scale of a reading against it (ln units): the segment's SD,
+    /// floored at the noise model's `floor_var`, widened into a prediction interval's (the
+    /// mean's own uncertainty, and Student's t against the normal for an SD from few readings).
+    fn reference(&self, floor_var: f64) -> Option<(f64, f64)> {
+        let v = &self.segment.values;
+        let n = v.len();
+        if n < MIN_SEGMENT {
+            return None;
+        }
+        let mean = v.iter().sum::<f64>() / n as f64;
+        let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+        let widen = (1.0 + 1.0 / n as f64).sqrt() * t975(n - 1) / T975_NORMAL;
+        Some((mean, var.max(floor_var).sqrt() * widen))
+    }
+}
+
+/// The normal's 97.5 % quantile.
+const T975_NORMAL: f64 = 1.959_964;
+
+/// Student's t 97.5 % quantile with `df` degrees of freedom (the normal's beyond 30).
+fn t975(df: usize) -> f64 {
+    const T: [f64; 30] = [
+        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
+        2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056,
+        2.052, 2.048, 2.045, 2.042,
+    ];
+    match df {
+        0 => T[0],
+        1..=30 => T[df - 1],
+        _ => T975_NORMAL,
+    }
+}
+
+impl SweepMonitor {
+    /// After a completed sweep: attribute a departure of the pair (`attribute`), choose the
+    /// pair (while none is chosen), and ask the next question when it is due. Only on a
+    /// probe-taking rig, with the watch on. Returns the slip named when a departure was a
+    /// joint's.
+    pub(super) fn wagon_watch_sweep(
+        &mut self,
+        sweep: &Sweep,
+        known: &Known,
+        findings: &mut Vec<SweepFinding>,
+    ) -> Option<NamedSlip> {
+        let every = self.spec.wagon_watch_sweeps;
+        let noise = self.recapture.filter(|_| every > 0)?;
+        let named = self.attribute_departure(sweep.at(), known, findings);
+        if self.wagon_watch.pair.is_none() {
+            self.wagon_watch.pair = self.choose_wagon_pair(sweep, &noise);
+            if self.wagon_watch.pair.is_none() {
+                return named;
+            }
+            // the first question right away: its reading is the nearest to the originals
+            self.wagon_watch.sweeps_since = usize::MAX;
+        }
+        let w = &mut self.wagon_watch;
+        w.sweeps_since = w.sweeps_since.saturating_add(1);
+        if w.question.is_none() && w.sweeps_since >= w.cadence(every) {
+            w.sweeps_since = 0;
+            w.question = Some(Question {
+                asked: false,
+                waited: 0,
+                readings: [None; 2],
+                at: sweep.at(),
+            });
+        }
+        named
+    }
+
+    /// A departure of the pair is a change of pose between its questions: the wagon's, or a
+    /// joint's (the pair moves with joint 1 about as much as with the wagon). The light sweeps
+    /// completed after its run's first reading say which. Each is fitted again, as a slip's size
+    /// is (`slip_estimate`), against the F + L + C reference of the captures taken up to the last
+    /// reading in control, with the smooth model's columns for both joints, the wagon's
+    /// offset and its lag together: so neither the reference nor another axis takes the change
+    /// up. The axis whose mean offset over those sweeps points the way the pair's change
+    /// implies, by `ATTRIBUTION_Z` standard errors and the joint tolerance, and most standard
+    /// errors, is named with that mean as its size: the wagon, or a joint as a slip the
+    /// re-captures confirm. None after `MAX_ATTRIBUTION_SWEEPS`: the wagon is named, with the
+    /// pair's size and the joint-1 offset that would read the same.
+    fn attribute_departure(
+        &mut self,
+        now: SweepAt,
+        known: &Known,
+        findings: &mut Vec<SweepFinding>,
+    ) -> Option<NamedSlip> {
+        let mut x = self.wagon_watch.departed?;
+        x.sweeps += 1;
+        self.wagon_watch.departed = Some(x);
+        let fits = self.refit_axes(x.since_idx, x.run_start, known);
+        let mut best: Option<(usize, f64, f64, f64)> = None;
+        for (axis, fit) in fits.iter().enumerate() {
+            let Some((offset, se)) = *fit else {
+                continue;
+            };
+            let z = offset.abs() / se;
+            let implied = x.change / x.s[axis];
+            if implied * offset > 0.0
+                && z >= ATTRIBUTION_Z
+                && offset.abs() >= self.spec.joint_tolerance_deg
+                && best.is_none_or(|b| z > b.1)
+            {
+                best = Some((axis, z, offset, se));
+            }
+        }
+        let (axis, z, offset, se) = match best {
+            Some((axis, z, offset, se)) => (axis, Some(z), offset, se),
+            None if x.sweeps >= MAX_ATTRIBUTION_SWEEPS => {
+                (0, None, x.change / x.s[0], x.change_se / x.s[0])
+            }
+            None => return None,
+        };
+        let p = self.wagon_watch.pair.clone()?;
+        self.wagon_watch.departed = None;
+        if axis == 0 {
+            if !self.latched.insert(Latch::Wagon) {
+                // the lag test named the wagon already
+                return None;
+            }
+            findings.push(SweepFinding::WagonOffset {
+                at: now,
+                offset: WagonOffset {
+                    offset_deg: offset,
+                    se_deg: se,
+                    entries: p.entries,
+                    change_pct: 100.0 * x.change,
+                    sensitivity_pct_per_deg: 100.0 * x.s[0],
+                    joint_leak: [x.s[1] / x.s[0], x.s[2] / x.s[0]],
+                    originals_lights: p.lights,
+                    readings: x.readings,
+                    sweeps_z: z,
+                    statistic: x.statistic,
+                    threshold: x.threshold,
+                    since_idx: x.since_idx,
+                },
+            });
+            return None;
+        }
+        // a joint: a slip the re-captures confirm
+        let j = axis - 1;
+        let since = self
+            .sweep_starts
+            .iter()
+            .find(|s| s.first_idx >= x.since_idx)
+            .map_or(x.at.last_idx, |s| s.last_idx);
+        let crossing = JointCrossing {
+            joint: j,
+            statistic: z.unwrap_or(0.0),
+            mean: offset,
+            mean_se: se,
+            sweeps: x.sweeps,
+            since,
+            estimate_sweeps: x.sweeps,
+            run_mean: x.change / x.s[axis],
+            attributed_level: None,
+        };
+        let reading = RecaptureReading {
+            joint: axis,
+            entries: p.entries.to_vec(),
+            change_pct: 100.0 * x.change,
+            sensitivity_pct_per_deg: 100.0 * x.s[axis],
+            offset_deg: x.change / x.s[axis],
+            se_deg: (x.change_se / x.s[axis]).abs(),
+        };
+        Some(self.name_slip(now, &crossing, &[], Recapture::Confirmed(reading), findings))
+    }
+
+    /// The mean offset and its standard error of [wagon, joint 1, joint 2] over the completed
+    /// sweeps that began after capture `after`, each fitted with the smooth model's columns
+    /// (both joints, the wagon's offset and its lag) against the reference of the captures
+    /// before `cut`. None for an axis no such sweep fits within `SMOOTH_SE_MAX_DEG`.
+    fn refit_axes(&self, cut: u64, after: u64, known: &Known) -> [Option<(f64, f64)>; 3] {
+        let mut out = [None; 3];
+        let in_reference =
+            |c: &SweepCapture| c.idx < cut && self.completed.get(c.light).copied().unwrap_or(false);
+        if !self.captures.iter().any(in_reference) {
+            return out;
+        }
+        let reference = self.reference_before(cut, known);
+        let mut sums = [(0.0, 0.0, 0usize); 3];
+        for span in self.sweep_starts.iter().filter(|s| s.first_idx > after) {
+            let current = self.captures_of_light(span.light);
+            let (_, rows) = self.residuals(&current, &reference, known, Model::Smooth);
+            let fit = self.pattern_fit(rows.iter().filter_map(Row::with_wagon).collect());
+            // columns: 1 joint 1, 2 joint 2, 3 the wagon's offset, 4 its lag
+            for (axis, col) in [(0, 3), (1, 1), (2, 2)] {
+                let Some(se) = fit
+                    .se(col)
+                    .filter(|v| v.is_finite() && *v > 0.0 && *v <= SMOOTH_SE_MAX_DEG)
+                else {
+                    continue;
+                };
+                if fit.beta[col].is_finite() {
+                    let s = &mut sums[axis];
+                    s.0 += fit.beta[col];
+                    s.1 += se * se;
+                    s.2 += 1;
+                }
+            }
+        }
+        for (o, (sum, var, n)) in out.iter_mut().zip(sums) {
+            if n > 0 {
+                let m = n as f64;
+                *o = Some((sum / m, var.sqrt() / m));
+            }
+        }
+        out
+    }
+
+    /// The pair from the captures of the last `PAIR_WINDOW_SWEEPS` completed sweeps, or None
+    /// when none qualifies.
+    fn choose_wagon_pair(&self, sweep: &Sweep, noise: &RecaptureNoise) -> Option<WagonPair> {
+        let lights: Vec<usize> = self
+            .sweep_starts
+            .iter()
+            .rev()
+            .take(PAIR_WINDOW_SWEEPS)
+            .map(|s| s.light)
+            .collect();
+        let candidates: Vec<(usize, [f64; 3], f64)> = (0..self.captures.len())
+            .filter(|&i| {
+                let c = &self.captures[i];
+                lights.contains(&c.light)
+                    && (MIN_COS_THETA_O..=MAX_COS_THETA_O).contains(&c.omega_o.z)
+                    && !self.reserved.contains(&c.entry)
+            })
+            .filter_map(|i| {
+                let cmd = &self.captures[i].cmd;
+                let s = self.sensitivities(cmd, Model::Smooth)?;
+                let c = self.wagon_curvature(cmd)?;
+                (s.iter().all(|v| v.is_finite()) && c.is_finite()).then_some((i, s, c))
+            })
+            .collect();
+        let mut best: Option<(f64, usize, usize, [f64; 3], f64)> = None;
+        for (a, sa, ca) in &candidates {
+            let var_a = noise.var_at(self.captures[*a].y);
+            for (b, sb, cb) in &candidates {
+                // [wagon, joint 1, joint 2] of a less b: a rises with the wagon against b
+                let ds = [sa[2] - sb[2], sa[0] - sb[0], sa[1] - sb[1]];
+                if ds[0] <= 0.0
+                    || ds[2].abs() > MAX_JOINT_LEAK * ds[0]
+                    || (ca - cb).abs() > MAX_CURVATURE * ds[0]
+                {
+                    continue;
+                }
+                let var = var_a + noise.var_at(self.captures[*b].y);
+                let z = ds[0] / var.sqrt();
+                if z.is_finite() && z >= MIN_Z_PER_DEG && best.is_none_or(|bb| z > bb.0) {
+                    best = Some((z, *a, *b, ds, var));
+                }
+            }
+        }
+        let (_, a, b, s, var) = best?;
+        let (ca, cb) = (&self.captures[a], &self.captures[b]);
+        Some(WagonPair {
+            entries: [ca.entry, cb.entry],
+            cmd: [ca.cmd, cb.cmd],
+            y0: [ca.y, cb.y],
+            lights: [ca.light, cb.light],
+            s,
+            var,
+            chosen_idx: sweep.last_idx,
+        })
+    }
+
+    /// Half the second difference of the smooth model's ln Y over a degree of wagon either way
+    /// from the commanded pose `cmd` (ln Y per degree², so that a degree moves ln Y by the
+    /// slope plus this).
+    fn wagon_curvature(&self, cmd: &[f64; 4]) -> Option<f64> {
+        let at = |d: f64| {
+            self.ln_y(
+                &Pose {
+                    joints_deg: [cmd[0], cmd[1], cmd[2]],
+                    wagon_deg: cmd[3] + d,
+                },
+                Model::Smooth,
+            )
+        };
+        Some((at(1.0)? + at(-1.0)? - 2.0 * at(0.0)?) / 2.0)
+    }
+
+    /// The pair's sensitivities [wagon, joint 1, joint 2] of its difference (ln Y per degree)
+    /// with the current smooth model; those it was chosen with where the model gives none.
+    fn wagon_pair_sensitivity(&self, p: &WagonPair) -> [f64; 3] {
+        match (
+            self.sensitivities(&p.cmd[0], Model::Smooth),
+            self.sensitivities(&p.cmd[1], Model::Smooth),
+        ) {
+            (Some(a), Some(b)) => {
+                let s = [a[2] - b[2], a[0] - b[0], a[1] - b[1]];
+                if s.iter().all(|v| v.is_finite()) && s[0] > 0.0 {
+                    s
+                } else {
+                    p.s
+                }
+            }
+            _ => p.s,
+        }
+    }
+
+    /// A re-capture of `entry` the question waited for, with luminance `y`. Once both are in,
+    /// the reading is judged.
+    pub(super) fn handle_wagon_recapture(&mut self, entry: usize, y: f64) {
+        let Some(p) = self.wagon_watch.pair.clone() else {
+            return;
+        };
+        let Some(q) = self.wagon_watch.question.as_mut() else {
+            return;
+        };
+        for k in 0..2 {
+            if p.entries[k] == entry && q.readings[k].is_none() {
+                // an unusable reading ends the question (asked again at the next cadence)
+                q.readings[k] = Some((y / p.y0[k]).ln());
+                break;
+            }
+        }
+        let [Some(ra), Some(rb)] = q.readings else {
+            return;
+        };
+        let Some(q) = self.wagon_watch.question.take() else {
+            return;
+        };
+        let d = ra - rb;
+        if d.is_finite() {
+            self.judge_wagon_reading(&p, &q, d);
+        }
+    }
+
+    /// One answered question: its reading joins the segment while no CUSUM run is under way;
+    /// a crossing waits for the sweeps to attribute it (`attribute_departure`).
+    fn judge_wagon_reading(&mut self, p: &WagonPair, q: &Question, d: f64) {
+        let s = self.wagon_pair_sensitivity(p);
+        let min_deg = MIN_OFFSET_TOLERANCES * self.spec.joint_tolerance_deg;
+        let (k, clip) = (self.spec.cusum_k, self.spec.clip);
+        let h = cusum_threshold(k, self.spec.false_alarm_runs * QUESTIONS_PER_RUN);
+        let latched = self.latched.contains(&Latch::Wagon);
+        let w = &mut self.wagon_watch;
+        w.readings += 1;
+        let Some((mean, sd)) = w.reference(p.var) else {
+            w.segment.values.push(d);
+            w.asked_after.push(q.at.last_idx);
+            return;
+        };
+        w.asked_after.push(q.at.last_idx);
+        let e = d - mean;
+        w.last_e = Some(e);
+        let z = (e / sd).clamp(-clip, clip);
+        w.last_z = z;
+        w.cusum.add(z, k, e / s[0], sd / s[0], q.at.last_idx);
+        let (stat, run) = if w.cusum.up >= w.cusum.down {
+            (w.cusum.up, w.cusum.up_run)
+        } else {
+            (w.cusum.down, w.cusum.down_run)
+        };
+        let (offset, se) = run.mean_and_se();
+        let departs =
+            stat > h && run.n >= 2 && offset.abs() >= min_deg && !latched && w.departed.is_none();
+        w.segment.record(d, stat > 0.0, departs);
+        if departs {
+            {
+                // the first capture after the question before the run's first
+                let since_idx = w
+                    .asked_after
+                    .iter()
+                    .copied()
+                    .filter(|&i| i < run.start)
+                    .max()
+                    .unwrap_or(p.chosen_idx)
+                    + 1;
+                w.departed = Some(Departed {
+                    at: q.at,
+                    change: offset * s[0],
+                    change_se: se * s[0],
+                    readings: run.n,
+                    statistic: stat,
+                    threshold: h,
+                    since_idx,
+                    run_start: run.start,
+                    s,
+                    sweeps: 0,
+                });
+            }
+        }
+    }
+
+    /// A regular capture was checked: a question not answered within
+    /// `RECAPTURE_WAIT_CAPTURES` is dropped (asked again at the next cadence).
+    pub(super) fn wagon_watch_wait(&mut self) {
+        if let Some(q) = self.wagon_watch.question.as_mut().filter(|q| q.asked) {
+            q.waited += 1;
+            if q.waited >= recapture::RECAPTURE_WAIT_CAPTURES {
+                self.wagon_watch.question = None;
+            }
+        }
+    }
+
+    /// The watch for the summary: none unless it is on (a probe-taking rig).
+    pub(crate) fn wagon_watch_summary(&self) -> Option<WagonWatchSummary> {
+        if self.spec.wagon_watch_sweeps == 0 || self.recapture.is_none() {
+            return None;
+        }
+        let w = &self.wagon_watch;
+        let Some(p) = w.pair.as_ref() else {
+            return Some(WagonWatchSummary {
+                entries: None,
+                sensitivity_pct_per_deg: 0.0,
+                joint_sensitivity_pct_per_deg: [0.0; 2],
+                readings: 0,
+                offset_deg: 0.0,
+                se_deg: 0.0,
+            });
+        };
+        let s = self.wagon_pair_sensitivity(p);
+        Some(WagonWatchSummary {
+            entries: Some(p.entries),
+            sensitivity_pct_per_deg: 100.0 * s[0],
+            joint_sensitivity_pct_per_deg: [100.0 * s[1], 100.0 * s[2]],
+            readings: w.readings,
+            offset_deg: w.last_e.map_or(0.0, |e| e / s[0]),
+            se_deg: p.var.sqrt() / s[0],
+        })
+    }
+}
