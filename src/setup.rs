@@ -188,6 +188,9 @@ pub(crate) struct ProbeCadence {
     /// session: `SECONDS_PER_CAPTURE` a capture).
     pub overhead_h: f64,
     pub overhead_pct: f64,
+    /// The wagon's re-captured pair (`detect::sweeps::wagon_watch`) where the session runs it:
+    /// its re-captures at most, and the run time they add (hours, %).
+    pub wagon_watch: Option<(u64, f64, f64)>,
 }
 
 /// Where a session's probe cadence came from.
@@ -230,6 +233,7 @@ pub(crate) fn probe_cadence(cfg: &Config) -> Result<ProbeCadence, ConfigError> {
                 origin: CadenceOrigin::Configured,
                 overhead_h,
                 overhead_pct,
+                wagon_watch: wagon_watch_cost(cfg, &plan, every),
             });
         }
         ProbeEvery::Auto if cfg.source.kind == SourceKind::Files => {
@@ -238,6 +242,7 @@ pub(crate) fn probe_cadence(cfg: &Config) -> Result<ProbeCadence, ConfigError> {
                 origin: CadenceOrigin::NoController,
                 overhead_h: 0.0,
                 overhead_pct: 0.0,
+                wagon_watch: None,
             })
         }
         ProbeEvery::Auto => {
@@ -270,16 +275,51 @@ pub(crate) fn probe_cadence(cfg: &Config) -> Result<ProbeCadence, ConfigError> {
         origin,
         overhead_h,
         overhead_pct,
+        wagon_watch: wagon_watch_cost(cfg, &plan, every),
     })
+}
+
+/// The wagon watch's re-captures at most and the run time they add (hours, % of the run), when
+/// a session with probes every `every` captures runs it: an isotropic sample in a light-outer
+/// order with the light sweeps and `wagon_watch_sweeps` on.
+fn wagon_watch_cost(cfg: &Config, plan: &SamplingPlan, every: u64) -> Option<(u64, f64, f64)> {
+    let sw = &cfg.checks.sweeps;
+    let runs = every > 0
+        && cfg.sample.isotropic
+        && sw.enabled
+        && sw.wagon_watch_sweeps > 0
+        && !matches!(
+            plan.order(),
+            crate::measure::plan::AcquisitionOrder::CameraOuter
+        );
+    if !runs {
+        return None;
+    }
+    let captures = 2 * crate::detect::sweeps::wagon_watch_questions(
+        plan.direction_count(),
+        sw.wagon_watch_sweeps,
+    );
+    let run_h = plan.capture_count() as f64 * SECONDS_PER_CAPTURE / 3600.0;
+    let h = captures as f64 * SECONDS_PER_CAPTURE / 3600.0;
+    Some((
+        captures,
+        h,
+        if run_h > 0.0 { 100.0 * h / run_h } else { 0.0 },
+    ))
 }
 
 impl ProbeCadence {
     /// One line for the operator at the start of a session.
     pub(crate) fn describe(&self) -> String {
-        let cost = format!(
+        let mut cost = format!(
             "adds {:.2} h, {:.1} % of the run",
             self.overhead_h, self.overhead_pct
         );
+        if let Some((n, h, pct)) = self.wagon_watch {
+            cost.push_str(&format!(
+                "; the wagon's re-captured pair at most {n} more captures, {h:.2} h, {pct:.1} %"
+            ));
+        }
         match (&self.origin, self.every) {
             (CadenceOrigin::NoController, _) => {
                 "drift probes: every = \"auto\" → none (a files source cannot take probes; the lamp is watched from the pairs and the sweeps)".into()
@@ -368,5 +408,12 @@ mod tests {
         assert_eq!(cfg.probes.every, ProbeEvery::Auto);
         let c = probe_cadence(&cfg).unwrap();
         assert!(c.every > 0 && c.overhead_pct < 1.0, "{c:?}");
+        // an isotropic sample in the UBO order: the wagon's pair too, under 1 % of the run
+        let (n, _, pct) = c.wagon_watch.unwrap();
+        assert!(n > 0 && pct < 1.0, "{c:?}");
+        assert!(c.describe().contains("the wagon's re-captured pair"));
+        let mut off = cfg.clone();
+        off.checks.sweeps.wagon_watch_sweeps = 0;
+        assert_eq!(probe_cadence(&off).unwrap().wagon_watch, None);
     }
 }

@@ -61,7 +61,7 @@ pub(crate) use findings::{
 use level::ScaleHistory;
 use model::{Model, PatternFit, Reference, Row};
 pub(crate) use recapture::RecaptureNoise;
-pub(crate) use wagon_watch::WagonWatchSummary;
+pub(crate) use wagon_watch::{wagon_watch_questions, WagonWatchSummary};
 
 /// `[checks.sweeps]` in the config.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -222,6 +222,16 @@ impl WagonWatch {
     }
 }
 
+/// The questions the watch asks in a run of `lights` light sweeps at one every `every_sweeps`
+/// (at most: the readings that fill its reference come one a sweep, and a departure is asked
+/// again after the next sweep), two captures each.
+pub(crate) fn wagon_watch_questions(lights: usize, every_sweeps: usize) -> u64 {
+    if every_sweeps == 0 {
+        return 0;
+    }
+    (MIN_SEGMENT + lights / every_sweeps) as u64
+}
+
 /// The normal's 97.5 % quantile.
 const T975_NORMAL: f64 = 1.959_964;
 
