@@ -189,7 +189,7 @@ pub(crate) struct ProbeCadence {
     pub overhead_h: f64,
     pub overhead_pct: f64,
     /// The wagon's re-captured pair (`detect::sweeps::wagon_watch`) where the session runs it:
-    /// its re-captures at most, and the run time they add (hours, %).
+    /// about how many re-captures it takes, and the run time they add (hours, %).
     pub wagon_watch: Option<(u64, f64, f64)>,
 }
 
@@ -279,7 +279,7 @@ pub(crate) fn probe_cadence(cfg: &Config) -> Result<ProbeCadence, ConfigError> {
     })
 }
 
-/// The wagon watch's re-captures at most and the run time they add (hours, % of the run), when
+/// About how many re-captures the wagon watch takes and the run time they add (hours, % of the run), when
 /// a session with probes every `every` captures runs it: an isotropic sample in a light-outer
 /// order with the light sweeps and `wagon_watch_sweeps` on.
 fn wagon_watch_cost(cfg: &Config, plan: &SamplingPlan, every: u64) -> Option<(u64, f64, f64)> {
@@ -317,7 +317,7 @@ impl ProbeCadence {
         );
         if let Some((n, h, pct)) = self.wagon_watch {
             cost.push_str(&format!(
-                "; the wagon's re-captured pair at most {n} more captures, {h:.2} h, {pct:.1} %"
+                "; the wagon's re-captured pair about {n} more captures, {h:.2} h, {pct:.1} %"
             ));
         }
         match (&self.origin, self.every) {
