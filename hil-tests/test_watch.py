@@ -151,10 +151,16 @@ def test_file_times_that_step_back_are_alarmed_and_removed_from_the_time_line(tm
     w = Watch(watch_config(tmp_path, 'order = "mtime"\npoll_ms = 100\n'), tmp_path / "clock-session", folder)
     t0 = time.time()
     try:
+        staging = tmp_path / "clock-staging"
+        staging.mkdir()
         for k, f in enumerate(files):
-            shutil.copy(f, folder / f.name)
+            # the file appears with its time already set (a rename), as a camera's finished
+            # file would: copied in and touched after, a busy machine can let the watcher see
+            # the copy's own time first
+            shutil.copy(f, staging / f.name)
             t = t0 + 7.0 * k - (3600.0 if k >= 30 else 0.0)
-            os.utime(folder / f.name, (t, t))
+            os.utime(staging / f.name, (t, t))
+            os.replace(staging / f.name, folder / f.name)
             if k in (29, 59):
                 w.wait(lambda c, n=k + 1: len(c) >= n, f"{k + 1} captures")
     finally:
