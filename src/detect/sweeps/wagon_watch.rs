@@ -43,8 +43,8 @@ use super::*;
 pub(super) const MIN_OFFSET_TOLERANCES: f64 = 2.0;
 /// Readings in the segment before the CUSUM runs.
 pub(super) const MIN_SEGMENT: usize = 4;
-/// The pair's sensitivity to each arm joint, against its sensitivity to the wagon, at most: a
-/// joint slip of 2° reads as at most 0.5° of wagon.
+/// The pair's sensitivity to joint 2 against its sensitivity to the wagon, at most (joint 1
+/// cannot be held out so: the module comment); a joint-2 slip of 2° reads as 0.5° of wagon.
 pub(super) const MAX_JOINT_LEAK: f64 = 0.25;
 /// A pair is chosen only when a 1° offset moves a reading by this many standard deviations of
 /// the noise model.
@@ -644,5 +644,82 @@ impl SweepMonitor {
             offset_deg: w.last_e.map_or(0.0, |e| e / s[0]),
             se_deg: p.var.sqrt() / s[0],
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A monitor whose watch has a pair and a question asked, waiting for both re-captures.
+    fn waiting() -> SweepMonitor {
+        let rig = Rig::new(Default::default()).unwrap();
+        let mut m = SweepMonitor::new(SweepSpec::default(), rig, 81);
+        m.set_recapture(Some(RecaptureNoise {
+            sd: 0.004,
+            y_ref: None,
+        }));
+        m.wagon_watch.pair = Some(WagonPair {
+            entries: [650, 210],
+            cmd: [[0.0; 4]; 2],
+            y0: [0.75, 0.63],
+            lights: [8, 2],
+            s: [0.05, -0.05, 0.0],
+            var: 3.2e-5,
+            chosen_idx: 728,
+        });
+        m.wagon_watch.question = Some(Question {
+            asked: true,
+            waited: 0,
+            readings: [None; 2],
+            at: SweepAt {
+                light: 8,
+                last_idx: 728,
+                last_t: 5096.0,
+                layer_mdeg: 30_000,
+            },
+        });
+        m
+    }
+
+    #[test]
+    fn a_dark_or_broken_re_capture_ends_the_question_without_a_reading() {
+        for bad in [f64::NAN, 0.0, -1.0, f64::INFINITY] {
+            let mut m = waiting();
+            assert!(m.awaits_recapture(650) && m.awaits_recapture(210));
+            assert!(m.handle_recapture(650, bad).findings.is_empty());
+            assert!(m.handle_recapture(210, 0.63).findings.is_empty());
+            assert!(m.wagon_watch.question.is_none(), "{bad}");
+            assert_eq!(m.wagon_watch.readings, 0, "{bad}");
+            assert!(m.wagon_watch.segment.values.is_empty(), "{bad}");
+        }
+        // a usable pair is a reading
+        let mut m = waiting();
+        m.handle_recapture(650, 0.75);
+        m.handle_recapture(210, 0.63);
+        assert_eq!(m.wagon_watch.readings, 1);
+        // an entry the question does not wait for is not the watch's
+        let m = waiting();
+        assert!(!m.awaits_recapture(651));
+    }
+
+    #[test]
+    fn an_unanswered_question_is_dropped_after_the_wait() {
+        let mut m = waiting();
+        for _ in 0..recapture::RECAPTURE_WAIT_CAPTURES {
+            assert!(m.handle_regular_capture().findings.is_empty());
+        }
+        assert!(m.wagon_watch.question.is_none());
+        assert!(!m.awaits_recapture(650));
+    }
+
+    #[test]
+    fn the_cost_is_under_one_percent_of_the_ubo_run_and_none_when_off() {
+        let captures = 2 * wagon_watch_questions(81, 3);
+        assert!(
+            captures > 0 && (captures as f64) < 0.01 * 6561.0,
+            "{captures}"
+        );
+        assert_eq!(wagon_watch_questions(81, 0), 0);
     }
 }
