@@ -94,6 +94,8 @@ pub enum AlarmCode {
     GainStep,
     /// A gain step was later explained otherwise.
     GainStepWithdrawn,
+    /// The lamp probe departed from its trend while the camera's pose moved: not a lamp step.
+    ProbeMovedWithPose,
     /// The images show an arm joint or the wagon off its commanded angle.
     JointOffsetSuspected,
     /// No pose of the sample can watch arm joint 3.
@@ -144,7 +146,7 @@ pub enum AlarmCode {
 
 impl AlarmCode {
     /// Every code.
-    pub(crate) const ALL: [AlarmCode; 49] = [
+    pub(crate) const ALL: [AlarmCode; 50] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
@@ -181,6 +183,7 @@ impl AlarmCode {
         AlarmCode::PortLost,
         AlarmCode::PoseOffPlan,
         AlarmCode::PoseOffPlanCleared,
+        AlarmCode::ProbeMovedWithPose,
         AlarmCode::ProbePoseUnavailable,
         AlarmCode::ProbesRefused,
         AlarmCode::ReciprocityOutlier,
@@ -225,6 +228,7 @@ impl AlarmCode {
             AlarmCode::GainDriftCleared => "gain-drift-cleared",
             AlarmCode::GainStep => "gain-step",
             AlarmCode::GainStepWithdrawn => "gain-step-withdrawn",
+            AlarmCode::ProbeMovedWithPose => "probe-moved-with-pose",
             AlarmCode::JointOffsetSuspected => "joint-offset-suspected",
             AlarmCode::Joint3SentinelUnavailable => "joint3-sentinel-unavailable",
             AlarmCode::LampUnstable => "lamp-unstable",
@@ -280,6 +284,7 @@ impl AlarmCode {
             AlarmCode::GainDriftCleared => "a gain drift no longer holds",
             AlarmCode::GainStep => "the lamp's gain stepped",
             AlarmCode::GainStepWithdrawn => "a gain step was later explained otherwise",
+            AlarmCode::ProbeMovedWithPose => "the lamp probe departed from its trend while the camera's pose moved: not raised as a lamp step",
             AlarmCode::JointOffsetSuspected => "the images show an arm joint or the wagon off its commanded angle",
             AlarmCode::Joint3SentinelUnavailable => "no pose of the sample can watch arm joint 3",
             AlarmCode::LampUnstable => "the lamp's gain moves from capture to capture: the probes, or without them the light sweeps, scatter more than a steady lamp allows",

@@ -98,6 +98,8 @@ pub enum Evidence {
     SweepStep(SweepStep),
     /// `gain-step` from the pairs or the probes.
     TrendStep(TrendStep),
+    /// `probe-moved-with-pose`.
+    ProbePoseMoved(ProbePoseMoved),
     /// `gain-drift`.
     GainRate(GainRate),
     /// `trend-unresolved`.
@@ -432,6 +434,21 @@ pub struct TrendStep {
     pub source: Source,
 }
 
+/// A lamp probe's departure from its trend that the wagon pair's reading, taken right after it,
+/// explains: the probe's departure (direction, statistic, threshold), the pair's reading in
+/// standard deviations of its readings in control and as degrees of wagon, and the probe pose's
+/// change per degree of wagon (%/°, the smooth model's; absent when it gives none).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProbePoseMoved {
+    pub direction: i8,
+    pub statistic: f64,
+    pub threshold: f64,
+    pub probe_idx: u64,
+    pub pose_z: f64,
+    pub wagon_deg: f64,
+    pub probe_sensitivity_pct_per_deg: Option<f64>,
+}
+
 /// A gain drift rate with its standard error (%/h) and the observations behind it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GainRate {
@@ -581,6 +598,7 @@ impl Evidence {
             C::SlipRefuted => parse(&v, Evidence::SlipRefuted),
             C::WagonBacklashSuspected => parse(&v, Evidence::WagonBacklash),
             C::WagonOffsetSuspected => parse(&v, Evidence::WagonOffset),
+            C::ProbeMovedWithPose => parse(&v, Evidence::ProbePoseMoved),
             C::LampUnstable | C::LampUnstableCleared => {
                 parse(&v, Evidence::LampScatter).or_else(|| parse(&v, Evidence::SweepScatter))
             }
@@ -645,6 +663,7 @@ impl Evidence {
             Evidence::SlipRefuted(_) => code == C::SlipRefuted,
             Evidence::WagonBacklash(_) => code == C::WagonBacklashSuspected,
             Evidence::WagonOffset(_) => code == C::WagonOffsetSuspected,
+            Evidence::ProbePoseMoved(_) => code == C::ProbeMovedWithPose,
             Evidence::LampScatter(_) | Evidence::SweepScatter(_) => {
                 matches!(code, C::LampUnstable | C::LampUnstableCleared)
             }

@@ -370,7 +370,7 @@ impl Checker {
                     self.probes
                         .sentinel_probe(&self.ledger, input, &m, &mut out);
                 } else if input.probe {
-                    self.probes.lamp_probe(&self.ledger, input, &m, &mut out);
+                    self.lamp_probe(input, &m, &mut out);
                 } else {
                     self.regular(input, m, &mut out);
                 }
@@ -378,6 +378,7 @@ impl Checker {
             }
         }
         self.light_seen(input, &mut out);
+        self.resolve_held_step(&mut out);
         // a waiting substitute is scored once its partner's light direction is complete
         if self.pairs.any_ready(&self.ledger) {
             self.resolve(
@@ -399,6 +400,8 @@ impl Checker {
         if let Some(o) = self.sweeps.as_mut().map(|s| s.handle_end()) {
             self.apply_sweep_outcome(o, (None, Some(t)), &mut out);
         }
+        // a step still waiting for a check of the pose is raised as found
+        self.probes.release_held_step(&mut out);
         self.alarms += out.alarms.len() as u64;
         out
     }
@@ -578,9 +581,39 @@ impl Checker {
         }
     }
 
+    /// A lamp probe. A step it finds while the wagon pair can say whether the camera's pose
+    /// moved is held for the pair's next reading, asked for at once (`resolve_held_step`): a
+    /// lamp probe pose turns with the view, and a degree of wagon can move it as far as a lamp
+    /// step of a per cent.
+    fn lamp_probe(&mut self, input: &CaptureInput, m: &Measured, out: &mut CheckOutput) {
+        let hold = self
+            .sweeps
+            .as_ref()
+            .filter(|s| s.can_check_pose())
+            .map(|s| s.wagon_sensitivity_of(input.entry));
+        let held = self.probes.lamp_probe(&self.ledger, input, m, hold, out);
+        if held && !self.sweeps.as_mut().is_some_and(|s| s.request_pose_check()) {
+            self.probes.release_held_step(out);
+        }
+    }
+
+    /// A held probe step gets its pose check's reading once there is one.
+    fn resolve_held_step(&mut self, out: &mut CheckOutput) {
+        if !self.probes.holds_step() {
+            return;
+        }
+        match self.sweeps.as_mut().map(|s| s.poll_pose_check()) {
+            Some(Some(check)) => self.probes.resolve_held_step(check, out),
+            Some(None) => {}
+            // no sweeps to ask (cannot happen: a step is held only with them)
+            None => self.probes.release_held_step(out),
+        }
+    }
+
     /// A regular capture was seen: a slip whose re-captures did not come in time is named
     /// from the sweeps alone.
     fn recapture_wait(&mut self, input: &CaptureInput, out: &mut CheckOutput) {
+        self.probes.held_step_wait(out);
         if let Some(o) = self.sweeps.as_mut().map(|s| s.handle_regular_capture()) {
             self.apply_sweep_outcome(o, (Some(input.idx), Some(input.t)), out);
         }

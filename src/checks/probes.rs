@@ -11,16 +11,39 @@ use super::drift::{drift_alarm, ColourDriftSpec, ColourStage};
 use super::evidence::{self, Evidence, Source};
 use super::{CaptureInput, CheckOutput, Ledger, Measured};
 use crate::detect::drift::DriftEstimate;
+use crate::detect::drift::DriftEvent;
 use crate::detect::probes::{choose_probe_pose, PoseSample, ProbeDrift, ProbePose, ProbeSpec};
 use crate::detect::sentinel::{
     choose_sentinel, Joint3Sentinel, RingSample, SentinelPose, SentinelSummary,
 };
+use crate::detect::sweeps::PoseCheck;
 use crate::measure::kinematics::{Incidence, Rig};
 use crate::measure::plan::SamplingPlan;
 
 /// The most captures a sentinel probe may follow its round's lamp probe by (see
 /// `ProbeStage::sentinel_probe`).
 const SENTINEL_ROUND_CAPTURES: u64 = 3;
+
+/// A pose check's reading this many standard deviations from the pair's readings in control
+/// says the camera's pose moved: a steady pose reaches it about 3 times in 1,000.
+pub(crate) const POSE_MOVED_Z: f64 = 3.0;
+/// A held step waits at most this many regular captures for its pose check, then is raised.
+const HOLD_MAX_CAPTURES: u64 = 2 * crate::detect::sweeps::RECAPTURE_WAIT_CAPTURES;
+
+/// A lamp probe's step held until the wagon pair says whether the camera's pose moved with it:
+/// the wagon moves the camera along the arc, and a lamp probe pose whose luminance turns with the
+/// view cannot tell a degree of wagon from a lamp step of its size.
+#[derive(Debug, Clone)]
+struct HeldStep {
+    alarm: Alarm,
+    direction: i8,
+    statistic: f64,
+    threshold: f64,
+    probe_idx: u64,
+    /// The probe pose's ln Y per degree of wagon, when the sweeps' model gives one.
+    sensitivity: Option<f64>,
+    waited: u64,
+}
 
 /// What choosing the probes' poses after a regular capture gave, in order: a pose chosen, or
 /// the alarm that none qualifies (said once).
@@ -73,6 +96,8 @@ pub(super) struct ProbeStage {
     sentinel: SentinelWatch,
     /// Regular captures checked: the poses are chosen at each multiple of a light sweep.
     regular_checked: u64,
+    /// A step waiting for a check of the camera's pose.
+    held: Option<HeldStep>,
 }
 
 impl ProbeStage {
@@ -105,6 +130,7 @@ impl ProbeStage {
             },
             drift: ProbeDrift::new(probes),
             regular_checked: 0,
+            held: None,
         }
     }
 
@@ -151,19 +177,23 @@ impl ProbeStage {
     }
 
     /// A lamp probe re-captures its entry's pose: its luminance against the entry's original
-    /// is the gain change.
+    /// is the gain change. With `hold` (a check of the camera's pose can be asked for; the
+    /// probe pose's wagon sensitivity beside it), a step is held for it rather than raised;
+    /// returns whether one was.
     pub(super) fn lamp_probe(
         &mut self,
         ledger: &Ledger,
         input: &CaptureInput,
         m: &Measured,
+        hold: Option<Option<f64>>,
         out: &mut CheckOutput,
-    ) {
+    ) -> bool {
+        let mut held = false;
         if m.checked.dark {
-            return;
+            return held;
         }
         let Some(orig) = ledger.get(input.entry) else {
-            return;
+            return held;
         };
         let at = (Some(input.idx), Some(input.t));
         let (t0, y0) = (orig.t, orig.xyz[1]);
@@ -179,7 +209,30 @@ impl ProbeStage {
         ) {
             // a step happened after the last probe before this one
             let since = self.last_probe_idx.map(|i| i + 1);
-            out.alarms.push(drift_alarm(ev, Source::Probes, at, since));
+            let alarm = drift_alarm(ev, Source::Probes, at, since);
+            match (ev, hold) {
+                (
+                    DriftEvent::Step {
+                        direction,
+                        statistic,
+                        threshold,
+                        ..
+                    },
+                    Some(sensitivity),
+                ) if self.held.is_none() => {
+                    self.held = Some(HeldStep {
+                        alarm,
+                        direction,
+                        statistic,
+                        threshold,
+                        probe_idx: input.idx,
+                        sensitivity,
+                        waited: 0,
+                    });
+                    held = true;
+                }
+                _ => out.alarms.push(alarm),
+            }
         }
         if let Some(colour) = self.colour.as_mut() {
             colour.observe(
@@ -191,6 +244,78 @@ impl ProbeStage {
             );
         }
         self.last_probe_idx = Some(input.idx);
+        held
+    }
+
+    /// Whether a step waits for a check of the pose.
+    pub(super) fn holds_step(&self) -> bool {
+        self.held.is_some()
+    }
+
+    /// The pose check a held step waited for: a reading `POSE_MOVED_Z` from the pair's readings
+    /// in control, the way the probe pose's wagon sensitivity makes the step's sign (any way
+    /// when the model gives none), explains the step, which is said as `probe-moved-with-pose`
+    /// (info); anything else raises the step as it was found.
+    pub(super) fn resolve_held_step(&mut self, check: PoseCheck, out: &mut CheckOutput) {
+        let Some(h) = self.held.take() else {
+            return;
+        };
+        let PoseCheck::Read { z, wagon_deg } = check else {
+            out.alarms.push(h.alarm);
+            return;
+        };
+        let sign_agrees = h
+            .sensitivity
+            .is_none_or(|s| s * wagon_deg * f64::from(h.direction) > 0.0);
+        if !(z.abs() >= POSE_MOVED_Z && sign_agrees) {
+            out.alarms.push(h.alarm);
+            return;
+        }
+        out.alarms.push(
+            Alarm::new(
+                AlarmKind::Drift,
+                Severity::Info,
+                AlarmCode::ProbeMovedWithPose,
+                format!(
+                    "the lamp probe at capture {} went {} from its trend by {:.1} standard deviations (a step's threshold is {}), while the camera's pose moved: the wagon pair, re-captured right after it and blind to the lamp's gain, read {:+.2}° of wagon, {:.1} standard deviations from its readings in control; not raised as a lamp step (the positioning checks name the axis), and the probes' trend starts again at this probe",
+                    h.probe_idx,
+                    if h.direction > 0 { "up" } else { "down" },
+                    h.statistic,
+                    h.threshold,
+                    wagon_deg,
+                    z
+                ),
+            )
+            .at(h.alarm.idx, h.alarm.t)
+            .with(Evidence::ProbePoseMoved(evidence::ProbePoseMoved {
+                direction: h.direction,
+                statistic: h.statistic,
+                threshold: h.threshold,
+                probe_idx: h.probe_idx,
+                pose_z: z,
+                wagon_deg,
+                probe_sensitivity_pct_per_deg: h.sensitivity.map(|s| 100.0 * s),
+            })),
+        );
+    }
+
+    /// A regular capture was checked while a step is held: past `HOLD_MAX_CAPTURES` (the pair
+    /// was never asked: the link was down) it is raised.
+    pub(super) fn held_step_wait(&mut self, out: &mut CheckOutput) {
+        let Some(h) = self.held.as_mut() else {
+            return;
+        };
+        h.waited += 1;
+        if h.waited >= HOLD_MAX_CAPTURES {
+            self.release_held_step(out);
+        }
+    }
+
+    /// A held step is raised as found (the run ended, or no check of the pose could be asked).
+    pub(super) fn release_held_step(&mut self, out: &mut CheckOutput) {
+        if let Some(h) = self.held.take() {
+            out.alarms.push(h.alarm);
+        }
     }
 
     /// A sentinel probe: its luminance ratio against the lamp probe of its round is joint 3's
@@ -466,4 +591,123 @@ fn dphi_o_dq3(rig: &Rig, inc: &Incidence) -> Option<f64> {
     let b = rig.forward(&turned).ok()?.angles().phi_o_deg;
     let d = ((b - a + 180.0).rem_euclid(360.0) - 180.0) / H;
     d.is_finite().then_some(d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::probes::ProbeEvery;
+
+    fn stage_holding(sensitivity: Option<f64>) -> ProbeStage {
+        let mut st = ProbeStage::new(
+            true,
+            ProbeSpec {
+                every: ProbeEvery::Captures(75),
+                ..ProbeSpec::default()
+            },
+            &ColourDriftSpec::default(),
+        );
+        let ev = DriftEvent::Step {
+            direction: -1,
+            statistic: 6.8,
+            threshold: 5.0,
+            pairs_since_reset: 43,
+        };
+        st.held = Some(HeldStep {
+            alarm: drift_alarm(ev, Source::Probes, (Some(3291), Some(23037.0)), Some(3216)),
+            direction: -1,
+            statistic: 6.8,
+            threshold: 5.0,
+            probe_idx: 3291,
+            sensitivity,
+            waited: 0,
+        });
+        st
+    }
+
+    fn resolved(sensitivity: Option<f64>, check: PoseCheck) -> Vec<Alarm> {
+        let mut st = stage_holding(sensitivity);
+        assert!(st.holds_step());
+        let mut out = CheckOutput::default();
+        st.resolve_held_step(check, &mut out);
+        assert!(!st.holds_step());
+        out.alarms
+    }
+
+    /// A probe 1.3 % down (its pose loses 1.3 %/° as the wagon rises) with the pair reading
+    /// +1° of wagon at 5 SD is the pose's, said as info at the probe; anything else raises the
+    /// step as found, at the probe.
+    #[test]
+    fn a_held_step_is_the_pose_s_only_when_the_pair_moved_the_way_that_explains_it() {
+        let moved = PoseCheck::Read {
+            z: 5.0,
+            wagon_deg: 1.0,
+        };
+        for sensitivity in [Some(-0.013), None] {
+            let a = resolved(sensitivity, moved);
+            assert_eq!(a.len(), 1);
+            assert_eq!(a[0].code, AlarmCode::ProbeMovedWithPose);
+            assert_eq!(a[0].severity, Severity::Info);
+            assert_eq!((a[0].idx, a[0].t), (Some(3291), Some(23037.0)));
+            let Evidence::ProbePoseMoved(e) = &a[0].evidence else {
+                panic!("{:?}", a[0].evidence)
+            };
+            assert_eq!((e.direction, e.probe_idx, e.pose_z), (-1, 3291, 5.0));
+            assert_eq!(
+                e.probe_sensitivity_pct_per_deg,
+                sensitivity.map(|s| 100.0 * s)
+            );
+        }
+        for (sensitivity, check) in [
+            // the pair moved the other way
+            (
+                Some(-0.013),
+                PoseCheck::Read {
+                    z: -5.0,
+                    wagon_deg: -1.0,
+                },
+            ),
+            // the pair did not move
+            (
+                Some(-0.013),
+                PoseCheck::Read {
+                    z: 1.2,
+                    wagon_deg: 0.2,
+                },
+            ),
+            (
+                None,
+                PoseCheck::Read {
+                    z: -2.9,
+                    wagon_deg: -0.6,
+                },
+            ),
+            (None, PoseCheck::Unanswered),
+        ] {
+            let a = resolved(sensitivity, check);
+            assert_eq!(a.len(), 1, "{check:?}");
+            assert_eq!(a[0].code, AlarmCode::GainStep, "{check:?}");
+            assert_eq!((a[0].idx, a[0].severity), (Some(3291), Severity::Warning));
+        }
+    }
+
+    #[test]
+    fn a_held_step_is_raised_when_no_check_comes_and_at_the_end() {
+        let mut st = stage_holding(None);
+        let mut out = CheckOutput::default();
+        for _ in 1..HOLD_MAX_CAPTURES {
+            st.held_step_wait(&mut out);
+        }
+        assert!(out.alarms.is_empty() && st.holds_step());
+        st.held_step_wait(&mut out);
+        assert_eq!(out.alarms.len(), 1);
+        assert_eq!(out.alarms[0].code, AlarmCode::GainStep);
+        assert!(!st.holds_step());
+        // the run's end raises it as found; nothing held, nothing raised
+        let mut st = stage_holding(None);
+        let mut out = CheckOutput::default();
+        st.release_held_step(&mut out);
+        st.release_held_step(&mut out);
+        assert_eq!(out.alarms.len(), 1);
+    }
 }

@@ -322,8 +322,9 @@ impl ProbeDrift {
         }
     }
 
-    /// The probes' scatter about their line (ln units, one probe against its original) over
-    /// the last `UNSTABLE_WINDOW` probes of a segment, once measured.
+    /// The probes' scatter (ln units, one probe against its original) over the last
+    /// `UNSTABLE_WINDOW` probes of a segment, from one probe to the next (`stability`), once
+    /// measured.
     pub(crate) fn scatter(&self) -> Option<f64> {
         self.scatter
     }
@@ -407,10 +408,15 @@ impl ProbeDrift {
         ev
     }
 
-    /// The lamp's stability at the probes: the robust scale (1.4826 · median |residual|) of the
-    /// last `UNSTABLE_WINDOW` probes about the current segment's line against the design
-    /// scatter. A step restarts the segment, so a step is not scatter; a drift is the line, so it
-    /// is not scatter either.
+    /// The lamp's stability at the probes, over the last `UNSTABLE_WINDOW` probes, by two robust
+    /// scales: from one probe to the next (1.4826 · median |Δr − median Δr| / √2, r a probe's
+    /// residual about the current segment's line) and about the line (1.4826 · median |r|). A
+    /// flicker moves each probe on its own and raises both; a step of the lamp or of the probe's
+    /// pose (a slipped wagon moves a probe whose luminance turns with the view) is one
+    /// difference, which the first leaves out, and a drift is the line. `lamp-unstable` is
+    /// raised when the first exceeds `UNSTABLE_FACTOR` × the design scatter, and cleared when
+    /// both are below `UNSTABLE_CLEAR_FACTOR` ×: eight probes give a coarse scale, and a flicker
+    /// must not be said to stop by the luck of one window.
     fn stability(&mut self, f: &Fit) -> Option<DriftEvent> {
         let design = self.spec.design_scatter_pct / 100.0;
         let probes: Vec<(usize, u64)> = self
@@ -424,31 +430,46 @@ impl ProbeDrift {
         }
         let window = &probes[probes.len() - UNSTABLE_WINDOW..];
         let from_idx = window[0].1;
-        let mut dev: Vec<f64> = window
-            .iter()
-            .map(|&(k, _)| {
-                let p = self.segment[k];
-                (p.1 - f.a - f.r * (p.0 - f.t0)).abs()
-            })
-            .collect();
-        dev.sort_by(f64::total_cmp);
-        let scatter = 1.4826 * crate::measure::stats::median_sorted(&dev);
-        if !scatter.is_finite() {
+        let residual = |k: usize| {
+            let p = self.segment[k];
+            p.1 - f.a - f.r * (p.0 - f.t0)
+        };
+        let mad = |mut v: Vec<f64>, centre: bool| {
+            v.sort_by(f64::total_cmp);
+            let c = if centre {
+                crate::measure::stats::median_sorted(&v)
+            } else {
+                0.0
+            };
+            let mut dev: Vec<f64> = v.iter().map(|x| (x - c).abs()).collect();
+            dev.sort_by(f64::total_cmp);
+            1.4826 * crate::measure::stats::median_sorted(&dev)
+        };
+        let about_line = mad(window.iter().map(|&(k, _)| residual(k)).collect(), false);
+        let step_to_step = mad(
+            window
+                .windows(2)
+                .map(|w| residual(w[1].0) - residual(w[0].0))
+                .collect(),
+            true,
+        ) / std::f64::consts::SQRT_2;
+        let high = about_line.max(step_to_step);
+        if !(step_to_step.is_finite() && high.is_finite()) {
             return None;
         }
-        self.scatter = Some(scatter);
-        if !self.unstable && scatter > UNSTABLE_FACTOR * design {
+        self.scatter = Some(step_to_step);
+        if !self.unstable && step_to_step > UNSTABLE_FACTOR * design {
             self.unstable = true;
             Some(DriftEvent::Unstable {
-                scatter,
+                scatter: step_to_step,
                 design,
                 probes: UNSTABLE_WINDOW,
                 from_idx,
             })
-        } else if self.unstable && scatter < UNSTABLE_CLEAR_FACTOR * design {
+        } else if self.unstable && high < UNSTABLE_CLEAR_FACTOR * design {
             self.unstable = false;
             Some(DriftEvent::UnstableCleared {
-                scatter,
+                scatter: high,
                 design,
                 probes: UNSTABLE_WINDOW,
             })

@@ -218,3 +218,33 @@ fn a_three_percent_step_is_caught_at_the_next_probe() {
     assert!(*t >= 6.4 && *t < 6.4 + 0.2, "{t}");
     assert!(matches!(e, DriftEvent::Step { direction: -1, .. }));
 }
+
+/// A level shift smaller than a step alarm (a slipped wagon moving a probe pose whose luminance
+/// turns with the view by 0.9 %) is one change, not scatter: no `lamp-unstable` (the residuals
+/// about the segment's line over a window that straddles it are ± 0.45 %, a robust scale beyond
+/// twice the 0.3 % design).
+#[test]
+fn a_level_shift_below_a_step_is_not_instability() {
+    for seed in 1..=20u64 {
+        let mut p = ProbeDrift::new(ProbeSpec {
+            every: crate::detect::probes::ProbeEvery::Captures(100),
+            ..ProbeSpec::default()
+        });
+        let mut rng = crate::measure::stats::SplitMix64(seed);
+        let mut events = Vec::new();
+        for k in 0..40u64 {
+            let level = if k < 20 { 0.0 } else { -0.009 };
+            let y = 40.0 * (level + 0.001 * rng.gauss()).exp();
+            events.extend(p.add(k, 0.0, 40.0, 0.2 + 0.2 * k as f64, y));
+        }
+        assert!(
+            !events
+                .iter()
+                .any(|e| matches!(e, DriftEvent::Unstable { .. })),
+            "seed {seed}: {events:?}"
+        );
+        // the scatter measured is the noise's, not the shift's
+        let scatter = p.scatter().unwrap();
+        assert!(scatter < 0.003, "seed {seed}: {scatter}");
+    }
+}

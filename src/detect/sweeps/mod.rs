@@ -60,8 +60,8 @@ pub(crate) use findings::{
 };
 use level::ScaleHistory;
 use model::{Model, PatternFit, Reference, Row};
-pub(crate) use recapture::RecaptureNoise;
-pub(crate) use wagon_watch::{wagon_watch_questions, WagonWatchSummary};
+pub(crate) use recapture::{RecaptureNoise, RECAPTURE_WAIT_CAPTURES};
+pub(crate) use wagon_watch::{wagon_watch_questions, PoseCheck, WagonWatchSummary};
 
 /// `[checks.sweeps]` in the config.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -813,3 +813,29 @@ fn a_slip_whose_re_captures_never_come_is_named_unconfirmed() {
     assert_eq!(slips(&o.findings).count(), 1);
     assert!(m.handle_end().findings.is_empty());
 }
+
+/// On a probe-taking rig a lag of the wagon from mid-run is named as the wagon's lag with its
+/// size, once, and never as an offset: the re-captured pair reads a lag as an offset of either
+/// sign (each pose's lag follows the way the wagon came to it), and the light sweeps since its
+/// departure say which.
+#[test]
+fn a_wagon_lag_on_a_probe_taking_rig_is_named_as_the_lag() {
+    for lag in [1.0, 0.8] {
+        let (_, _, findings) = simulate_with(
+            Fault::WagonBacklash(lag),
+            ONSET,
+            LAST + 4,
+            1,
+            false,
+            (0.0, 0.0),
+            Some(0.004),
+        );
+        assert!(wagon_offsets(&findings).is_empty(), "{lag}: {findings:?}");
+        let named = wagon(&findings);
+        assert_eq!(named.len(), 1, "{lag}: {findings:?}");
+        let (at, w) = named[0];
+        assert!((at.last_idx as usize) < ONSET + 600, "{at:?}");
+        assert!((w.backlash_deg / lag - 1.0).abs() <= 0.3, "{w:?}");
+        assert!(slips(&findings).all(|(s, _)| s.last_idx > at.last_idx), "{findings:?}");
+    }
+}

@@ -54,6 +54,9 @@ pub(super) const PAIR_WINDOW_SWEEPS: usize = 12;
 /// A departure the light sweeps have not attributed after this many sweeps is named as the
 /// wagon's, with the joint-1 offset that would read the same.
 pub(super) const MAX_ATTRIBUTION_SWEEPS: usize = 3;
+/// The wagon's lag against its direction of motion in `refit_axes`' order, after the wagon's
+/// offset and the two joints.
+const LAG_AXIS: usize = 3;
 /// A reading this many standard deviations from the segment is asked again after the next
 /// sweep rather than after `wagon_watch_sweeps`.
 const AGAIN_Z: f64 = 2.0;
@@ -118,6 +121,27 @@ struct Departed {
     sweeps: usize,
 }
 
+/// A reading of the pair the checks asked for out of turn (a lamp probe that departed from its
+/// trend, `request_pose_check`): whether the camera's pose moved.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum PoseCheck {
+    /// The pair's reading against its readings in control: in their standard deviations
+    /// (unclipped), and as degrees of wagon.
+    Read { z: f64, wagon_deg: f64 },
+    /// No reading came: the question was dropped, the watch started again, or the reading was
+    /// unusable.
+    Unanswered,
+}
+
+/// Where an out-of-turn check of the pose stands.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+enum PoseCheckState {
+    #[default]
+    Idle,
+    Waiting,
+    Done(PoseCheck),
+}
+
 /// The watch as the summary reports it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct WagonWatchSummary {
@@ -152,6 +176,10 @@ pub(super) struct WagonWatch {
     departed: Option<Departed>,
     /// The latest reading's standardised departure from the segment.
     last_z: f64,
+    /// An out-of-turn check of the pose the checks wait for.
+    pose_check: PoseCheckState,
+    /// The last completed sweep: an out-of-turn question is asked after it.
+    last_at: Option<SweepAt>,
 }
 
 impl WagonWatch {
@@ -194,6 +222,14 @@ impl WagonWatch {
         self.segment = ScaleHistory::default();
         self.cusum.reset();
         self.departed = None;
+        self.end_pose_check(PoseCheck::Unanswered);
+    }
+
+    /// An out-of-turn check waiting for a reading gets `check`.
+    fn end_pose_check(&mut self, check: PoseCheck) {
+        if self.pose_check == PoseCheckState::Waiting {
+            self.pose_check = PoseCheckState::Done(check);
+        }
     }
 
     /// Sweeps between questions: one while the segment fills and after a reading beyond
@@ -263,6 +299,7 @@ impl SweepMonitor {
     ) -> Option<NamedSlip> {
         let every = self.spec.wagon_watch_sweeps;
         let noise = self.recapture.filter(|_| every > 0)?;
+        self.wagon_watch.last_at = Some(sweep.at());
         let named = self.attribute_departure(sweep.at(), known, findings);
         if self.wagon_watch.pair.is_none() {
             self.wagon_watch.pair = self.choose_wagon_pair(sweep, &noise);
@@ -295,7 +332,9 @@ impl SweepMonitor {
     /// up. The axis whose mean offset over those sweeps points the way the pair's change
     /// implies, by `ATTRIBUTION_Z` standard errors and the joint tolerance, and most standard
     /// errors, is named with that mean as its size: the wagon, or a joint as a slip the
-    /// re-captures confirm. None after `MAX_ATTRIBUTION_SWEEPS`: the wagon is named, with the
+    /// re-captures confirm; or the wagon's lag (a positive one, by the same rule), named as its
+    /// backlash: a lag moves each re-captured pose by the way the wagon came to it, so the pair
+    /// reads it as an offset of either sign. None after `MAX_ATTRIBUTION_SWEEPS`: the wagon is named, with the
     /// pair's size and the joint-1 offset that would read the same. While a slip the sweeps
     /// named waits for its own re-captures the departure waits too.
     fn attribute_departure(
@@ -319,14 +358,41 @@ impl SweepMonitor {
                 continue;
             };
             let z = offset.abs() / se;
-            let implied = x.change / x.s[axis];
-            if implied * offset > 0.0
+            // a lag reads in the pair as an offset of either sign (each pose's lag follows the
+            // way the wagon came to it), so only its own sign counts: a lag, never a lead
+            let agrees = match x.s.get(axis) {
+                Some(s) => x.change / s * offset > 0.0,
+                None => offset > 0.0,
+            };
+            if agrees
                 && z >= ATTRIBUTION_Z
                 && offset.abs() >= self.spec.joint_tolerance_deg
                 && best.is_none_or(|b| z > b.1)
             {
                 best = Some((axis, z, offset, se));
             }
+        }
+        if let Some((LAG_AXIS, z, lag, se)) = best {
+            self.wagon_watch.departed = None;
+            if self.latched.insert(Latch::Wagon) {
+                let offset = fits[0].map_or(f64::NAN, |f| f.0);
+                findings.push(SweepFinding::WagonBacklash {
+                    at: now,
+                    backlash: WagonBacklash {
+                        backlash_deg: lag,
+                        se_deg: se,
+                        estimate_sweeps: x.sweeps,
+                        run_mean_deg: lag,
+                        offset_deg: offset,
+                        sweeps: x.sweeps,
+                        since_idx: x.since_idx,
+                        from_idx: x.since_idx,
+                        statistic: z,
+                        threshold: ATTRIBUTION_Z,
+                    },
+                });
+            }
+            return None;
         }
         let (axis, z, offset, se) = match best {
             Some((axis, z, offset, se)) => (axis, Some(z), offset, se),
@@ -390,25 +456,26 @@ impl SweepMonitor {
         Some(self.name_slip(now, &crossing, &[], Recapture::Confirmed(reading), findings))
     }
 
-    /// The mean offset and its standard error of [wagon, joint 1, joint 2] over the completed
+    /// The mean offset and its standard error of [wagon, joint 1, joint 2, the wagon's lag]
+    /// over the completed
     /// sweeps that began after capture `after`, each fitted with the smooth model's columns
     /// (both joints, the wagon's offset and its lag) against the reference of the captures
     /// before `cut`. None for an axis no such sweep fits within `SMOOTH_SE_MAX_DEG`.
-    fn refit_axes(&self, cut: u64, after: u64, known: &Known) -> [Option<(f64, f64)>; 3] {
-        let mut out = [None; 3];
+    fn refit_axes(&self, cut: u64, after: u64, known: &Known) -> [Option<(f64, f64)>; 4] {
+        let mut out = [None; 4];
         let in_reference =
             |c: &SweepCapture| c.idx < cut && self.completed.get(c.light).copied().unwrap_or(false);
         if !self.captures.iter().any(in_reference) {
             return out;
         }
         let reference = self.reference_before(cut, known);
-        let mut sums = [(0.0, 0.0, 0usize); 3];
+        let mut sums = [(0.0, 0.0, 0usize); 4];
         for span in self.sweep_starts.iter().filter(|s| s.first_idx > after) {
             let current = self.captures_of_light(span.light);
             let (_, rows) = self.residuals(&current, &reference, known, Model::Smooth);
             let fit = self.pattern_fit(rows.iter().filter_map(Row::with_wagon).collect());
             // columns: 1 joint 1, 2 joint 2, 3 the wagon's offset, 4 its lag
-            for (axis, col) in [(0, 3), (1, 1), (2, 2)] {
+            for (axis, col) in [(0, 3), (1, 1), (2, 2), (LAG_AXIS, 4)] {
                 let Some(se) = fit
                     .se(col)
                     .filter(|v| v.is_finite() && *v > 0.0 && *v <= SMOOTH_SE_MAX_DEG)
@@ -549,6 +616,7 @@ impl SweepMonitor {
         if d.is_finite() {
             self.judge_wagon_reading(&p, &q, d);
         }
+        self.wagon_watch.end_pose_check(PoseCheck::Unanswered);
     }
 
     /// One answered question: its reading joins the segment while no CUSUM run is under way;
@@ -569,6 +637,10 @@ impl SweepMonitor {
         w.asked_after.push(q.at.last_idx);
         let e = d - mean;
         w.last_e = Some(e);
+        w.end_pose_check(PoseCheck::Read {
+            z: e / sd,
+            wagon_deg: e / s[0],
+        });
         let z = (e / sd).clamp(-clip, clip);
         w.last_z = z;
         w.cusum.add(z, k, e / s[0], sd / s[0], q.at.last_idx);
@@ -615,8 +687,60 @@ impl SweepMonitor {
             q.waited += 1;
             if q.waited >= recapture::RECAPTURE_WAIT_CAPTURES {
                 self.wagon_watch.question = None;
+                self.wagon_watch.end_pose_check(PoseCheck::Unanswered);
             }
         }
+    }
+
+    /// Whether the pair can tell now whether the camera's pose moved: the watch is on, its pair
+    /// chosen and its readings in control enough to judge one against.
+    pub(crate) fn can_check_pose(&self) -> bool {
+        self.spec.wagon_watch_sweeps > 0
+            && self.recapture.is_some()
+            && self.wagon_watch.pair.is_some()
+            && self.wagon_watch.last_at.is_some()
+            && self.wagon_watch.segment.len() >= MIN_SEGMENT
+    }
+
+    /// Ask the pair out of turn (a question now, or the one under way): its reading comes back
+    /// through `poll_pose_check`. False when it cannot (`can_check_pose`).
+    pub(crate) fn request_pose_check(&mut self) -> bool {
+        if !self.can_check_pose() {
+            return false;
+        }
+        let w = &mut self.wagon_watch;
+        let Some(at) = w.last_at else {
+            return false;
+        };
+        if w.question.is_none() {
+            w.question = Some(Question {
+                asked: false,
+                waited: 0,
+                readings: [None; 2],
+                at,
+            });
+        }
+        w.pose_check = PoseCheckState::Waiting;
+        true
+    }
+
+    /// The out-of-turn check's result, once (None while it waits or when none was asked).
+    pub(crate) fn poll_pose_check(&mut self) -> Option<PoseCheck> {
+        match self.wagon_watch.pose_check {
+            PoseCheckState::Done(c) => {
+                self.wagon_watch.pose_check = PoseCheckState::Idle;
+                Some(c)
+            }
+            PoseCheckState::Idle | PoseCheckState::Waiting => None,
+        }
+    }
+
+    /// ln Y per degree of wagon at plan entry `entry`'s commanded pose, from the smooth model
+    /// (None before it fits, or when the entry's capture is not among the sweeps').
+    pub(crate) fn wagon_sensitivity_of(&self, entry: usize) -> Option<f64> {
+        let c = self.captures.iter().find(|c| c.entry == entry)?;
+        let s = self.sensitivities(&c.cmd, Model::Smooth)?[2];
+        s.is_finite().then_some(s)
     }
 
     /// The watch for the summary: none unless it is on (a probe-taking rig).
@@ -711,6 +835,106 @@ mod tests {
         }
         assert!(m.wagon_watch.question.is_none());
         assert!(!m.awaits_recapture(650));
+    }
+
+    /// A watch with its pair chosen, four readings in control and no question under way.
+    fn in_control() -> SweepMonitor {
+        let mut m = waiting();
+        m.wagon_watch.question = None;
+        m.wagon_watch.segment.values = vec![0.0, 0.002, -0.002, 0.001];
+        m.wagon_watch.last_at = Some(SweepAt {
+            light: 9,
+            last_idx: 809,
+            last_t: 5663.0,
+            layer_mdeg: 30_000,
+        });
+        m
+    }
+
+    /// Answer the pair's question with the pair's ln change `d` (a rising, b steady).
+    fn answer(m: &mut SweepMonitor, d: f64) {
+        assert_eq!(m.recapture_wanted(), Some(vec![650, 210]));
+        m.handle_recapture_asked();
+        assert_eq!(m.poll_pose_check(), None, "waits for both");
+        assert!(m.handle_recapture(650, 0.75 * d.exp()).findings.is_empty());
+        assert!(m.handle_recapture(210, 0.63).findings.is_empty());
+    }
+
+    #[test]
+    fn a_pose_check_asks_the_pair_out_of_turn_and_reads_it_once() {
+        // a degree of wagon at the pair's 5 %/°: far beyond its readings in control
+        let mut m = in_control();
+        assert!(m.can_check_pose() && m.request_pose_check());
+        answer(&mut m, 0.05);
+        let Some(PoseCheck::Read { z, wagon_deg }) = m.poll_pose_check() else {
+            panic!("a reading")
+        };
+        assert!(
+            z > 3.0 && (wagon_deg - 0.99).abs() < 0.02,
+            "{z} {wagon_deg}"
+        );
+        assert_eq!(m.poll_pose_check(), None, "said once");
+        // a steady pose reads within its scatter
+        let mut m = in_control();
+        assert!(m.request_pose_check());
+        answer(&mut m, 0.0005);
+        let Some(PoseCheck::Read { z, .. }) = m.poll_pose_check() else {
+            panic!("a reading")
+        };
+        assert!(z.abs() < 1.0, "{z}");
+        // a question the cadence put under way serves: no second one
+        let mut m = in_control();
+        m.wagon_watch.question = Some(Question {
+            asked: false,
+            waited: 0,
+            readings: [None; 2],
+            at: m.wagon_watch.last_at.unwrap(),
+        });
+        assert!(m.request_pose_check());
+        answer(&mut m, 0.0);
+        assert!(matches!(m.poll_pose_check(), Some(PoseCheck::Read { .. })));
+        assert_eq!(m.recapture_wanted(), None);
+    }
+
+    #[test]
+    fn no_pose_check_before_the_readings_in_control_nor_without_the_watch() {
+        let mut m = in_control();
+        m.wagon_watch.segment.values.truncate(MIN_SEGMENT - 1);
+        assert!(!m.can_check_pose() && !m.request_pose_check());
+        assert_eq!(m.recapture_wanted(), None);
+        let mut m = in_control();
+        m.set_recapture(None);
+        assert!(!m.request_pose_check());
+        let mut m = in_control();
+        m.wagon_watch.pair = None;
+        assert!(!m.request_pose_check());
+        // nothing asked, nothing to poll
+        assert_eq!(in_control().poll_pose_check(), None);
+    }
+
+    #[test]
+    fn a_pose_check_with_no_usable_reading_is_unanswered() {
+        // the question dropped after the wait
+        let mut m = in_control();
+        assert!(m.request_pose_check());
+        m.recapture_wanted();
+        m.handle_recapture_asked();
+        for _ in 0..recapture::RECAPTURE_WAIT_CAPTURES {
+            m.handle_regular_capture();
+        }
+        assert_eq!(m.poll_pose_check(), Some(PoseCheck::Unanswered));
+        // a broken re-capture
+        let mut m = in_control();
+        assert!(m.request_pose_check());
+        m.handle_recapture_asked();
+        m.handle_recapture(650, f64::NAN);
+        m.handle_recapture(210, 0.63);
+        assert_eq!(m.poll_pose_check(), Some(PoseCheck::Unanswered));
+        // the watch started again (a joint slip was named)
+        let mut m = in_control();
+        assert!(m.request_pose_check());
+        m.wagon_watch.restart();
+        assert_eq!(m.poll_pose_check(), Some(PoseCheck::Unanswered));
     }
 
     #[test]
