@@ -836,6 +836,9 @@ fn a_wagon_lag_on_a_probe_taking_rig_is_named_as_the_lag() {
         let (at, w) = named[0];
         assert!((at.last_idx as usize) < ONSET + 600, "{at:?}");
         assert!((w.backlash_deg / lag - 1.0).abs() <= 0.3, "{w:?}");
-        assert!(slips(&findings).all(|(s, _)| s.last_idx > at.last_idx), "{findings:?}");
+        assert!(
+            slips(&findings).all(|(s, _)| s.last_idx > at.last_idx),
+            "{findings:?}"
+        );
     }
 }
