@@ -10,7 +10,8 @@ A .chk file names a run of benches/matrix.py and what it must show:
 - `expect = "named"`: the first `joint-offset-suspected` (or `wagon-backlash-suspected` or
   `wagon-offset-suspected`, axis 4) after the onset names the fault's axis and sign within
   `within` captures, none before it;
-  with `size_within`, the estimate within that fraction of the truth;
+  with `size_within`, the estimate within that fraction of the truth; with `lamp_quiet = true`,
+  no drift alarm and no `lamp-unstable` after the onset either (the lamp is steady);
 - `expect = "encoder"`: an `encoder-mismatch` after the onset, and neither a drift nor a joint
   alarm anywhere.
 """
@@ -148,6 +149,8 @@ def test_regression_session(chk, tmp_path):
         assert a["idx"] - t.onset <= want["within"], f"named {a['idx'] - t.onset} captures after the onset"
         if "size_within" in want:
             assert abs(a["offset_deg"] / t.size - 1) <= want["size_within"], a
+        if want.get("lamp_quiet"):
+            assert rec["drift_after"] is None and rec["unstable_after"] is None, f"the lamp taken for the pose: {rec}"
     elif expect == "encoder":
         assert "encoder-mismatch" in rec["codes_after"], rec
         assert rec["drift_after"] is None and rec["joint_after"] is None, rec
