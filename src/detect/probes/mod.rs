@@ -414,9 +414,9 @@ impl ProbeDrift {
     /// flicker moves each probe on its own and raises both; a step of the lamp or of the probe's
     /// pose (a slipped wagon moves a probe whose luminance turns with the view) is one
     /// difference, which the first leaves out, and a drift is the line. `lamp-unstable` is
-    /// raised when the first exceeds `UNSTABLE_FACTOR` × the design scatter, and cleared when
-    /// both are below `UNSTABLE_CLEAR_FACTOR` ×: eight probes give a coarse scale, and a flicker
-    /// must not be said to stop by the luck of one window.
+    /// raised when both exceed `UNSTABLE_FACTOR` × the design scatter, and cleared when both are
+    /// below `UNSTABLE_CLEAR_FACTOR` ×: eight probes give a coarse scale, and neither a chance
+    /// window of one scale nor a flicker's lucky window must raise or clear it.
     fn stability(&mut self, f: &Fit) -> Option<DriftEvent> {
         let design = self.spec.design_scatter_pct / 100.0;
         let probes: Vec<(usize, u64)> = self
@@ -458,10 +458,11 @@ impl ProbeDrift {
             return None;
         }
         self.scatter = Some(step_to_step);
-        if !self.unstable && step_to_step > UNSTABLE_FACTOR * design {
+        let low = about_line.min(step_to_step);
+        if !self.unstable && low > UNSTABLE_FACTOR * design {
             self.unstable = true;
             Some(DriftEvent::Unstable {
-                scatter: step_to_step,
+                scatter: low,
                 design,
                 probes: UNSTABLE_WINDOW,
                 from_idx,

@@ -95,8 +95,10 @@ fn a_flickering_lamp_is_unstable_and_a_steady_one_or_a_step_is_not() {
         };
         assert!(scatter > 2.0 * design && scatter < 0.03, "{scatter}");
         assert_eq!(probes, UNSTABLE_WINDOW);
-        // found within the first 2 h of probes every 100 captures
-        assert!(*t < 2.5, "{t}");
+        // found within the first 3.5 h of probes every 100 captures (at the first full window,
+        // 1.7 h, in 4 of these 5 runs: both scales must agree, and one of them can be low in a
+        // window by chance)
+        assert!(*t < 3.5, "{t}");
     }
 }
 
