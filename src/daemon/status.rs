@@ -525,7 +525,7 @@ pub(crate) fn metrics(s: &Snapshot) -> String {
         );
         g(
             "probe_scatter_pct",
-            "The probes' scatter about their trend (% least-squares SD of the current segment; lamp-unstable judges a robust scale of its last 8 probes from one to the next, given in that alarm).",
+            "The probes' scatter about their trend (% least-squares SD of the current segment; lamp-unstable judges two robust scales of its last 8 probes, about the trend and from one to the next, given in that alarm).",
             100.0 * d.residual_scale,
         );
     }
