@@ -815,9 +815,10 @@ fn a_slip_whose_re_captures_never_come_is_named_unconfirmed() {
 }
 
 /// On a probe-taking rig a lag of the wagon from mid-run is named as the wagon's lag with its
-/// size, once, and never as an offset: the re-captured pair reads a lag as an offset of either
-/// sign (each pose's lag follows the way the wagon came to it), and the light sweeps since its
-/// departure say which.
+/// size, once, and never as an offset, although the re-captured pair reads a lag as an offset of
+/// either sign (each pose's lag follows the way the wagon came to it): on this synthetic session
+/// the sweeps' lag test crosses before the pair's departure is attributed (on the simulated rig
+/// it does not always: BENCHMARKS.md).
 #[test]
 fn a_wagon_lag_on_a_probe_taking_rig_is_named_as_the_lag() {
     for lag in [1.0, 0.8] {

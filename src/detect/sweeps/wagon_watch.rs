@@ -54,9 +54,6 @@ pub(super) const PAIR_WINDOW_SWEEPS: usize = 12;
 /// A departure the light sweeps have not attributed after this many sweeps is named as the
 /// wagon's, with the joint-1 offset that would read the same.
 pub(super) const MAX_ATTRIBUTION_SWEEPS: usize = 3;
-/// The wagon's lag against its direction of motion in `refit_axes`' order, after the wagon's
-/// offset and the two joints.
-const LAG_AXIS: usize = 3;
 /// A reading this many standard deviations from the segment is asked again after the next
 /// sweep rather than after `wagon_watch_sweeps`.
 const AGAIN_Z: f64 = 2.0;
@@ -332,9 +329,7 @@ impl SweepMonitor {
     /// up. The axis whose mean offset over those sweeps points the way the pair's change
     /// implies, by `ATTRIBUTION_Z` standard errors and the joint tolerance, and most standard
     /// errors, is named with that mean as its size: the wagon, or a joint as a slip the
-    /// re-captures confirm; or the wagon's lag (a positive one, by the same rule), named as its
-    /// backlash: a lag moves each re-captured pose by the way the wagon came to it, so the pair
-    /// reads it as an offset of either sign. None after `MAX_ATTRIBUTION_SWEEPS`: the wagon is named, with the
+    /// re-captures confirm. None after `MAX_ATTRIBUTION_SWEEPS`: the wagon is named, with the
     /// pair's size and the joint-1 offset that would read the same. While a slip the sweeps
     /// named waits for its own re-captures the departure waits too.
     fn attribute_departure(
@@ -358,41 +353,14 @@ impl SweepMonitor {
                 continue;
             };
             let z = offset.abs() / se;
-            // a lag reads in the pair as an offset of either sign (each pose's lag follows the
-            // way the wagon came to it), so only its own sign counts: a lag, never a lead
-            let agrees = match x.s.get(axis) {
-                Some(s) => x.change / s * offset > 0.0,
-                None => offset > 0.0,
-            };
-            if agrees
+            let implied = x.change / x.s[axis];
+            if implied * offset > 0.0
                 && z >= ATTRIBUTION_Z
                 && offset.abs() >= self.spec.joint_tolerance_deg
                 && best.is_none_or(|b| z > b.1)
             {
                 best = Some((axis, z, offset, se));
             }
-        }
-        if let Some((LAG_AXIS, z, lag, se)) = best {
-            self.wagon_watch.departed = None;
-            if self.latched.insert(Latch::Wagon) {
-                let offset = fits[0].map_or(f64::NAN, |f| f.0);
-                findings.push(SweepFinding::WagonBacklash {
-                    at: now,
-                    backlash: WagonBacklash {
-                        backlash_deg: lag,
-                        se_deg: se,
-                        estimate_sweeps: x.sweeps,
-                        run_mean_deg: lag,
-                        offset_deg: offset,
-                        sweeps: x.sweeps,
-                        since_idx: x.since_idx,
-                        from_idx: x.since_idx,
-                        statistic: z,
-                        threshold: ATTRIBUTION_Z,
-                    },
-                });
-            }
-            return None;
         }
         let (axis, z, offset, se) = match best {
             Some((axis, z, offset, se)) => (axis, Some(z), offset, se),
@@ -456,26 +424,25 @@ impl SweepMonitor {
         Some(self.name_slip(now, &crossing, &[], Recapture::Confirmed(reading), findings))
     }
 
-    /// The mean offset and its standard error of [wagon, joint 1, joint 2, the wagon's lag]
-    /// over the completed
+    /// The mean offset and its standard error of [wagon, joint 1, joint 2] over the completed
     /// sweeps that began after capture `after`, each fitted with the smooth model's columns
     /// (both joints, the wagon's offset and its lag) against the reference of the captures
     /// before `cut`. None for an axis no such sweep fits within `SMOOTH_SE_MAX_DEG`.
-    fn refit_axes(&self, cut: u64, after: u64, known: &Known) -> [Option<(f64, f64)>; 4] {
-        let mut out = [None; 4];
+    fn refit_axes(&self, cut: u64, after: u64, known: &Known) -> [Option<(f64, f64)>; 3] {
+        let mut out = [None; 3];
         let in_reference =
             |c: &SweepCapture| c.idx < cut && self.completed.get(c.light).copied().unwrap_or(false);
         if !self.captures.iter().any(in_reference) {
             return out;
         }
         let reference = self.reference_before(cut, known);
-        let mut sums = [(0.0, 0.0, 0usize); 4];
+        let mut sums = [(0.0, 0.0, 0usize); 3];
         for span in self.sweep_starts.iter().filter(|s| s.first_idx > after) {
             let current = self.captures_of_light(span.light);
             let (_, rows) = self.residuals(&current, &reference, known, Model::Smooth);
             let fit = self.pattern_fit(rows.iter().filter_map(Row::with_wagon).collect());
             // columns: 1 joint 1, 2 joint 2, 3 the wagon's offset, 4 its lag
-            for (axis, col) in [(0, 3), (1, 1), (2, 2), (LAG_AXIS, 4)] {
+            for (axis, col) in [(0, 3), (1, 1), (2, 2)] {
                 let Some(se) = fit
                     .se(col)
                     .filter(|v| v.is_finite() && *v > 0.0 && *v <= SMOOTH_SE_MAX_DEG)
