@@ -130,6 +130,8 @@ pub enum AlarmCode {
     SkippedFiles,
     /// A joint slip the light sweeps suggested, which a re-capture of earlier poses refutes.
     SlipRefuted,
+    /// A joint pattern of the light sweeps too small for re-captures of earlier poses to check.
+    SlipUnverifiable,
     /// Capture times went back.
     TimeSteppedBack,
     /// A trend in the isotropy classes that a stationary light-side pattern could also make.
@@ -146,7 +148,7 @@ pub enum AlarmCode {
 
 impl AlarmCode {
     /// Every code.
-    pub(crate) const ALL: [AlarmCode; 50] = [
+    pub(crate) const ALL: [AlarmCode; 51] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
@@ -191,6 +193,7 @@ impl AlarmCode {
         AlarmCode::SessionChanged,
         AlarmCode::SkippedFiles,
         AlarmCode::SlipRefuted,
+        AlarmCode::SlipUnverifiable,
         AlarmCode::TimeSteppedBack,
         AlarmCode::TrendUnresolved,
         AlarmCode::UnannouncedFiles,
@@ -246,6 +249,7 @@ impl AlarmCode {
             AlarmCode::SessionChanged => "session-changed",
             AlarmCode::SkippedFiles => "skipped-files",
             AlarmCode::SlipRefuted => "slip-refuted",
+            AlarmCode::SlipUnverifiable => "slip-unverifiable",
             AlarmCode::TimeSteppedBack => "time-stepped-back",
             AlarmCode::TrendUnresolved => "trend-unresolved",
             AlarmCode::UnannouncedFiles => "unannounced-files",
@@ -304,6 +308,7 @@ impl AlarmCode {
             AlarmCode::SessionChanged => "the controller announced another session",
             AlarmCode::SkippedFiles => "files in the capture folder not placed as captures",
             AlarmCode::SlipRefuted => "a joint slip the light sweeps suggested, which a re-capture of earlier poses refutes",
+            AlarmCode::SlipUnverifiable => "a joint pattern of the light sweeps too small for re-captures of earlier poses to check: not named",
             AlarmCode::TimeSteppedBack => "capture times went back",
             AlarmCode::TrendUnresolved => "a trend in the isotropy classes that a stationary light-side pattern could also make",
             AlarmCode::UnannouncedFiles => "files in the capture folder no CAPTURE line named",

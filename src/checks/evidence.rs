@@ -106,6 +106,8 @@ pub enum Evidence {
     UnresolvedTrend(UnresolvedTrend),
     /// `slip-refuted`.
     SlipRefuted(SlipRefuted),
+    /// `slip-unverifiable`.
+    SlipUnverifiable(SlipUnverifiable),
     /// `wagon-backlash-suspected`.
     WagonBacklash(WagonBacklash),
     /// `wagon-offset-suspected`.
@@ -372,6 +374,18 @@ pub struct SlipRefuted {
     pub recapture: SlipRecapture,
 }
 
+/// A pattern the light sweeps' fit took for `joint` offset by `offset_deg`, which re-captures
+/// of earlier poses could check only from `checkable_deg` on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SlipUnverifiable {
+    pub source: Source,
+    pub joint: usize,
+    pub offset_deg: f64,
+    pub checkable_deg: f64,
+    pub layer_deg: f64,
+    pub light: usize,
+}
+
 /// Arm joint 3 named by its sentinel: the turn, the first capture after the last reading in
 /// control, the statistic and its threshold, and the sentinel's pose.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -596,6 +610,7 @@ impl Evidence {
             C::GainDrift => parse(&v, Evidence::GainRate),
             C::TrendUnresolved => parse(&v, Evidence::UnresolvedTrend),
             C::SlipRefuted => parse(&v, Evidence::SlipRefuted),
+            C::SlipUnverifiable => parse(&v, Evidence::SlipUnverifiable),
             C::WagonBacklashSuspected => parse(&v, Evidence::WagonBacklash),
             C::WagonOffsetSuspected => parse(&v, Evidence::WagonOffset),
             C::ProbeMovedWithPose => parse(&v, Evidence::ProbePoseMoved),
@@ -661,6 +676,7 @@ impl Evidence {
             Evidence::GainRate(_) => code == C::GainDrift,
             Evidence::UnresolvedTrend(_) => code == C::TrendUnresolved,
             Evidence::SlipRefuted(_) => code == C::SlipRefuted,
+            Evidence::SlipUnverifiable(_) => code == C::SlipUnverifiable,
             Evidence::WagonBacklash(_) => code == C::WagonBacklashSuspected,
             Evidence::WagonOffset(_) => code == C::WagonOffsetSuspected,
             Evidence::ProbePoseMoved(_) => code == C::ProbeMovedWithPose,

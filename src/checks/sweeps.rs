@@ -39,6 +39,12 @@ pub(crate) fn alarm(f: &SweepFinding) -> Alarm {
             offset_deg,
             reading,
         } => slip_refuted(at, *joint, *offset_deg, reading),
+        SweepFinding::SlipUnverifiable {
+            at,
+            joint,
+            offset_deg,
+            checkable_deg,
+        } => slip_unverifiable(at, *joint, *offset_deg, *checkable_deg),
         SweepFinding::WagonBacklash { at, backlash } => wagon_backlash(at, backlash),
         SweepFinding::WagonOffset { offset, .. } => wagon_offset(offset),
         SweepFinding::LampUnstable {
@@ -150,6 +156,27 @@ fn slip_refuted(at: &SweepAt, joint: usize, offset_deg: f64, r: &RecaptureReadin
         joint,
         offset_deg,
         recapture: evidence::SlipRecapture::Refuted(reading_evidence(r)),
+    }))
+}
+
+fn slip_unverifiable(at: &SweepAt, joint: usize, offset_deg: f64, checkable_deg: f64) -> Alarm {
+    Alarm::new(
+        AlarmKind::Positioning,
+        Severity::Info,
+        AlarmCode::SlipUnverifiable,
+        format!(
+            "not named: the pattern across the cameras of light sweep {} (θi = {}°) follows joint {joint}'s sensitivity as an offset of {offset_deg:+.2}° would, which the sweeps alone cannot tell from a stationary pattern of the geometry (a lamp beam or a holder that follows the pose), and re-captures of earlier poses would show only an offset of {checkable_deg:.2}° or more; a pattern that grows to that is re-captured and named if they confirm it (later patterns of this layer below it are not reported again)",
+            at.light,
+            layer_deg(at),
+        ),
+    )
+    .with(Evidence::SlipUnverifiable(evidence::SlipUnverifiable {
+        source: Source::LightSweeps,
+        joint,
+        offset_deg,
+        checkable_deg,
+        layer_deg: layer_deg(at),
+        light: at.light,
     }))
 }
 
@@ -498,6 +525,35 @@ mod tests {
                 3564
             );
         }
+    }
+
+    #[test]
+    fn a_pattern_the_re_captures_cannot_check_is_an_info_with_the_size_they_could() {
+        let a = alarm(&SweepFinding::SlipUnverifiable {
+            at: AT,
+            joint: 2,
+            offset_deg: 0.35,
+            checkable_deg: 0.375,
+        });
+        assert_eq!(
+            (a.code, a.kind, a.severity),
+            (
+                AlarmCode::SlipUnverifiable,
+                AlarmKind::Positioning,
+                Severity::Info
+            )
+        );
+        assert_eq!(a.affects, None);
+        assert!(
+            a.message.starts_with("not named: the pattern across the cameras of light sweep 47 (θi = 60°) follows joint 2's sensitivity as an offset of +0.35° would")
+                && a.message.contains("0.38° or more"),
+            "{}",
+            a.message
+        );
+        assert_eq!(
+            serde_json::to_value(&a).unwrap()["evidence"].to_string(),
+            r#"{"checkable_deg":0.375,"joint":2,"layer_deg":60.0,"light":47,"offset_deg":0.35,"source":"light sweeps"}"#
+        );
     }
 
     #[test]

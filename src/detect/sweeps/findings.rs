@@ -162,6 +162,16 @@ pub(crate) enum SweepFinding {
         offset_deg: f64,
         reading: RecaptureReading,
     },
+    /// The sweeps' pattern named `joint` offset by `offset_deg`, which no set of re-captures
+    /// of earlier poses could check: they would show an offset of `checkable_deg` or more. A
+    /// stationary pattern of the geometry or a slip smaller than that; not named (once a
+    /// layer).
+    SlipUnverifiable {
+        at: SweepAt,
+        joint: usize,
+        offset_deg: f64,
+        checkable_deg: f64,
+    },
     /// The wagon lags behind its commanded angle against its last direction of motion.
     WagonBacklash {
         at: SweepAt,
@@ -198,6 +208,7 @@ impl SweepFinding {
             | SweepFinding::GainStepWithdrawn { at, .. }
             | SweepFinding::JointSlip { at, .. }
             | SweepFinding::SlipRefuted { at, .. }
+            | SweepFinding::SlipUnverifiable { at, .. }
             | SweepFinding::WagonBacklash { at, .. }
             | SweepFinding::WagonOffset { at, .. }
             | SweepFinding::LampUnstable { at, .. }

@@ -2,6 +2,7 @@
 //! sensitivity, the naming of a slip, its size and where it began.
 
 use super::model::{ATTRIBUTION_Z, SMOOTH_SE_MAX_DEG};
+use super::recapture::{Hold, RECAPTURE_EXPECTED_Z};
 use super::*;
 
 /// The start of the most likely last segment of a mean shift of sign `sign` in equally scaled
@@ -117,14 +118,35 @@ impl SweepMonitor {
         // without a second alarm (the operator has it; the next layer may raise one again)
         // on a probe-taking rig the slip waits for a re-capture of earlier poses (`recapture`);
         // while one waits, no other is asked about
+        // a pattern too small for the re-captures to check is not named: the sweeps alone
+        // cannot tell it from the geometry's (`recapture`)
         let mut named = None;
         if let Some(x) = &crossing {
             if !self.latched.contains(&Latch::Joint { layer: sweep.layer })
                 && !self.recapture_pending()
-                && !self.hold_for_recapture(sweep.at(), x, &rec.joints)
             {
-                named =
-                    Some(self.name_slip(sweep.at(), x, &rec.joints, Recapture::NotAsked, findings));
+                match self.hold_for_recapture(sweep.at(), x, &rec.joints) {
+                    Hold::Held => {}
+                    Hold::NotAsked => {
+                        named = Some(self.name_slip(
+                            sweep.at(),
+                            x,
+                            &rec.joints,
+                            Recapture::NotAsked,
+                            findings,
+                        ));
+                    }
+                    Hold::Unverifiable { z_per_deg } => {
+                        if self.unverifiable.insert(sweep.layer) {
+                            findings.push(SweepFinding::SlipUnverifiable {
+                                at: sweep.at(),
+                                joint: x.joint + 1,
+                                offset_deg: x.mean,
+                                checkable_deg: RECAPTURE_EXPECTED_Z / z_per_deg,
+                            });
+                        }
+                    }
+                }
             }
             for c in self.joint_cusum.iter_mut() {
                 c.reset();

@@ -356,6 +356,8 @@ pub(crate) struct SweepMonitor {
     pending: Option<recapture::PendingSlip>,
     /// Per θi layer, the patterns the re-captures refuted.
     refuted: HashMap<i64, usize>,
+    /// The θi layers that reported a pattern the re-captures could not check (once a layer).
+    unverifiable: HashSet<i64>,
     /// The wagon's offset from re-captures of two poses (a probe-taking rig).
     wagon_watch: wagon_watch::WagonWatch,
 }
@@ -451,6 +453,7 @@ impl SweepMonitor {
             reserved: Vec::new(),
             pending: None,
             refuted: HashMap::new(),
+            unverifiable: HashSet::new(),
             wagon_watch: Default::default(),
         }
     }

@@ -11,8 +11,13 @@
 //! back to back, of poses from one sweep completed well before the slip can have begun
 //! (`RECAPTURE_BACK_SWEEPS` before the sweep the slip is placed in: a CUSUM run can start
 //! sweeps after the slip, and a pose first taken after it would show nothing): the
-//! `RECAPTURE_PER_SIDE` whose luminance rises most with the joint and the as many whose
-//! luminance falls most (the smooth model's sensitivities, as the slip's size uses). With
+//! poses whose luminance rises most with the joint and as many whose luminance falls most (the
+//! smooth model's sensitivities, as the slip's size uses), the fewest per side of
+//! `RECAPTURE_PER_SIDE` that show the named offset by `RECAPTURE_EXPECTED_Z` standard errors.
+//! A pattern no such set can show (a named offset smaller than the re-captures can check) is
+//! not named: the sweeps alone cannot tell it from the geometry's, so it is
+//! `SlipUnverifiable` (an advisory with the offset the re-captures could check), and a slip
+//! that grows is asked about when it crosses again. With
 //! r = ln(Y/Y0), each re-capture against its original, d = mean r of the rising ones less mean
 //! r of the falling ones is free of the lamp twice over: the originals were taken within one
 //! sweep and the re-captures are adjacent. A slip moves d by (s̄_up − s̄_down)·δ; a stationary
@@ -21,8 +26,8 @@
 //! the luminance) below it. The slip is named when d shows it, by `RECAPTURE_Z` standard errors
 //! and half the joint tolerance, in the named direction; otherwise the finding is `SlipRefuted`
 //! and the layer may raise again (at most `MAX_REFUTED_PER_LAYER` times).
-//! `2 · RECAPTURE_PER_SIDE` captures per question (0.1 % of the UBO run): a fault-free run pays
-//! only for the patterns it shows.
+//! 8 to 16 captures per question (0.12–0.24 % of the UBO run): a fault-free run pays only for
+//! the patterns it shows.
 
 use super::findings::{Recapture, RecaptureReading};
 use super::model::Model;
@@ -33,11 +38,12 @@ use super::{JointCrossing, JointFit, Latch, SweepAt, SweepFinding, SweepMonitor,
 pub(super) const RECAPTURE_Z: f64 = 3.0;
 /// ... and by at least this fraction of the joint tolerance.
 pub(super) const RECAPTURE_MIN_TOLERANCE: f64 = 0.5;
-/// A pair is asked for only when the named offset would move it by this many standard errors
-/// (else the slip is named from the sweeps alone, `Recapture::NotAsked`).
+/// A set is asked for only when the named offset would move it by this many standard errors
+/// (a confirmation at `RECAPTURE_Z` then has 98 % power); else the pattern is
+/// `SlipUnverifiable`.
 pub(super) const RECAPTURE_EXPECTED_Z: f64 = 5.0;
-/// Re-captures on each side (rising and falling with the joint).
-pub(super) const RECAPTURE_PER_SIDE: usize = 4;
+/// Re-captures on each side (rising and falling with the joint), the fewest tried first.
+pub(super) const RECAPTURE_PER_SIDE: [usize; 3] = [4, 6, 8];
 /// The re-captured poses come from a sweep at least this many sweeps before the one the slip is
 /// placed in ...
 const RECAPTURE_BACK_SWEEPS: usize = 6;
@@ -96,6 +102,29 @@ impl RecaptureNoise {
         let scale = self.y_ref.map_or(1.0, |r| (r / y).max(1.0));
         self.sd * self.sd * scale
     }
+}
+
+/// What `hold_for_recapture` did with a slip the sweeps found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Hold {
+    /// Held for its re-captures.
+    Held,
+    /// To be named now, from the sweeps alone.
+    NotAsked,
+    /// Not named: the best set of re-captures shows a degree of the joint by `z_per_deg`
+    /// standard errors, too few for the named offset.
+    Unverifiable { z_per_deg: f64 },
+}
+
+/// The set `recapture_set` chose.
+enum SetChoice {
+    /// No re-captures, or no earlier sweep with enough poses.
+    None,
+    /// The best set shows a degree by `z_per_deg` standard errors, too few.
+    TooWeak {
+        z_per_deg: f64,
+    },
+    Set(RecaptureSet),
 }
 
 /// A slip the sweeps named, waiting for its re-captures.
@@ -305,17 +334,21 @@ impl SweepMonitor {
         }
     }
 
-    /// Holds the slip `x` found at `at` for its re-captures, when the rig takes them and two
-    /// earlier poses can show it; false when it is to be named now. The layer is latched
-    /// meanwhile (one question at a time).
+    /// Holds the slip `x` found at `at` for its re-captures, when the rig takes them and
+    /// earlier poses can show it (`Hold::Held`; the layer is latched meanwhile, one question
+    /// at a time). `Hold::NotAsked`: no re-captures (a rig without probes), or no earlier sweep
+    /// to take them from; the slip is named now from the sweeps alone. `Hold::Unverifiable`:
+    /// re-captures could be taken but none would show the named offset.
     pub(super) fn hold_for_recapture(
         &mut self,
         at: SweepAt,
         x: &JointCrossing,
         fits: &[JointFit],
-    ) -> bool {
-        let Some(set) = self.recapture_set(x) else {
-            return false;
+    ) -> Hold {
+        let set = match self.recapture_set(x) {
+            SetChoice::None => return Hold::NotAsked,
+            SetChoice::TooWeak { z_per_deg } => return Hold::Unverifiable { z_per_deg },
+            SetChoice::Set(set) => set,
         };
         self.latched.insert(Latch::Joint {
             layer: at.layer_mdeg,
@@ -329,7 +362,7 @@ impl SweepMonitor {
             asked: false,
             waited: 0,
         });
-        true
+        Hold::Held
     }
 
     /// Whether a slip waits for its re-captures.
@@ -339,12 +372,15 @@ impl SweepMonitor {
 
     /// The poses to re-capture for the slip `x`: of the `RECAPTURE_SWEEPS` sweeps completed
     /// `RECAPTURE_BACK_SWEEPS` or more before the one the slip is placed in, the one whose
-    /// `RECAPTURE_PER_SIDE` captures with the largest and as many with the smallest sensitivity
-    /// to the joint (θo within `RECAPTURE_MIN_COS_THETA_O`, not a reserved entry) show a slip
-    /// at the most standard errors. None without re-captures, or when the named offset would
-    /// not move them by `RECAPTURE_EXPECTED_Z` standard errors.
-    fn recapture_set(&self, x: &JointCrossing) -> Option<RecaptureSet> {
-        let noise = self.recapture?;
+    /// captures with the largest and as many with the smallest sensitivity to the joint (θo
+    /// within `RECAPTURE_MIN_COS_THETA_O`, not a reserved entry) show a slip at the most
+    /// standard errors, with the fewest per side of `RECAPTURE_PER_SIDE` that show the named
+    /// offset by `RECAPTURE_EXPECTED_Z`. `SetChoice::None` without re-captures or an earlier
+    /// sweep with enough poses; `TooWeak` when no set shows the named offset.
+    fn recapture_set(&self, x: &JointCrossing) -> SetChoice {
+        let Some(noise) = self.recapture else {
+            return SetChoice::None;
+        };
         let j = x.joint;
         let cut = self.slip_first_idx(x.since);
         let mut spans: Vec<_> = self
@@ -353,53 +389,67 @@ impl SweepMonitor {
             .filter(|s| s.last_idx < cut)
             .collect();
         spans.sort_by_key(|s| std::cmp::Reverse(s.last_idx));
-        let mut best: Option<(f64, RecaptureSet)> = None;
-        for span in spans
+        // per sweep, its candidate poses sorted by their sensitivity, largest first
+        let candidates: Vec<Vec<(f64, usize, f64)>> = spans
             .into_iter()
             .skip(RECAPTURE_BACK_SWEEPS.saturating_sub(1))
             .take(RECAPTURE_SWEEPS)
-        {
-            let mut poses: Vec<(f64, usize, f64)> = self
-                .captures
-                .iter()
-                .filter(|c| {
-                    c.light == span.light
-                        && c.omega_o.z >= RECAPTURE_MIN_COS_THETA_O
-                        && !self.reserved.contains(&c.entry)
-                        && !self.wagon_watch.holds(c.entry)
-                })
-                .filter_map(|c| {
-                    let s = self
-                        .sensitivities(&c.cmd, Model::Smooth)
-                        .or_else(|| self.sensitivities(&c.cmd, Model::Interpolant))
-                        .map(|s| s[j])
-                        .filter(|s| s.is_finite())?;
-                    Some((s, c.entry, c.y))
-                })
-                .collect();
-            if poses.len() < 2 * RECAPTURE_PER_SIDE {
+            .map(|span| {
+                let mut poses: Vec<(f64, usize, f64)> = self
+                    .captures
+                    .iter()
+                    .filter(|c| {
+                        c.light == span.light
+                            && c.omega_o.z >= RECAPTURE_MIN_COS_THETA_O
+                            && !self.reserved.contains(&c.entry)
+                            && !self.wagon_watch.holds(c.entry)
+                    })
+                    .filter_map(|c| {
+                        let s = self
+                            .sensitivities(&c.cmd, Model::Smooth)
+                            .or_else(|| self.sensitivities(&c.cmd, Model::Interpolant))
+                            .map(|s| s[j])
+                            .filter(|s| s.is_finite())?;
+                        Some((s, c.entry, c.y))
+                    })
+                    .collect();
+                poses.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+                poses
+            })
+            .collect();
+        let mut strongest: Option<f64> = None;
+        for per_side in RECAPTURE_PER_SIDE {
+            let mut best: Option<(f64, RecaptureSet)> = None;
+            for poses in candidates.iter().filter(|p| p.len() >= 2 * per_side) {
+                let chosen: Vec<_> = poses[..per_side]
+                    .iter()
+                    .chain(&poses[poses.len() - per_side..])
+                    .copied()
+                    .collect();
+                let set = RecaptureSet {
+                    entries: chosen.iter().map(|p| p.1).collect(),
+                    up: per_side,
+                    y0: chosen.iter().map(|p| p.2).collect(),
+                    s: chosen.iter().map(|p| p.0).collect(),
+                    var: chosen.iter().map(|p| noise.var_at(p.2)).collect(),
+                };
+                let (sensitivity, sd) = set.sensitivity_and_sd();
+                let z = sensitivity / sd;
+                if sensitivity > 0.0 && z.is_finite() && best.as_ref().is_none_or(|b| z > b.0) {
+                    best = Some((z, set));
+                }
+            }
+            let Some((z, set)) = best else {
                 continue;
-            }
-            poses.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-            let chosen: Vec<_> = poses[..RECAPTURE_PER_SIDE]
-                .iter()
-                .chain(&poses[poses.len() - RECAPTURE_PER_SIDE..])
-                .copied()
-                .collect();
-            let set = RecaptureSet {
-                entries: chosen.iter().map(|p| p.1).collect(),
-                up: RECAPTURE_PER_SIDE,
-                y0: chosen.iter().map(|p| p.2).collect(),
-                s: chosen.iter().map(|p| p.0).collect(),
-                var: chosen.iter().map(|p| noise.var_at(p.2)).collect(),
             };
-            let (sensitivity, sd) = set.sensitivity_and_sd();
-            let z = sensitivity / sd;
-            if sensitivity > 0.0 && z.is_finite() && best.as_ref().is_none_or(|b| z > b.0) {
-                best = Some((z, set));
+            if z * x.mean.abs() >= RECAPTURE_EXPECTED_Z {
+                return SetChoice::Set(set);
             }
+            strongest = Some(strongest.map_or(z, |s: f64| s.max(z)));
         }
-        best.filter(|b| b.0 * x.mean.abs() >= RECAPTURE_EXPECTED_Z)
-            .map(|b| b.1)
+        match strongest {
+            Some(z) => SetChoice::TooWeak { z_per_deg: z },
+            None => SetChoice::None,
+        }
     }
 }

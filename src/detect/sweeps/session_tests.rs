@@ -787,7 +787,7 @@ fn a_slip_whose_re_captures_never_come_is_named_unconfirmed() {
         layer_mdeg: 30_000,
     };
     // no earlier sweep to re-capture: named at once
-    assert!(!m.hold_for_recapture(at, &x, &[]));
+    assert_eq!(m.hold_for_recapture(at, &x, &[]), recapture::Hold::NotAsked);
     // held by hand: the wait runs out
     m.pending = Some(recapture::PendingSlip::for_test(at, x, &[5, 9]));
     assert_eq!(m.recapture_wanted(), Some(vec![5, 9]));
@@ -841,5 +841,76 @@ fn a_wagon_lag_on_a_probe_taking_rig_is_named_as_the_lag() {
             slips(&findings).all(|(s, _)| s.last_idx > at.last_idx),
             "{findings:?}"
         );
+    }
+}
+
+/// A pattern that re-captures cannot check at its named size (here: re-captures so noisy that
+/// no set of earlier poses would show it) is not named on a rig that takes probes: one
+/// `SlipUnverifiable` for its layer, with the offset the re-captures could check, and nothing
+/// is asked.
+#[test]
+fn a_pattern_too_small_for_the_re_captures_to_check_is_not_named() {
+    let (m, _, findings) = simulate_with(
+        Fault::LightPattern(1, 2.0, 47),
+        usize::MAX,
+        LAST,
+        1,
+        false,
+        (0.0, 0.0),
+        Some(0.2),
+    );
+    assert_eq!(slips(&findings).count(), 0, "{findings:?}");
+    assert!(refuted(&findings).is_empty(), "{findings:?}");
+    let unverifiable: Vec<_> = findings
+        .iter()
+        .filter_map(|f| match f {
+            SweepFinding::SlipUnverifiable {
+                at,
+                joint,
+                offset_deg,
+                checkable_deg,
+            } => Some((at.layer_mdeg, *joint, *offset_deg, *checkable_deg)),
+            _ => None,
+        })
+        .collect();
+    assert!(!unverifiable.is_empty(), "{findings:?}");
+    let mut layers: Vec<i64> = unverifiable.iter().map(|u| u.0).collect();
+    layers.dedup();
+    assert_eq!(
+        layers.len(),
+        unverifiable.len(),
+        "once a layer: {unverifiable:?}"
+    );
+    for (_, joint, offset, checkable) in &unverifiable {
+        assert_eq!(*joint, 2);
+        assert!(
+            checkable.is_finite() && *checkable > offset.abs(),
+            "{unverifiable:?}"
+        );
+    }
+    assert!(!m.recapture_pending());
+}
+
+/// A real slip that four re-captures a side would not show at the named size asks for more
+/// (up to eight a side) and is confirmed by them.
+#[test]
+fn a_real_slip_that_four_re_captures_a_side_cannot_show_asks_for_more() {
+    let (_, _, findings) = simulate_with(
+        Fault::Joint(1, 2.0),
+        ONSET,
+        LAST,
+        1,
+        false,
+        (0.0, 0.0),
+        Some(0.08),
+    );
+    let named: Vec<_> = slips(&findings).collect();
+    assert_eq!(named.len(), 1, "{findings:?}");
+    match &named[0].1.recapture {
+        Recapture::Confirmed(r) => {
+            assert!(r.entries.len() > 8, "{r:?}");
+            assert!(r.offset_deg > 1.0 && r.offset_deg < 3.0, "{r:?}");
+        }
+        other => panic!("{other:?}"),
     }
 }
