@@ -535,7 +535,7 @@ pub(super) fn drift_alarm(
             Severity::Warning,
             AlarmCode::LampUnstable,
             format!(
-                "the lamp is unstable: the {source} scatter by {:.2} % (the smaller of two robust SDs of {probes} probes, about their trend and from one to the next) against the {:.2} % the probe cadence was designed for ([probes] design_scatter_pct; lamp-unstable above {UNSTABLE_FACTOR} ×); steps smaller than 5 × the scatter go unseen meanwhile",
+                "the lamp is unstable: the {source} scatter by {:.2} % (the smaller of two robust SDs of {probes} probes, about their trend and from one to the next) against the {:.2} % the probe cadence was designed for ([probes] design_scatter_pct; lamp-unstable above {UNSTABLE_FACTOR} ×); steps smaller than 5 × the scatter go unseen meanwhile, and on an isotropic sample the light sweeps do not judge the arm joints or the wagon's lag (each capture has a gain of its own)",
                 100.0 * scatter,
                 100.0 * design
             ),

@@ -592,6 +592,10 @@ impl Checker {
             .filter(|s| s.can_check_pose())
             .map(|s| s.wagon_sensitivity_of(input.entry));
         let held = self.probes.lamp_probe(&self.ledger, input, m, hold, out);
+        let unstable = self.probes.drift().unstable();
+        if let Some(s) = self.sweeps.as_mut() {
+            s.set_probes_unstable(unstable);
+        }
         if held && !self.sweeps.as_mut().is_some_and(|s| s.request_pose_check()) {
             self.probes.release_held_step(out);
         }

@@ -322,6 +322,11 @@ impl ProbeDrift {
         }
     }
 
+    /// Whether `lamp-unstable` stands.
+    pub(crate) fn unstable(&self) -> bool {
+        self.unstable
+    }
+
     /// The probes' scatter (ln units, one probe against its original) over the last
     /// `UNSTABLE_WINDOW` probes of a segment, from one probe to the next (`stability`), once
     /// measured.

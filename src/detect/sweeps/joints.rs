@@ -33,6 +33,26 @@ pub(super) fn slip_start(run: &[(f64, f64, f64, u64)], centre: f64, offset: f64)
 }
 
 impl SweepMonitor {
+    /// The sweep's joint fits, recorded untested (`z` none, no CUSUM): the lamp is unstable.
+    pub(super) fn record_joint_fits(&mut self, pattern: &PatternFit, rec: &mut SweepRecord) {
+        for j in 0..2 {
+            let b = pattern.beta[j + 1];
+            let Some(bse) = pattern.se(j + 1).filter(|v| v.is_finite() && *v > 0.0) else {
+                continue;
+            };
+            if let Some(span) = self.sweep_starts.last_mut() {
+                span.offsets[j] = b;
+            }
+            rec.joints.push(JointFit {
+                joint: j + 1,
+                offset_deg: b,
+                se_deg: bse,
+                z: None,
+                cusum: 0.0,
+            });
+        }
+    }
+
     /// The joints: both CUSUMs are updated first; when one or both cross, the alarm names the
     /// joint with the larger statistic (one positioning alarm per θi layer). A sweep whose level
     /// stepped (`level_alarmed`: a lamp step part-way through it looks like a pattern across its

@@ -347,6 +347,8 @@ pub(crate) struct SweepMonitor {
     /// first capture; and whether `lamp-unstable` stands.
     scatter: Vec<(f64, u64)>,
     unstable: bool,
+    /// Whether the probes' `lamp-unstable` stands (a probe-taking rig).
+    probes_unstable: bool,
     /// Slips are re-captured before they are named (`recapture`), with this noise; None names
     /// them from the sweeps alone.
     recapture: Option<recapture::RecaptureNoise>,
@@ -442,6 +444,7 @@ impl SweepMonitor {
             latched: HashSet::new(),
             scatter: Vec::new(),
             unstable: false,
+            probes_unstable: false,
             last: None,
             tested: 0,
             sweep_starts: Vec::new(),
@@ -660,22 +663,31 @@ impl SweepMonitor {
         // the wagon before the joints: its lag also leaves a pattern the joints' fit (which has
         // no lag column) partly takes up, so in a sweep where both cross the wagon is named and
         // the joints' CUSUMs start again
-        let hold = level_step.alarmed || level_step.slip.is_some();
-        let wagon_named = self.test_wagon(&sweep, wagon, hold, &known, &mut findings);
-        let named = self.test_joints(
-            &sweep,
-            &pattern,
-            level_step.alarmed || wagon_named,
-            &known,
-            &mut rec,
-            &mut findings,
-        );
-        if wagon_named {
-            // what the joints' CUSUMs had gathered was the lag's pattern
-            for c in self.joint_cusum.iter_mut() {
-                c.reset();
+        // while the probes see the lamp flicker every capture has a gain of its own, which
+        // makes patterns across a sweep's cameras of its own: the pose is not judged from them
+        // (the fits are recorded)
+        let named = if self.lamp_unstable() {
+            self.record_joint_fits(&pattern, &mut rec);
+            None
+        } else {
+            let hold = level_step.alarmed || level_step.slip.is_some();
+            let wagon_named = self.test_wagon(&sweep, wagon, hold, &known, &mut findings);
+            let named = self.test_joints(
+                &sweep,
+                &pattern,
+                level_step.alarmed || wagon_named,
+                &known,
+                &mut rec,
+                &mut findings,
+            );
+            if wagon_named {
+                // what the joints' CUSUMs had gathered was the lag's pattern
+                for c in self.joint_cusum.iter_mut() {
+                    c.reset();
+                }
             }
-        }
+            named
+        };
         if level_test {
             self.test_scatter(&sweep, &rec, &mut findings);
         }
@@ -700,6 +712,31 @@ impl SweepMonitor {
             slip_at_s,
             withdrawn_steps_s,
         }
+    }
+
+    /// Whether the probes' `lamp-unstable` stands: the sweeps' joint and lag tests are then
+    /// suspended. The sweeps' own scatter test does not suspend them: a slip's pattern, not in
+    /// the model until it is named, raises their residual scatter too.
+    fn lamp_unstable(&self) -> bool {
+        self.probes_unstable
+    }
+
+    /// The probes' `lamp-unstable` was raised (`true`) or cleared: the sweeps' joint and lag
+    /// tests are suspended while it stands, and start again from nothing when it is raised
+    /// (the flicker began before it was measured).
+    pub(crate) fn set_probes_unstable(&mut self, unstable: bool) {
+        if unstable && !self.probes_unstable {
+            self.restart_pose_tests();
+        }
+        self.probes_unstable = unstable;
+    }
+
+    /// The joints' and the wagon lag's CUSUMs start again.
+    fn restart_pose_tests(&mut self) {
+        for c in self.joint_cusum.iter_mut() {
+            c.reset();
+        }
+        self.wagon_cusum.reset();
     }
 
     /// The lamp's capture-to-capture stability without probes. A flickering lamp gives every

@@ -195,6 +195,11 @@ fn simulate_with(
             current = Some(pe.light);
         }
         findings.extend(m.handle_regular_capture().findings);
+        // with probes (no level test), the probes' lamp-unstable stands over a flicker from
+        // capture `PROBES_SEE_FLICKER_AT` on (where the matrix's probes every 75 raise it)
+        if let (Fault::Flicker(_, until), false) = (fault, level_test) {
+            m.set_probes_unstable(e >= PROBES_SEE_FLICKER_AT && e < until);
+        }
         let Some((pe, l, c, inc, pose, y)) = render(e, e) else {
             continue;
         };
@@ -913,4 +918,64 @@ fn a_real_slip_that_four_re_captures_a_side_cannot_show_asks_for_more() {
         }
         other => panic!("{other:?}"),
     }
+}
+
+/// The first capture at which the simulated probes' `lamp-unstable` stands over a flicker.
+const PROBES_SEE_FLICKER_AT: usize = 607;
+
+/// While the probes' `lamp-unstable` stands every capture has a gain of its own, and the
+/// sweeps do not judge the pose: their joint fits are recorded untested and no positioning
+/// finding is made; once the lamp is steady again they are judged again.
+#[test]
+fn the_pose_is_not_judged_from_the_sweeps_while_the_probes_see_the_lamp_unstable() {
+    let until = 41 * 81;
+    let (records, findings) = run(Fault::Flicker(0.03, until), 0, 56, 5, false);
+    let (from, to) = (PROBES_SEE_FLICKER_AT as u64, until as u64);
+    let between = |r: &&SweepRecord| r.idx >= from + 81 && r.idx < to;
+    assert!(records.iter().filter(between).count() > 20);
+    for r in records.iter().filter(between) {
+        assert!(!r.joints.is_empty(), "the fits are recorded: {r:?}");
+        assert!(r.joints.iter().all(|j| j.z.is_none()), "{r:?}");
+    }
+    assert!(
+        records
+            .iter()
+            .any(|r| r.idx > to && r.joints.iter().any(|j| j.z.is_some())),
+        "judged again once steady"
+    );
+    for f in &findings {
+        let at = f.at().last_idx;
+        assert!(
+            at < from + 81
+                || at > to
+                || !matches!(
+                    f,
+                    SweepFinding::JointSlip { .. }
+                        | SweepFinding::WagonBacklash { .. }
+                        | SweepFinding::SlipUnverifiable { .. }
+                ),
+            "{f:?}"
+        );
+    }
+}
+
+/// The probes' `lamp-unstable` suspends the sweeps' pose tests too, and restarts their CUSUMs
+/// when raised.
+#[test]
+fn the_probes_lamp_unstable_suspends_the_sweeps_pose_tests() {
+    let plan = SamplingPlan::ubo();
+    let rig = Rig::new(Default::default()).unwrap();
+    let mut m = SweepMonitor::new(SweepSpec::default(), rig, plan.direction_count());
+    m.joint_cusum[1].up = 2.5;
+    m.wagon_cusum.up = 1.5;
+    assert!(!m.lamp_unstable());
+    m.set_probes_unstable(true);
+    assert!(m.lamp_unstable());
+    assert_eq!((m.joint_cusum[1].up, m.wagon_cusum.up), (0.0, 0.0));
+    m.joint_cusum[0].up = 1.0;
+    // still standing: nothing restarts
+    m.set_probes_unstable(true);
+    assert_eq!(m.joint_cusum[0].up, 1.0);
+    m.set_probes_unstable(false);
+    assert!(!m.lamp_unstable());
 }
