@@ -294,7 +294,7 @@ fn joint_slip(at: &SweepAt, x: &JointSlip) -> Alarm {
             .collect(),
         attributed_level_pct: x.attributed_level_pct,
         recapture: match &x.recapture {
-            Recapture::NotAsked => None,
+            Recapture::NoProbes | Recapture::NotAsked => None,
             Recapture::Confirmed(r) => {
                 Some(evidence::SlipRecapture::Confirmed(reading_evidence(r)))
             }
@@ -304,7 +304,8 @@ fn joint_slip(at: &SweepAt, x: &JointSlip) -> Alarm {
         },
     });
     let recaptured = match &x.recapture {
-        Recapture::NotAsked => String::new(),
+        Recapture::NoProbes => "; from the light sweeps alone, which cannot tell a slip from a stationary pattern of the geometry that follows the pose (a lamp beam aimed beside the rotation centre, a holder's rim): on a rig that takes drift probes ([probes] every) earlier poses are re-captured to decide".to_string(),
+        Recapture::NotAsked => "; from the light sweeps alone (no re-capture of earlier poses could check it yet)".to_string(),
         Recapture::Confirmed(r) => format!("; confirmed by a re-capture: {}", reading_words(r)),
         Recapture::Unanswered { entries } => format!(
             "; not confirmed: the re-captures asked for (entries {}) were not taken",
@@ -598,7 +599,27 @@ mod tests {
                 handling: Handling::Retake
             })
         );
-        assert!(a.message.ends_with("(CUSUM 9.5 > 6.0)"), "{}", a.message);
+        assert!(
+            a.message.ends_with(
+                "(CUSUM 9.5 > 6.0); from the light sweeps alone (no re-capture of earlier poses could check it yet)"
+            ),
+            "{}",
+            a.message
+        );
+        // without probes the message says what would decide
+        let no_probes = alarm(&SweepFinding::JointSlip {
+            at: AT,
+            slip: JointSlip {
+                recapture: Recapture::NoProbes,
+                ..slip.clone()
+            },
+        });
+        assert!(
+            no_probes.message.contains("(CUSUM 9.5 > 6.0); from the light sweeps alone, which cannot tell a slip from a stationary pattern")
+                && no_probes.message.ends_with("earlier poses are re-captured to decide"),
+            "{}",
+            no_probes.message
+        );
         assert_eq!(
             serde_json::to_value(&a).unwrap()["evidence"].to_string(),
             r#"{"estimate_sweeps":2,"joint":2,"offset_deg":1.25,"other_joints":[{"cusum":0.5,"joint":1,"offset_deg":0.5,"se_deg":0.25}],"run_mean_deg":1.5,"se_deg":0.25,"since_idx":3725,"statistic":9.5,"sweeps":3,"threshold":6.0}"#

@@ -94,8 +94,11 @@ pub(crate) struct JointSlip {
 /// Whether a slip the sweeps name was checked by re-capturing earlier poses (`recapture`).
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) enum Recapture {
-    /// Not asked: the rig takes no probes, or no earlier sweep's poses differ enough in their
-    /// sensitivity to the joint to show a slip of the named size.
+    /// The rig takes no re-captures (watch mode, archives, a rig that refused probes): named
+    /// from the sweeps alone.
+    NoProbes,
+    /// Not asked on a probe-taking rig: no earlier sweep to re-capture poses from yet, or a
+    /// level change with the joint's pattern named it.
     NotAsked,
     /// The re-captures show the slip.
     Confirmed(RecaptureReading),

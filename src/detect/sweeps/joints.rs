@@ -33,6 +33,16 @@ pub(super) fn slip_start(run: &[(f64, f64, f64, u64)], centre: f64, offset: f64)
 }
 
 impl SweepMonitor {
+    /// What a slip named without re-captures says of them: the rig takes none, or none was
+    /// asked.
+    pub(super) fn unasked(&self) -> Recapture {
+        if self.recapture.is_some() {
+            Recapture::NotAsked
+        } else {
+            Recapture::NoProbes
+        }
+    }
+
     /// The sweep's joint fits, recorded untested (`z` none, no CUSUM): the lamp is unstable.
     pub(super) fn record_joint_fits(&mut self, pattern: &PatternFit, rec: &mut SweepRecord) {
         for j in 0..2 {
@@ -148,13 +158,9 @@ impl SweepMonitor {
                 match self.hold_for_recapture(sweep.at(), x, &rec.joints) {
                     Hold::Held => {}
                     Hold::NotAsked => {
-                        named = Some(self.name_slip(
-                            sweep.at(),
-                            x,
-                            &rec.joints,
-                            Recapture::NotAsked,
-                            findings,
-                        ));
+                        let recapture = self.unasked();
+                        named =
+                            Some(self.name_slip(sweep.at(), x, &rec.joints, recapture, findings));
                     }
                     Hold::Unverifiable { z_per_deg } => {
                         if self.unverifiable.insert(sweep.layer) {

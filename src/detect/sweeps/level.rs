@@ -132,11 +132,12 @@ impl SweepMonitor {
                         // crossing of the joints' CUSUMs); otherwise the level is the lamp's
                         let x = self.slip_estimate(x, known);
                         if x.mean.abs() >= self.spec.joint_tolerance_deg {
+                            let recapture = self.unasked();
                             step.slip = Some(self.name_slip(
                                 sweep.at(),
                                 &x,
                                 &rec.joints,
-                                Recapture::NotAsked,
+                                recapture,
                                 findings,
                             ));
                             self.level_cusum.reset();

@@ -714,7 +714,7 @@ fn a_stationary_pattern_that_looks_like_a_slip_is_refuted_by_re_captures() {
     let pattern = Fault::LightPattern(1, 2.0, 47);
     let (_, _, alone) = simulate(pattern, usize::MAX, LAST, 1, false, (0.0, 0.0));
     assert!(
-        slips(&alone).any(|(_, s)| s.joint == 2 && s.recapture == Recapture::NotAsked),
+        slips(&alone).any(|(_, s)| s.joint == 2 && s.recapture == Recapture::NoProbes),
         "{alone:?}"
     );
     let (m, _, checked) =
