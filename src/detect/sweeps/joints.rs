@@ -43,23 +43,27 @@ impl SweepMonitor {
         }
     }
 
-    /// The sweep's joint fits, recorded untested (`z` none, no CUSUM): the lamp is unstable.
+    /// Joint `j`'s (0-based) fit in the sweep's pattern, untested (`z` none, no CUSUM), noted in
+    /// the sweep's span; None where the fit gives no standard error.
+    fn joint_fit(&mut self, pattern: &PatternFit, j: usize) -> Option<JointFit> {
+        let b = pattern.beta[j + 1];
+        let bse = pattern.se(j + 1).filter(|v| v.is_finite() && *v > 0.0)?;
+        if let Some(span) = self.sweep_starts.last_mut() {
+            span.offsets[j] = b;
+        }
+        Some(JointFit {
+            joint: j + 1,
+            offset_deg: b,
+            se_deg: bse,
+            z: None,
+            cusum: 0.0,
+        })
+    }
+
+    /// The sweep's joint fits, recorded untested: the lamp is unstable.
     pub(super) fn record_joint_fits(&mut self, pattern: &PatternFit, rec: &mut SweepRecord) {
         for j in 0..2 {
-            let b = pattern.beta[j + 1];
-            let Some(bse) = pattern.se(j + 1).filter(|v| v.is_finite() && *v > 0.0) else {
-                continue;
-            };
-            if let Some(span) = self.sweep_starts.last_mut() {
-                span.offsets[j] = b;
-            }
-            rec.joints.push(JointFit {
-                joint: j + 1,
-                offset_deg: b,
-                se_deg: bse,
-                z: None,
-                cusum: 0.0,
-            });
+            rec.joints.extend(self.joint_fit(pattern, j));
         }
     }
 
@@ -82,20 +86,10 @@ impl SweepMonitor {
         let (k, clip) = (self.spec.cusum_k, self.spec.clip);
         let mut crossing: Option<JointCrossing> = None;
         for j in 0..2 {
-            let b = pattern.beta[j + 1];
-            let Some(bse) = pattern.se(j + 1).filter(|v| v.is_finite() && *v > 0.0) else {
+            let Some(mut fit) = self.joint_fit(pattern, j) else {
                 continue;
             };
-            if let Some(span) = self.sweep_starts.last_mut() {
-                span.offsets[j] = b;
-            }
-            let mut fit = JointFit {
-                joint: j + 1,
-                offset_deg: b,
-                se_deg: bse,
-                z: None,
-                cusum: 0.0,
-            };
+            let (b, bse) = (fit.offset_deg, fit.se_deg);
             let hist = &self.joint_history[j];
             if hist.len() >= self.spec.min_sweeps {
                 let nuisance = hist.scale();
