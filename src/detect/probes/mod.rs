@@ -7,7 +7,9 @@
 //! Model: d(t) = a + r·(t − t₀) on the current segment (ordinary least squares; r in ln-gain per
 //! hour). A rate alarm when |r| − z·SE(r) exceeds the tolerance (with hysteresis). A step alarm
 //! when a new probe departs from the segment's prediction by more than `step_sigmas` residual
-//! standard deviations and `step_pct`; the segment then restarts at that probe.
+//! standard deviations and `step_pct`, while the segment's residual SD is within what
+//! `lamp-unstable` allows (a segment that scatters more is the stability test's); the segment
+//! then restarts at that probe.
 
 use super::drift::{DriftEstimate, DriftEvent, DriftSpec};
 use crate::measure::geometry::{angle_between, mirror, Vec3};
@@ -374,7 +376,15 @@ impl ProbeDrift {
             if let Some(f) = fit(&self.segment) {
                 let e = d - (f.a + f.r * (t_h - f.t0));
                 let sd = f.sd.max(1e-4);
-                if e.abs() > self.spec.step_sigmas * sd && e.abs() > self.spec.step_pct / 100.0 {
+                // a step is a lamp's that was steady: a segment that already scatters beyond
+                // what `lamp-unstable` allows (a flicker the stability window has not judged
+                // yet) makes departures of its own, which its few residuals under-scale by chance
+                let design = self.spec.design_scatter_pct / 100.0;
+                let steady = !(design > 0.0 && sd > UNSTABLE_FACTOR * design);
+                if steady
+                    && e.abs() > self.spec.step_sigmas * sd
+                    && e.abs() > self.spec.step_pct / 100.0
+                {
                     ev.push(DriftEvent::Step {
                         direction: if e > 0.0 { 1 } else { -1 },
                         statistic: e.abs() / sd,

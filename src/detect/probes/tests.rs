@@ -250,3 +250,35 @@ fn a_level_shift_below_a_step_is_not_instability() {
         assert!(scatter < 0.003, "seed {seed}: {scatter}");
     }
 }
+
+/// A flicker is not a run of steps: a segment whose residual SD already exceeds what
+/// `lamp-unstable` allows raises no step however far a probe departs (its few residuals can
+/// under-scale the flicker by chance), while a steady lamp's step is still caught.
+#[test]
+fn a_flickering_segment_raises_no_step() {
+    let steps = |ev: &[(f64, DriftEvent)]| {
+        ev.iter()
+            .filter(|(_, e)| matches!(e, DriftEvent::Step { .. }))
+            .count()
+    };
+    // ± 6 % uniform (3.5 % SD, over ten times the design): no step in 40 runs
+    for seed in 1..=40 {
+        let ev = run(0.0, None, 0.06, seed);
+        assert_eq!(steps(&ev), 0, "seed {seed}: {ev:?}");
+    }
+    // the spec's own figures: a probe 10 % off a segment scattering by 1 % is no step
+    let mut p = ProbeDrift::new(ProbeSpec::default());
+    let mut rng = crate::measure::stats::SplitMix64(3);
+    for k in 0..6u64 {
+        let y = 40.0 * (1.0 + 0.01 * rng.gauss());
+        assert!(p.add(k, 0.0, 40.0, 0.2 + 0.2 * k as f64, y).is_empty());
+    }
+    let ev = p.add(6, 0.0, 40.0, 1.4, 44.0);
+    assert!(
+        !ev.iter().any(|e| matches!(e, DriftEvent::Step { .. })),
+        "{ev:?}"
+    );
+    // a steady lamp's −3 % step is caught
+    let ev = run(0.0, Some((6.0, -0.03)), 0.003, 1);
+    assert_eq!(steps(&ev), 1, "{ev:?}");
+}
