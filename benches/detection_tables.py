@@ -17,8 +17,8 @@ How a run is judged (the onset is the fault's first capture; a fault-free run's 
   of the true decay over the run;
 - a positioning fault is named right when the first `joint-offset-suspected`,
   `wagon-backlash-suspected` or `wagon-offset-suspected` after the onset names its axis (the
-  wagon is axis 4) with its sign
-  within 600 captures; named wrong when a positioning alarm after the onset names another axis
+  wagon is axis 4; its lag as `wagon-backlash-suspected`, its offset as
+  `wagon-offset-suspected`) with its sign within 600 captures; named wrong when a positioning alarm after the onset names another axis
   or sign (or comes late);
 - a flickering lamp is flagged by `lamp-unstable` within 1,000 captures;
 - an encoder episode is right when after its onset there is an `encoder-mismatch` and neither
@@ -64,7 +64,17 @@ def alarm_sign(x: dict) -> float:
 
 def named(r: dict) -> bool:
     a, f = r.get("joint_after"), r["fault"]
-    return a is not None and a["joint"] == f["axis"] and (a["offset_deg"] or 0) * f["size"] > 0
+    if a is None or a["joint"] != f["axis"] or (a["offset_deg"] or 0) * f["size"] <= 0:
+        return False
+    # the wagon's lag is named as a lag, its constant offset as an offset
+    return f["axis"] != 4 or (a["code"] == "wagon-backlash-suspected") == ("backlash" in r["row"])
+
+
+def wrong_kind(r: dict) -> bool:
+    """The wagon named with the other of its faults: a lag as an offset, or the reverse."""
+    a, f = r.get("joint_after"), r["fault"]
+    return (a is not None and f["axis"] == 4 and a["joint"] == 4
+            and (a["code"] == "wagon-backlash-suspected") != ("backlash" in r["row"]))
 
 
 def false_alarm(r: dict) -> bool:
@@ -185,12 +195,12 @@ def positioning_table(records) -> str:
             cells.append(of(sum(1 for r in h if named(r) and delay(r, "joint_after") <= JOINT_WITHIN), len(h)) if h else "–")
         right = [r for r in g if named(r) and delay(r, "joint_after") <= JOINT_WITHIN]
         silent = [r for r in g if r["positioning_after"] is None]
-        wrong_axis = [r for r in g if r["joint_after"] and r["joint_after"]["joint"] != f["axis"]]
+        wrong_axis = [r for r in g if r["joint_after"] and (r["joint_after"]["joint"] != f["axis"] or wrong_kind(r))]
         q = sorted(r["joint_after"]["offset_deg"] / f["size"] for r in g if named(r))
         est = f"{statistics.median(q):.2f} ({q[0]:.2f} … {q[-1]:.2f})" if q else "–"
         rows.append(cells + [of(len(right), len(g)), len(wrong_axis), len(silent), est])
     return table(["row", "probes"] + [f"named right within {JOINT_WITHIN}, {p}" for p in fault_models(records)]
-                 + ["named right", "named as another axis", "not named", "estimate / truth: median (range)"], rows)
+                 + ["named right", "named as another axis (or the wagon's other fault)", "not named", "estimate / truth: median (range)"], rows)
 
 
 def other_table(records) -> str:

@@ -67,6 +67,19 @@ def test_a_slip_is_named_right_only_with_its_axis_and_sign():
     assert not T.named(rec(fault=f))
 
 
+def test_the_wagons_lag_must_be_named_as_a_lag_and_its_offset_as_an_offset():
+    lag = {"kind": "joint", "onset": 100, "size": 1.0, "axis": 4}
+    as_lag = alarm(300, "wagon-backlash-suspected", 4, 0.9)
+    as_offset = alarm(300, "wagon-offset-suspected", 4, 0.9)
+    assert T.named(rec(row="wagon backlash 1° at mid-run", fault=lag, joint_after=as_lag))
+    wrong = rec(row="wagon backlash 1° at mid-run", fault=lag, joint_after=as_offset)
+    assert not T.named(wrong) and T.wrong_kind(wrong)
+    assert T.named(rec(row="wagon +1° at mid-run", fault=lag, joint_after=as_offset))
+    wrong = rec(row="wagon +1° at mid-run", fault=lag, joint_after=as_lag)
+    assert not T.named(wrong) and T.wrong_kind(wrong)
+    assert not T.wrong_kind(rec(row="wagon +1° at mid-run", fault=lag, joint_after=alarm(300, "joint-offset-suspected", 1, 0.9)))
+
+
 def test_a_false_alarm_is_one_in_a_fault_free_run_or_before_the_onset():
     assert T.false_alarm(rec(drift_after=alarm(10)))
     assert not T.false_alarm(rec())

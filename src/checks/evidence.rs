@@ -325,10 +325,13 @@ pub struct RecaptureReading {
     pub se_deg: f64,
 }
 
-/// The wagon's lag named by the light sweeps: its estimate (degrees) with its standard error
-/// and the sweeps behind it, the CUSUM run's mean and length, the wagon's constant offset in the
-/// sweep that named it (not tested), the capture that ended the run's first sweep, the
-/// statistic and its threshold.
+/// The wagon's lag: its estimate (degrees) with its standard error. Named by the light sweeps
+/// (`source` "light sweeps"): the sweeps behind the estimate, the CUSUM run's mean and length,
+/// the wagon's constant offset in the sweep that named it (not tested), the capture that ended
+/// the run's first sweep, the statistic and its threshold. Named by a pose re-captured from
+/// both sides after the re-captured pair departed (`source` "re-captures", `approach`): the
+/// pair's change read as an offset (`run_mean_deg`, `offset_deg`), no sweeps, the first capture
+/// of the pair's CUSUM run, its statistic and threshold.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct WagonBacklash {
     pub source: Source,
@@ -341,6 +344,21 @@ pub struct WagonBacklash {
     pub since_idx: u64,
     pub statistic: f64,
     pub threshold: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub approach: Option<ApproachReading>,
+}
+
+/// One pose re-captured from both sides of the wagon's travel: the plan entries in the order
+/// asked (a pose below, the pose, a pose above, the pose), ln Y of the pose approached from
+/// below less from above (%), its change per degree of wagon (%/°), and the wagon's lag that
+/// makes (degrees; positive: it lags its motion) with its standard error.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ApproachReading {
+    pub entries: [usize; 4],
+    pub change_pct: f64,
+    pub sensitivity_pct_per_deg: f64,
+    pub backlash_deg: f64,
+    pub se_deg: f64,
 }
 
 /// The wagon's offset named by re-captures of two poses: its estimate and standard error
@@ -363,6 +381,9 @@ pub struct WagonOffset {
     pub since_idx: u64,
     pub statistic: f64,
     pub threshold: f64,
+    /// One of the two poses re-captured from both sides, which read no lag.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub approach: Option<ApproachReading>,
 }
 
 /// A slip the light sweeps' pattern named (`joint`, `offset_deg`), refuted by re-captures.

@@ -623,13 +623,14 @@ impl Checker {
         }
     }
 
-    /// A re-capture a waiting slip asked for, with its luminance: once both are in, the slip
-    /// is named (its alarm at this capture) or refuted.
+    /// A re-capture the sweeps asked for, with its luminance and the wagon's last direction of
+    /// motion: once a question's captures are in, a slip is named (its alarm at this capture)
+    /// or refuted, the wagon's pair read, or its lag read from both sides.
     fn recaptured(&mut self, input: &CaptureInput, y: f64, out: &mut CheckOutput) {
         let Some(o) = self
             .sweeps
             .as_mut()
-            .map(|s| s.handle_recapture(input.entry, y))
+            .map(|s| s.handle_recapture(input.entry, y, self.wagon_dir))
         else {
             return;
         };

@@ -4,8 +4,8 @@
 use super::evidence::{self, Evidence, Source};
 use crate::checks::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::detect::sweeps::{
-    JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt, SweepFinding, WagonBacklash,
-    WagonOffset,
+    ApproachReading, JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt, SweepFinding,
+    WagonBacklash, WagonOffset,
 };
 
 /// The alarm a finding of the sweep checks raises.
@@ -349,12 +349,33 @@ fn joint_slip(at: &SweepAt, x: &JointSlip) -> Alarm {
     )
 }
 
+/// A pose re-captured from both sides, for the alarms' evidence.
+fn approach_evidence(r: &ApproachReading) -> evidence::ApproachReading {
+    evidence::ApproachReading {
+        entries: r.entries,
+        change_pct: r.change_pct,
+        sensitivity_pct_per_deg: r.sensitivity_pct_per_deg,
+        backlash_deg: r.backlash_deg,
+        se_deg: r.se_deg,
+    }
+}
+
 fn wagon_backlash(at: &SweepAt, x: &WagonBacklash) -> Alarm {
-    Alarm::new(
-        AlarmKind::Positioning,
-        Severity::Warning,
-        AlarmCode::WagonBacklashSuspected,
-        format!(
+    let message = match &x.approach {
+        Some(r) => format!(
+            "the wagon lags about {:.2}° (± {:.2}°) behind its commanded angle against the direction it last moved: after two earlier poses re-captured back to back moved {:+.2}° of wagon against each other (CUSUM {:.1} > {:.1}), plan entry {} re-captured once approached from below (after entry {}) and once from above (after entry {}) read {:+.2} % apart at {:+.2} %/° of wagon; a constant offset, an arm joint, the lamp and the geometry read the same from both sides",
+            r.backlash_deg,
+            r.se_deg,
+            x.offset_deg,
+            x.statistic,
+            x.threshold,
+            r.entries[1],
+            r.entries[0],
+            r.entries[2],
+            r.change_pct,
+            r.sensitivity_pct_per_deg,
+        ),
+        None => format!(
             "the wagon lags about {:.2}° (± {:.2}°, from {} light sweep(s) against the captures before it) behind its commanded angle against the direction it last moved: the pattern across the cameras of light sweep {} and the {} before it follows the wagon's sensitivity signed by its direction of motion, which no arm joint and no constant offset makes (CUSUM {:.1} > {:.1}; the wagon's constant offset in that sweep {:+.2}°, not tested)",
             x.backlash_deg,
             x.se_deg,
@@ -365,9 +386,19 @@ fn wagon_backlash(at: &SweepAt, x: &WagonBacklash) -> Alarm {
             x.threshold,
             x.offset_deg,
         ),
+    };
+    Alarm::new(
+        AlarmKind::Positioning,
+        Severity::Warning,
+        AlarmCode::WagonBacklashSuspected,
+        message,
     )
     .with(Evidence::WagonBacklash(evidence::WagonBacklash {
-        source: Source::LightSweeps,
+        source: if x.approach.is_some() {
+            Source::Recaptures
+        } else {
+            Source::LightSweeps
+        },
         backlash_deg: x.backlash_deg,
         se_deg: x.se_deg,
         estimate_sweeps: x.estimate_sweeps,
@@ -377,6 +408,7 @@ fn wagon_backlash(at: &SweepAt, x: &WagonBacklash) -> Alarm {
         since_idx: x.since_idx,
         statistic: x.statistic,
         threshold: x.threshold,
+        approach: x.approach.as_ref().map(approach_evidence),
     }))
     .advise(
         &format!(
@@ -393,7 +425,7 @@ fn wagon_offset(x: &WagonOffset) -> Alarm {
         Severity::Warning,
         AlarmCode::WagonOffsetSuspected,
         format!(
-            "the wagon stands about {:+.2}° (± {:.2}°, from {} reading(s)) off its commanded angle: two earlier poses (entries {} and {}, of light sweeps {} and {}), re-captured back to back, moved {:+.2} % against each other, at {:+.2} %/° of wagon (CUSUM {:.1} > {:.1}); a stationary effect of the geometry does not move a re-captured pose, the lamp cancels between the two, and a degree of joint 1 or 2 would read as {:+.2}° or {:+.2}° of wagon; {}",
+            "the wagon stands about {:+.2}° (± {:.2}°, from {} reading(s)) off its commanded angle: two earlier poses (entries {} and {}, of light sweeps {} and {}), re-captured back to back, moved {:+.2} % against each other, at {:+.2} %/° of wagon (CUSUM {:.1} > {:.1}); a stationary effect of the geometry does not move a re-captured pose, the lamp cancels between the two, and a degree of joint 1 or 2 would read as {:+.2}° or {:+.2}° of wagon; {}{}",
             x.offset_deg,
             x.se_deg,
             x.readings,
@@ -411,6 +443,10 @@ fn wagon_offset(x: &WagonOffset) -> Alarm {
                 Some(z) => format!("the light sweeps since then show the wagon's offset, not a joint's, at {z:.1} standard deviations"),
                 None => format!("the light sweeps since then name no axis: joint 1 by {:+.2}° would read the same", x.offset_deg / x.joint_leak[0]),
             },
+            match &x.approach {
+                Some(r) => format!("; plan entry {} re-captured from below and from above read {:+.2} % apart ({:+.2}° ± {:.2}° of lag): not play in the drive", r.entries[1], r.change_pct, r.backlash_deg, r.se_deg),
+                None => String::new(),
+            },
         ),
     )
     .with(Evidence::WagonOffset(evidence::WagonOffset {
@@ -427,6 +463,7 @@ fn wagon_offset(x: &WagonOffset) -> Alarm {
         since_idx: x.since_idx,
         statistic: x.statistic,
         threshold: x.threshold,
+        approach: x.approach.as_ref().map(approach_evidence),
     }))
     .advise(
         &format!(
@@ -658,6 +695,7 @@ mod tests {
             statistic: 4.5,
             threshold: 2.7,
             since_idx: 3564,
+            approach: None,
         };
         let a = alarm(&SweepFinding::WagonOffset {
             at: AT,
@@ -693,5 +731,89 @@ mod tests {
             },
         });
         assert!(a.message.contains("joint 1 by -0.67°"), "{}", a.message);
+        // a pose re-captured from both sides read no lag: the alarm says so
+        let reading = ApproachReading {
+            entries: [640, 650, 660, 650],
+            change_pct: 0.1,
+            sensitivity_pct_per_deg: 4.0,
+            backlash_deg: -0.0125,
+            se_deg: 0.07,
+        };
+        let a = alarm(&SweepFinding::WagonOffset {
+            at: AT,
+            offset: WagonOffset {
+                approach: Some(reading.clone()),
+                ..x
+            },
+        });
+        assert!(
+            a.message.ends_with("plan entry 650 re-captured from below and from above read +0.10 % apart (-0.01° ± 0.07° of lag): not play in the drive"),
+            "{}",
+            a.message
+        );
+        assert!(
+            matches!(&a.evidence, Evidence::WagonOffset(e) if e.approach.as_ref().is_some_and(|r| r.entries == [640, 650, 660, 650]))
+        );
+    }
+
+    #[test]
+    fn a_lag_read_from_both_sides_names_the_wagons_backlash_from_the_re_captures() {
+        let x = WagonBacklash {
+            backlash_deg: 0.95,
+            se_deg: 0.07,
+            estimate_sweeps: 0,
+            run_mean_deg: -1.2,
+            offset_deg: -1.2,
+            sweeps: 0,
+            since_idx: 3480,
+            from_idx: 3402,
+            statistic: 5.1,
+            threshold: 2.7,
+            approach: Some(ApproachReading {
+                entries: [640, 650, 660, 650],
+                change_pct: -7.6,
+                sensitivity_pct_per_deg: 4.0,
+                backlash_deg: 0.95,
+                se_deg: 0.07,
+            }),
+        };
+        let a = alarm(&SweepFinding::WagonBacklash {
+            at: AT,
+            backlash: x.clone(),
+        });
+        assert_eq!(a.code, AlarmCode::WagonBacklashSuspected);
+        assert_eq!(
+            a.affects,
+            Some(Affects::Since {
+                from_idx: 3402,
+                handling: Handling::Retake
+            })
+        );
+        assert!(
+            a.message.starts_with("the wagon lags about 0.95° (± 0.07°)")
+                && a.message.contains("moved -1.20° of wagon against each other (CUSUM 5.1 > 2.7), plan entry 650 re-captured once approached from below (after entry 640) and once from above (after entry 660) read -7.60 % apart at +4.00 %/° of wagon"),
+            "{}",
+            a.message
+        );
+        let Evidence::WagonBacklash(e) = &a.evidence else {
+            panic!("typed evidence")
+        };
+        assert_eq!(e.source, Source::Recaptures);
+        assert_eq!(e.approach.as_ref().map(|r| r.backlash_deg), Some(0.95));
+        // the sweeps' own: no approach in the evidence at all
+        let a = alarm(&SweepFinding::WagonBacklash {
+            at: AT,
+            backlash: WagonBacklash {
+                approach: None,
+                ..x
+            },
+        });
+        let Evidence::WagonBacklash(e) = &a.evidence else {
+            panic!("typed evidence")
+        };
+        assert_eq!(e.source, Source::LightSweeps);
+        assert!(serde_json::to_value(&a).unwrap()["evidence"]
+            .get("approach")
+            .is_none());
     }
 }

@@ -134,6 +134,15 @@ SCENARIOS = {
         {"every": 25, "isotropic": False},
         False,
     ),
+    "wagon-backlash": (
+        "the wagon lags 1 deg behind its direction of motion from capture 1300, drift probes "
+        "every 75: the re-captured pair departs, one of its poses re-captured from below and "
+        "from above reads the lag, wagon-backlash-suspected from the re-captures",
+        [{"kind": "wagon-backlash", "at_capture": 1300, "backlash_deg": 1.0}],
+        {"captures": 1700},
+        {"every": 75},
+        False,
+    ),
     "off-centre": (
         "the second nuisance model (realistic-b: a sample mounted off the rotation centre, "
         "vignetting, stray light) under a 1 %/h lamp decay, no probes: sample-off-centre from "

@@ -1,6 +1,7 @@
 //! What the sweep checks find: typed, with their numbers; `crate::checks` words them as
 //! alarms.
 
+pub(crate) use super::approach::ApproachReading;
 use super::JointFit;
 
 /// The sweep a finding was made at: its light direction, its last capture with that capture's
@@ -41,6 +42,10 @@ pub(crate) struct WagonBacklash {
     pub from_idx: u64,
     pub statistic: f64,
     pub threshold: f64,
+    /// Named by a pose re-captured from both sides after the re-captured pair departed
+    /// (`approach`): its reading; the other fields are then the pair's (its CUSUM, and its
+    /// change read as an offset), none of the sweeps'.
+    pub approach: Option<ApproachReading>,
 }
 
 /// The wagon's offset named by re-capturing two poses (`wagon_watch`): its estimate (degrees)
@@ -65,6 +70,8 @@ pub(crate) struct WagonOffset {
     pub statistic: f64,
     pub threshold: f64,
     pub since_idx: u64,
+    /// One of the pair's poses re-captured from both sides, when it read no lag (`approach`).
+    pub approach: Option<ApproachReading>,
 }
 
 /// A joint named as slipped: its estimated offset (degrees) with its standard error and the

@@ -40,6 +40,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::{HashMap, HashSet};
 use std::f64::consts::TAU;
 
+mod approach;
 mod findings;
 mod joints;
 mod level;
@@ -55,8 +56,8 @@ mod wagon;
 mod wagon_watch;
 
 pub(crate) use findings::{
-    JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt, SweepFinding, WagonBacklash,
-    WagonOffset,
+    ApproachReading, JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt, SweepFinding,
+    WagonBacklash, WagonOffset,
 };
 use level::ScaleHistory;
 use model::{Model, PatternFit, Reference, Row};
@@ -97,7 +98,8 @@ pub struct SweepSpec {
     /// sweeps): a lamp whose gain moves from capture to capture (flicker).
     pub unstable_scatter_pct: f64,
     /// On a rig that takes probes: re-capture two poses chosen for the wagon's sensitivity
-    /// every this many light sweeps (`wagon_watch`, about 2 captures each); 0 leaves it out.
+    /// every this many light sweeps (`wagon_watch`, about 2 captures each; a departure's pose
+    /// re-captured from both sides, `approach`, 4 more); 0 leaves it out.
     pub wagon_watch_sweeps: usize,
 }
 

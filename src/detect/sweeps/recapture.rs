@@ -219,7 +219,15 @@ impl SweepMonitor {
     /// A re-capture of `entry` was checked with luminance `y` (a dark or unusable one gives no
     /// reading: the wait runs out). Once both are in, the slip is named or refuted, or the
     /// wagon watch's reading judged.
-    pub(crate) fn handle_recapture(&mut self, entry: usize, y: f64) -> SweepOutcome {
+    pub(crate) fn handle_recapture(
+        &mut self,
+        entry: usize,
+        y: f64,
+        wagon_dir: f64,
+    ) -> SweepOutcome {
+        if self.wagon_watch.awaits_approach(entry) {
+            return self.handle_approach(entry, y, wagon_dir);
+        }
         if self.wagon_watch.awaits(entry) {
             // its reading is judged here, named at a sweep's end (`wagon_watch`)
             self.handle_wagon_recapture(entry, y);

@@ -125,8 +125,9 @@ fn simulate_with(
         }
         wagon_dirs.push(dir);
     }
-    // plan entry `e` taken at capture `at` (the fault's state and the noise are the time's)
-    let render = |e: usize, at: usize| {
+    // plan entry `e` taken at capture `at` (the fault's state and the noise are the time's),
+    // the wagon last moving in direction `dir` (a re-capture's; the plan order's when None)
+    let render = |e: usize, at: usize, dir: Option<f64>| {
         let pe = plan.entry(e).unwrap();
         let (l, c) = (dirs[pe.light], dirs[pe.camera]);
         let (inc, pose) = plan_pose(&rig, &l, &c)?;
@@ -136,7 +137,7 @@ fn simulate_with(
             match fault {
                 Fault::None | Fault::LightPattern(..) => {}
                 Fault::Joint(j, d) => actual.joints_deg[j] += d,
-                Fault::WagonBacklash(b) => actual.wagon_deg -= b * wagon_dirs[e],
+                Fault::WagonBacklash(b) => actual.wagon_deg -= b * dir.unwrap_or(wagon_dirs[e]),
                 Fault::WagonOffset(d) => actual.wagon_deg += d,
                 Fault::Step(g) => gain = g,
                 Fault::Flicker(sd, until) if at < until => {
@@ -182,9 +183,19 @@ fn simulate_with(
                 findings.extend(o.findings);
                 if let Some(entries) = m.recapture_wanted() {
                     m.handle_recapture_asked();
+                    // the rig takes them back to back: each approached from the one before
+                    let (mut w, mut dir) = (last_w, wagon_dir);
                     for entry in entries {
-                        if let Some((.., y)) = render(entry, e) {
-                            findings.extend(m.handle_recapture(entry, y).findings);
+                        let pe = plan.entry(entry).unwrap();
+                        if let Some((_, pose)) = plan_pose(&rig, &dirs[pe.light], &dirs[pe.camera])
+                        {
+                            if let Some(before) = w.filter(|v| *v != pose.wagon_deg) {
+                                dir = (pose.wagon_deg - before).signum();
+                            }
+                            w = Some(pose.wagon_deg);
+                        }
+                        if let Some((.., y)) = render(entry, e, Some(dir)) {
+                            findings.extend(m.handle_recapture(entry, y, dir).findings);
                         }
                     }
                 }
@@ -200,7 +211,7 @@ fn simulate_with(
         if let (Fault::Flicker(_, until), false) = (fault, level_test) {
             m.set_probes_unstable(e >= PROBES_SEE_FLICKER_AT && e < until);
         }
-        let Some((pe, l, c, inc, pose, y)) = render(e, e) else {
+        let Some((pe, l, c, inc, pose, y)) = render(e, e, None) else {
             continue;
         };
         if let Some(w) = last_w.filter(|w| *w != pose.wagon_deg) {

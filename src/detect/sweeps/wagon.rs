@@ -87,6 +87,7 @@ impl SweepMonitor {
                                 from_idx: self.slip_first_idx(run.start),
                                 statistic: self.wagon_cusum.up,
                                 threshold: self.h_joint,
+                                approach: None,
                             },
                         });
                         named = true;

@@ -24,15 +24,17 @@
 //! the noise model's, widened into a prediction interval), clipped, feeds a two-sided CUSUM
 //! whose threshold comes from the false-alarm budget over the run's questions; a crossing needs
 //! two readings (one glitched capture cannot make one) and a mean of `MIN_OFFSET_TOLERANCES`
-//! joint tolerances. It is a change of the camera's pose, the wagon's or joint 1's, and the
-//! light sweeps say which (`attribute_departure`): joint 1 moves the light too, which the
-//! sweeps see. A joint slip the sweeps name restarts the watch's reference: the pose changed,
+//! joint tolerances. It is a change of the camera's pose: play in the wagon's drive, which one
+//! of the pair's poses re-captured from below and from above shows first (`approach`), or the
+//! wagon's or joint 1's offset, which the light sweeps tell apart (`attribute_departure`):
+//! joint 1 moves the light too, which the sweeps see. A joint slip the sweeps name restarts the watch's reference: the pose changed,
 //! and the slip's alarm covers it.
 //!
 //! What it cannot see: an offset the wagon had before the pair's originals (a calibration error
 //! from the start), and an offset smaller than its noise allows on a sample whose luminance
 //! barely changes with the view (the summary gives the pair's standard error per reading).
 
+use super::approach::{Approach, ApproachOutcome, ApproachReading};
 use super::level::ScaleHistory;
 use super::model::{Model, Row, ATTRIBUTION_Z, SMOOTH_SE_MAX_DEG};
 use super::recapture::RecaptureNoise;
@@ -75,9 +77,9 @@ pub(super) struct WagonPair {
     /// Plan entries: the one rising with the wagon, then the falling one.
     pub entries: [usize; 2],
     /// Their commanded poses (for the current model's sensitivities).
-    cmd: [[f64; 4]; 2],
+    pub cmd: [[f64; 4]; 2],
     /// The originals' luminance and light directions.
-    y0: [f64; 2],
+    pub y0: [f64; 2],
     lights: [usize; 2],
     /// ln Y per degree of wagon, joint 1 and joint 2 of the difference, when chosen.
     s: [f64; 3],
@@ -177,6 +179,10 @@ pub(super) struct WagonWatch {
     pose_check: PoseCheckState,
     /// The last completed sweep: an out-of-turn question is asked after it.
     last_at: Option<SweepAt>,
+    /// A departure's pose re-captured from both sides (`approach`), while it is under way.
+    approach: Option<Approach>,
+    /// What it read when it showed no lag: the offset's alarm carries it.
+    approach_read: Option<ApproachReading>,
 }
 
 impl WagonWatch {
@@ -187,8 +193,11 @@ impl WagonWatch {
             .is_some_and(|p| p.entries.contains(&entry))
     }
 
-    /// The entries to ask for, once per question.
+    /// The entries to ask for, once per question: a departure's question of approach first.
     pub(super) fn wanted(&self) -> Option<Vec<usize>> {
+        if let Some(a) = self.approach.as_ref() {
+            return a.wanted();
+        }
         let p = self.pair.as_ref()?;
         self.question
             .as_ref()
@@ -197,13 +206,26 @@ impl WagonWatch {
     }
 
     pub(super) fn asked(&mut self) {
-        if let Some(q) = self.question.as_mut() {
-            q.asked = true;
+        match self.approach.as_mut() {
+            Some(a) => a.asked(),
+            None => {
+                if let Some(q) = self.question.as_mut() {
+                    q.asked = true;
+                }
+            }
         }
     }
 
-    /// Whether a probe of `entry` is a re-capture the question waits for.
+    /// Whether a probe of `entry` is a re-capture the question of approach waits for.
+    pub(super) fn awaits_approach(&self, entry: usize) -> bool {
+        self.approach.as_ref().is_some_and(|a| a.awaits(entry))
+    }
+
+    /// Whether a probe of `entry` is a re-capture a question waits for.
     pub(super) fn awaits(&self, entry: usize) -> bool {
+        if self.approach.as_ref().is_some_and(|a| a.awaits(entry)) {
+            return true;
+        }
         let (Some(p), Some(q)) = (self.pair.as_ref(), self.question.as_ref()) else {
             return false;
         };
@@ -219,6 +241,8 @@ impl WagonWatch {
         self.segment = ScaleHistory::default();
         self.cusum.reset();
         self.departed = None;
+        self.approach = None;
+        self.approach_read = None;
         self.end_pose_check(PoseCheck::Unanswered);
     }
 
@@ -339,6 +363,10 @@ impl SweepMonitor {
         findings: &mut Vec<SweepFinding>,
     ) -> Option<NamedSlip> {
         let mut x = self.wagon_watch.departed?;
+        if self.wagon_watch.approach.is_some() {
+            // its pose re-captured from both sides says first whether it is the wagon's lag
+            return None;
+        }
         if self.pending.is_some() {
             // a slip the sweeps named waits for its own re-captures: it is the likelier cause,
             // and naming it here too would name it twice (its naming restarts the watch)
@@ -371,6 +399,7 @@ impl SweepMonitor {
         };
         let p = self.wagon_watch.pair.clone()?;
         self.wagon_watch.departed = None;
+        let approach = self.wagon_watch.approach_read.take();
         if axis == 0 {
             if !self.latched.insert(Latch::Wagon) {
                 // the lag test named the wagon already
@@ -391,6 +420,7 @@ impl SweepMonitor {
                     statistic: x.statistic,
                     threshold: x.threshold,
                     since_idx: x.since_idx,
+                    approach,
                 },
             });
             return None;
@@ -580,10 +610,77 @@ impl SweepMonitor {
             return;
         };
         let d = ra - rb;
+        let departed = self.wagon_watch.departed.is_some();
         if d.is_finite() {
             self.judge_wagon_reading(&p, &q, d);
         }
+        if !departed && self.wagon_watch.departed.is_some() && !self.probes_unstable {
+            // before the sweeps are asked which axis moved: a lag reads from both sides
+            self.wagon_watch.approach = self.choose_approach(&p);
+        }
         self.wagon_watch.end_pose_check(PoseCheck::Unanswered);
+    }
+
+    /// The question of approach for the pair `p` (`approach`): none without the re-capture
+    /// noise model, or when neither pose has earlier poses on both sides of it.
+    fn choose_approach(&self, p: &WagonPair) -> Option<Approach> {
+        let noise = self.recapture?;
+        let s = |k: usize| {
+            self.sensitivities(&p.cmd[k], Model::Smooth)
+                .map_or(f64::NAN, |s| s[2])
+        };
+        Approach::choose(p, [s(0), s(1)], &self.captures, &self.reserved, &noise)
+    }
+
+    /// A re-capture the question of approach waited for (`awaits_approach`), taken after the
+    /// wagon last moved in direction `wagon_dir`. A lag it shows names the wagon's backlash
+    /// (once a run) in place of the departure; a reading without one goes with the departure
+    /// to the sweeps' attribution, and the offset's alarm carries it.
+    pub(super) fn handle_approach(&mut self, entry: usize, y: f64, wagon_dir: f64) -> SweepOutcome {
+        let tolerance = self.spec.joint_tolerance_deg;
+        let Some(outcome) = self
+            .wagon_watch
+            .approach
+            .as_mut()
+            .and_then(|a| a.handle(entry, y, wagon_dir, tolerance))
+        else {
+            return SweepOutcome::default();
+        };
+        self.wagon_watch.approach = None;
+        let mut findings = Vec::new();
+        match outcome {
+            ApproachOutcome::Lag(reading) => {
+                if let Some(x) = self.wagon_watch.departed {
+                    if self.latched.insert(Latch::Wagon) {
+                        self.wagon_watch.departed = None;
+                        self.wagon_watch.approach_read = None;
+                        let offset = x.change / x.s[0];
+                        findings.push(SweepFinding::WagonBacklash {
+                            at: x.at,
+                            backlash: WagonBacklash {
+                                backlash_deg: reading.backlash_deg,
+                                se_deg: reading.se_deg,
+                                estimate_sweeps: 0,
+                                run_mean_deg: offset,
+                                offset_deg: offset,
+                                sweeps: 0,
+                                since_idx: x.run_start,
+                                from_idx: x.since_idx,
+                                statistic: x.statistic,
+                                threshold: x.threshold,
+                                approach: Some(reading),
+                            },
+                        });
+                    }
+                }
+            }
+            ApproachOutcome::NoLag(reading) => self.wagon_watch.approach_read = Some(reading),
+            ApproachOutcome::Unread => {}
+        }
+        SweepOutcome {
+            findings,
+            ..SweepOutcome::default()
+        }
     }
 
     /// One answered question: its reading joins the segment while no CUSUM run is under way;
@@ -650,6 +747,10 @@ impl SweepMonitor {
     /// A regular capture was checked: a question not answered within
     /// `RECAPTURE_WAIT_CAPTURES` is dropped (asked again at the next cadence).
     pub(super) fn wagon_watch_wait(&mut self) {
+        if self.wagon_watch.approach.as_mut().is_some_and(|a| a.wait()) {
+            // the departure goes to the sweeps' attribution without it
+            self.wagon_watch.approach = None;
+        }
         if let Some(q) = self.wagon_watch.question.as_mut().filter(|q| q.asked) {
             q.waited += 1;
             if q.waited >= recapture::RECAPTURE_WAIT_CAPTURES {
@@ -667,6 +768,7 @@ impl SweepMonitor {
             && self.wagon_watch.pair.is_some()
             && self.wagon_watch.last_at.is_some()
             && self.wagon_watch.segment.len() >= MIN_SEGMENT
+            && self.wagon_watch.approach.is_none()
     }
 
     /// Ask the pair out of turn (a question now, or the one under way): its reading comes back
@@ -778,16 +880,16 @@ mod tests {
         for bad in [f64::NAN, 0.0, -1.0, f64::INFINITY] {
             let mut m = waiting();
             assert!(m.awaits_recapture(650) && m.awaits_recapture(210));
-            assert!(m.handle_recapture(650, bad).findings.is_empty());
-            assert!(m.handle_recapture(210, 0.63).findings.is_empty());
+            assert!(m.handle_recapture(650, bad, 0.0).findings.is_empty());
+            assert!(m.handle_recapture(210, 0.63, 0.0).findings.is_empty());
             assert!(m.wagon_watch.question.is_none(), "{bad}");
             assert_eq!(m.wagon_watch.readings, 0, "{bad}");
             assert!(m.wagon_watch.segment.values.is_empty(), "{bad}");
         }
         // a usable pair is a reading
         let mut m = waiting();
-        m.handle_recapture(650, 0.75);
-        m.handle_recapture(210, 0.63);
+        m.handle_recapture(650, 0.75, 0.0);
+        m.handle_recapture(210, 0.63, 0.0);
         assert_eq!(m.wagon_watch.readings, 1);
         // an entry the question does not wait for is not the watch's
         let m = waiting();
@@ -823,8 +925,11 @@ mod tests {
         assert_eq!(m.recapture_wanted(), Some(vec![650, 210]));
         m.handle_recapture_asked();
         assert_eq!(m.poll_pose_check(), None, "waits for both");
-        assert!(m.handle_recapture(650, 0.75 * d.exp()).findings.is_empty());
-        assert!(m.handle_recapture(210, 0.63).findings.is_empty());
+        assert!(m
+            .handle_recapture(650, 0.75 * d.exp(), 0.0)
+            .findings
+            .is_empty());
+        assert!(m.handle_recapture(210, 0.63, 0.0).findings.is_empty());
     }
 
     #[test]
@@ -894,14 +999,94 @@ mod tests {
         let mut m = in_control();
         assert!(m.request_pose_check());
         m.handle_recapture_asked();
-        m.handle_recapture(650, f64::NAN);
-        m.handle_recapture(210, 0.63);
+        m.handle_recapture(650, f64::NAN, 0.0);
+        m.handle_recapture(210, 0.63, 0.0);
         assert_eq!(m.poll_pose_check(), Some(PoseCheck::Unanswered));
         // the watch started again (a joint slip was named)
         let mut m = in_control();
         assert!(m.request_pose_check());
         m.wagon_watch.restart();
         assert_eq!(m.poll_pose_check(), Some(PoseCheck::Unanswered));
+    }
+
+    /// A watch whose pair just departed by −1.2° of wagon, with its question of approach about
+    /// entry 650 (4 %/° of wagon) waiting to be asked.
+    fn departed() -> SweepMonitor {
+        let mut m = in_control();
+        let at = m.wagon_watch.last_at.unwrap();
+        m.wagon_watch.departed = Some(Departed {
+            at,
+            change: -0.06,
+            change_se: 0.006,
+            readings: 2,
+            statistic: 5.1,
+            threshold: 2.7,
+            since_idx: 730,
+            run_start: 809,
+            s: [0.05, -0.05, 0.0],
+            sweeps: 0,
+        });
+        m.wagon_watch.approach = Some(Approach::for_test([640, 650, 660, 650], 0.04, 3.2e-5));
+        m
+    }
+
+    /// The rig takes the question's captures back to back, the pose reading `y_below` and
+    /// `y_above`; the findings of the last.
+    fn approach(m: &mut SweepMonitor, y_below: f64, y_above: f64) -> Vec<SweepFinding> {
+        assert_eq!(m.recapture_wanted(), Some(vec![640, 650, 660, 650]));
+        m.handle_recapture_asked();
+        assert_eq!(m.recapture_wanted(), None, "nothing else while it waits");
+        assert!(!m.can_check_pose());
+        assert!(m.handle_recapture(640, 0.3, 1.0).findings.is_empty());
+        assert!(m.handle_recapture(650, y_below, 1.0).findings.is_empty());
+        assert!(m.handle_recapture(660, 0.3, 1.0).findings.is_empty());
+        m.handle_recapture(650, y_above, -1.0).findings
+    }
+
+    #[test]
+    fn a_departure_that_reads_differently_from_both_sides_names_the_wagons_lag() {
+        let mut m = departed();
+        // a 1° lag at 4 %/°: from below the pose sits 1° low, from above 1° high
+        let findings = approach(&mut m, 0.75 * (-0.04f64).exp(), 0.75 * 0.04f64.exp());
+        let [SweepFinding::WagonBacklash { at, backlash }] = findings.as_slice() else {
+            panic!("the lag: {findings:?}")
+        };
+        assert_eq!(at.last_idx, 809);
+        assert!((backlash.backlash_deg - 1.0).abs() < 1e-9, "{backlash:?}");
+        let r = backlash.approach.as_ref().expect("its reading");
+        assert_eq!(r.entries, [640, 650, 660, 650]);
+        assert!((backlash.offset_deg + 1.2).abs() < 1e-9 && backlash.from_idx == 730);
+        assert!(m.wagon_watch.departed.is_none() && m.wagon_watch.approach.is_none());
+        assert!(m.latched.contains(&Latch::Wagon));
+    }
+
+    #[test]
+    fn a_departure_that_reads_the_same_from_both_sides_goes_to_the_sweeps_with_the_reading() {
+        let mut m = departed();
+        let findings = approach(&mut m, 0.75 * 1.01, 0.75 * 1.01);
+        assert!(findings.is_empty(), "{findings:?}");
+        assert!(m.wagon_watch.departed.is_some() && m.wagon_watch.approach.is_none());
+        let r = m
+            .wagon_watch
+            .approach_read
+            .as_ref()
+            .expect("kept for the offset");
+        assert!(r.backlash_deg.abs() < 1e-9);
+        assert!(!m.latched.contains(&Latch::Wagon));
+    }
+
+    #[test]
+    fn an_unanswered_question_of_approach_leaves_the_departure_to_the_sweeps() {
+        let mut m = departed();
+        m.recapture_wanted();
+        m.handle_recapture_asked();
+        for _ in 0..recapture::RECAPTURE_WAIT_CAPTURES {
+            assert!(m.handle_regular_capture().findings.is_empty());
+        }
+        assert!(m.wagon_watch.approach.is_none() && m.wagon_watch.departed.is_some());
+        assert!(m.wagon_watch.approach_read.is_none());
+        // the pair is asked again after it
+        assert!(m.can_check_pose());
     }
 
     #[test]
