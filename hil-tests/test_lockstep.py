@@ -8,8 +8,8 @@ A .chk file names a run of benches/matrix.py and what it must show:
 - `expect = "caught"`: a drift alarm of the fault's sign within `within` captures of the onset,
   none before it; with `rate_within_pct_per_h`, the final rate that close to the truth;
 - `expect = "named"`: the first `joint-offset-suspected` (or `wagon-backlash-suspected` or
-  `wagon-offset-suspected`, axis 4) after the onset names the fault's axis and sign within
-  `within` captures, none before it;
+  `wagon-offset-suspected`, axis 4: the lag as a lag, the offset as an offset) after the onset
+  names the fault's axis and sign within `within` captures, none before it;
   with `size_within`, the estimate within that fraction of the truth; with `lamp_quiet = true`,
   no drift alarm and no `lamp-unstable` after the onset either (the lamp is steady);
 - `expect = "encoder"`: an `encoder-mismatch` after the onset, and neither a drift nor a joint
@@ -146,6 +146,10 @@ def test_regression_session(chk, tmp_path):
         a = rec["joint_after"]
         assert a is not None, f"not named: {rec}"
         assert a["joint"] == t.axis and a["offset_deg"] * t.size > 0, f"named wrong: {a}"
+        if t.axis == 4:
+            # the wagon's lag named as a lag, its offset as an offset
+            lag = "backlash" in run.row.name
+            assert (a["code"] == "wagon-backlash-suspected") == lag, f"the wagon's other fault: {a}"
         assert a["idx"] - t.onset <= want["within"], f"named {a['idx'] - t.onset} captures after the onset"
         if "size_within" in want:
             assert abs(a["offset_deg"] / t.size - 1) <= want["size_within"], a

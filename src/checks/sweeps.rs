@@ -363,7 +363,7 @@ fn approach_evidence(r: &ApproachReading) -> evidence::ApproachReading {
 fn wagon_backlash(at: &SweepAt, x: &WagonBacklash) -> Alarm {
     let message = match &x.approach {
         Some(r) => format!(
-            "the wagon lags about {:.2}° (± {:.2}°) behind its commanded angle against the direction it last moved: after two earlier poses re-captured back to back moved {:+.2}° of wagon against each other (CUSUM {:.1} > {:.1}), plan entry {} re-captured once approached from below (after entry {}) and once from above (after entry {}) read {:+.2} % apart at {:+.2} %/° of wagon; a constant offset, an arm joint, the lamp and the geometry read the same from both sides",
+            "the wagon lags about {:.2}° (± {:.2}°) behind its commanded angle against the direction it last moved: after two earlier poses re-captured back to back moved {:+.2}° of wagon against each other (CUSUM {:.1} > {:.1}), plan entry {} re-captured once approached from below (after entry {}) and once from above (after entry {}) read {:+.2} % apart at {:+.2} %/° of wagon; a constant offset, an arm joint, the lamp and the geometry read the same from both sides (the change is measured; the size divides it by the smooth model's slope at the pose, which the plan's grid of camera directions reads low where the luminance turns within a degree, and the lag then reads too large)",
             r.backlash_deg,
             r.se_deg,
             x.offset_deg,
