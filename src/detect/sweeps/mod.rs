@@ -329,6 +329,8 @@ pub(crate) struct SweepMonitor {
     wagon_history: HashMap<i64, ScaleHistory>,
     wagon_cusum: Cusum,
     latched: HashSet<Latch>,
+    /// The wagon's lag once named: re-captures asked after it are read without it.
+    named_lag: Option<recapture::NamedLag>,
     h_level: f64,
     h_joint: f64,
     last: Option<SweepRecord>,
@@ -444,6 +446,7 @@ impl SweepMonitor {
             wagon_history: HashMap::new(),
             wagon_cusum: Cusum::default(),
             latched: HashSet::new(),
+            named_lag: None,
             scatter: Vec::new(),
             unstable: false,
             probes_unstable: false,

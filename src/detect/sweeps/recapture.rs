@@ -61,7 +61,8 @@ pub(super) const MAX_REFUTED_PER_LAYER: usize = 3;
 
 /// The poses to re-capture, as plan entries (the rising ones first, `up` of them), with their
 /// originals' luminance, their sensitivities to the named joint (ln Y per degree) and the
-/// variance of their r.
+/// variance of their r; and for a lag of the wagon named before them, each pose's sensitivity
+/// to the wagon and its original's capture and direction of approach.
 #[derive(Debug, Clone, PartialEq)]
 pub(super) struct RecaptureSet {
     entries: Vec<usize>,
@@ -69,6 +70,41 @@ pub(super) struct RecaptureSet {
     y0: Vec<f64>,
     s: Vec<f64>,
     var: Vec<f64>,
+    originals: Vec<Original>,
+}
+
+/// What a lag of the wagon did to a re-captured pose's original: its capture, the wagon's
+/// direction of approach to it and the pose's ln Y per degree of wagon (NaN when the model
+/// gives none: no correction then).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Original {
+    idx: u64,
+    wagon_dir: f64,
+    s_wagon: f64,
+}
+
+/// The wagon's lag once named: its size (degrees, read through the smooth model's slopes, as
+/// every correction with it is) and the first capture it can have affected.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct NamedLag {
+    pub backlash_deg: f64,
+    pub from_idx: u64,
+}
+
+impl NamedLag {
+    /// What the lag moves ln Y of a re-capture approached from `dir` against its original
+    /// `o`: each sits at −b·dir of wagon, the original only when taken once the lag began.
+    fn effect(&self, o: &Original, dir: f64) -> f64 {
+        if !o.s_wagon.is_finite() {
+            return 0.0;
+        }
+        let before = if o.idx >= self.from_idx {
+            o.wagon_dir
+        } else {
+            0.0
+        };
+        -self.backlash_deg * o.s_wagon * (dir - before)
+    }
 }
 
 impl RecaptureSet {
@@ -138,8 +174,8 @@ pub(super) struct PendingSlip {
     asked: bool,
     /// Regular captures checked since the slip was found.
     waited: u64,
-    /// ln(Y / Y0) of each re-capture, once checked.
-    readings: Vec<Option<f64>>,
+    /// ln(Y / Y0) of each re-capture, once checked, with the wagon's direction of approach.
+    readings: Vec<Option<(f64, f64)>>,
 }
 
 #[cfg(test)]
@@ -160,6 +196,14 @@ impl PendingSlip {
                     .map(|k| if k < n / 2 { 0.025 } else { -0.025 })
                     .collect(),
                 var: vec![1e-4; n],
+                originals: vec![
+                    Original {
+                        idx: 0,
+                        wagon_dir: 1.0,
+                        s_wagon: 0.04,
+                    };
+                    n
+                ],
             },
             asked: false,
             waited: 0,
@@ -240,17 +284,30 @@ impl SweepMonitor {
             if p.set.entries[k] == entry && p.readings[k].is_none() {
                 let r = (y / p.set.y0[k]).ln();
                 if r.is_finite() {
-                    p.readings[k] = Some(r);
+                    p.readings[k] = Some((r, wagon_dir));
                 }
                 break;
             }
         }
-        let Some(r) = p.readings.iter().copied().collect::<Option<Vec<f64>>>() else {
+        let Some(rd) = p
+            .readings
+            .iter()
+            .copied()
+            .collect::<Option<Vec<(f64, f64)>>>()
+        else {
             return SweepOutcome::default();
         };
         let Some(p) = self.pending.take() else {
             return SweepOutcome::default();
         };
+        // a lag of the wagon named before moves each re-capture by the way the wagon came to
+        // it (and its original, when taken once the lag began): not the joint's
+        let lag = self.named_lag;
+        let r: Vec<f64> = rd
+            .iter()
+            .zip(&p.set.originals)
+            .map(|(&(r, dir), o)| r - lag.map_or(0.0, |l| l.effect(o, dir)))
+            .collect();
         let x = p.crossing;
         let d = p.set.contrast(&r);
         let (sensitivity, sd) = p.set.sensitivity_and_sd();
@@ -398,12 +455,12 @@ impl SweepMonitor {
             .collect();
         spans.sort_by_key(|s| std::cmp::Reverse(s.last_idx));
         // per sweep, its candidate poses sorted by their sensitivity, largest first
-        let candidates: Vec<Vec<(f64, usize, f64)>> = spans
+        let candidates: Vec<Vec<(f64, usize, f64, Original)>> = spans
             .into_iter()
             .skip(RECAPTURE_BACK_SWEEPS.saturating_sub(1))
             .take(RECAPTURE_SWEEPS)
             .map(|span| {
-                let mut poses: Vec<(f64, usize, f64)> = self
+                let mut poses: Vec<(f64, usize, f64, Original)> = self
                     .captures
                     .iter()
                     .filter(|c| {
@@ -413,12 +470,17 @@ impl SweepMonitor {
                             && !self.wagon_watch.holds(c.entry)
                     })
                     .filter_map(|c| {
-                        let s = self
-                            .sensitivities(&c.cmd, Model::Smooth)
+                        let smooth = self.sensitivities(&c.cmd, Model::Smooth);
+                        let s = smooth
                             .or_else(|| self.sensitivities(&c.cmd, Model::Interpolant))
                             .map(|s| s[j])
                             .filter(|s| s.is_finite())?;
-                        Some((s, c.entry, c.y))
+                        let original = Original {
+                            idx: c.idx,
+                            wagon_dir: c.wagon_dir,
+                            s_wagon: smooth.map_or(f64::NAN, |s| s[2]),
+                        };
+                        Some((s, c.entry, c.y, original))
                     })
                     .collect();
                 poses.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
@@ -440,6 +502,7 @@ impl SweepMonitor {
                     y0: chosen.iter().map(|p| p.2).collect(),
                     s: chosen.iter().map(|p| p.0).collect(),
                     var: chosen.iter().map(|p| noise.var_at(p.2)).collect(),
+                    originals: chosen.iter().map(|p| p.3).collect(),
                 };
                 let (sensitivity, sd) = set.sensitivity_and_sd();
                 let z = sensitivity / sd;

@@ -830,6 +830,65 @@ fn a_slip_whose_re_captures_never_come_is_named_unconfirmed() {
     assert!(m.handle_end().findings.is_empty());
 }
 
+/// Once the wagon's lag is named, a slip's re-captures are read without it: each moved by the
+/// way the wagon came to it (its original too when taken after the lag began), which is not the
+/// joint's. For-test sets: originals at capture 0 approached from below, 4 %/° of wagon, the
+/// joint's sensitivities ±2.5 %/°, the rising pose approached from below and the falling one from
+/// above.
+#[test]
+fn a_named_lag_is_read_out_of_a_slips_re_captures() {
+    let plan = SamplingPlan::ubo();
+    let rig = Rig::new(Default::default()).unwrap();
+    let x = JointCrossing {
+        joint: 0,
+        statistic: 9.0,
+        mean: -1.0,
+        mean_se: 0.2,
+        sweeps: 2,
+        since: 1000,
+        estimate_sweeps: 2,
+        run_mean: -1.0,
+        attributed_level: None,
+    };
+    let at = SweepAt {
+        light: 30,
+        last_idx: 2000,
+        last_t: 14_000.0,
+        layer_mdeg: 45_000,
+    };
+    // the lag alone: −b·s·dir of each re-capture, the originals taken before it began
+    let lag = 1.0;
+    let answer = |m: &mut SweepMonitor| {
+        m.pending = Some(recapture::PendingSlip::for_test(at, x, &[5, 9]));
+        m.handle_recapture_asked();
+        assert!(m
+            .handle_recapture(5, (-lag * 0.04f64).exp(), 1.0)
+            .findings
+            .is_empty());
+        m.handle_recapture(9, (lag * 0.04f64).exp(), -1.0).findings
+    };
+    let new = || {
+        let mut m = SweepMonitor::new(SweepSpec::default(), rig.clone(), plan.direction_count());
+        m.set_recapture(Some(RecaptureNoise {
+            sd: 0.004,
+            y_ref: None,
+        }));
+        m
+    };
+    // not known: the lag reads as −1.6° of the joint and confirms the slip
+    let findings = answer(&mut new());
+    assert_eq!(slips(&findings).count(), 1, "{findings:?}");
+    // known: nothing of the joint is left
+    let mut m = new();
+    m.named_lag = Some(recapture::NamedLag {
+        backlash_deg: lag,
+        from_idx: 500,
+    });
+    let findings = answer(&mut m);
+    assert_eq!(slips(&findings).count(), 0, "{findings:?}");
+    assert_eq!(refuted(&findings).len(), 1, "{findings:?}");
+}
+
 /// On a probe-taking rig a lag of the wagon from mid-run is named as the wagon's lag with its
 /// size, once, and never as an offset, although the re-captured pair reads a lag as an offset of
 /// either sign (each pose's lag follows the way the wagon came to it): on this synthetic session

@@ -74,6 +74,11 @@ impl SweepMonitor {
                         .unwrap_or((mean, run.mean_and_se().1, run.n));
                     if size >= self.spec.joint_tolerance_deg {
                         self.latched.insert(Latch::Wagon);
+                        let from_idx = self.slip_first_idx(run.start);
+                        self.named_lag = Some(recapture::NamedLag {
+                            backlash_deg: size,
+                            from_idx,
+                        });
                         findings.push(SweepFinding::WagonBacklash {
                             at: sweep.at(),
                             backlash: WagonBacklash {
@@ -84,7 +89,7 @@ impl SweepMonitor {
                                 offset_deg: fit.map_or(f64::NAN, |f| f.offset_deg),
                                 sweeps: run.n,
                                 since_idx: run.start,
-                                from_idx: self.slip_first_idx(run.start),
+                                from_idx,
                                 statistic: self.wagon_cusum.up,
                                 threshold: self.h_joint,
                                 approach: None,

@@ -652,6 +652,10 @@ impl SweepMonitor {
             ApproachOutcome::Lag(reading) => {
                 if let Some(x) = self.wagon_watch.departed {
                     if self.latched.insert(Latch::Wagon) {
+                        self.named_lag = Some(recapture::NamedLag {
+                            backlash_deg: reading.backlash_deg,
+                            from_idx: x.since_idx,
+                        });
                         self.wagon_watch.departed = None;
                         self.wagon_watch.approach_read = None;
                         let offset = x.change / x.s[0];
