@@ -591,15 +591,7 @@ impl Checker {
             .as_ref()
             .filter(|s| s.can_check_pose())
             .map(|s| s.wagon_sensitivity_of(input.entry));
-        // a lag of the wagon once named moves the probe by the way the wagon came to it: not
-        // the lamp's
-        let lag = self
-            .sweeps
-            .as_ref()
-            .map_or(0.0, |s| s.named_lag_effect(input.entry, self.wagon_dir));
-        let held = self
-            .probes
-            .lamp_probe(&self.ledger, input, m, lag, hold, out);
+        let held = self.probes.lamp_probe(&self.ledger, input, m, hold, out);
         let unstable = self.probes.drift().unstable();
         if let Some(s) = self.sweeps.as_mut() {
             s.set_probes_unstable(unstable);

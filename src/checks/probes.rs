@@ -177,8 +177,7 @@ impl ProbeStage {
     }
 
     /// A lamp probe re-captures its entry's pose: its luminance against the entry's original
-    /// is the gain change, less `pose_ln` (what a known change of the pose moved ln Y by: the
-    /// wagon's named lag). With `hold` (a check of the camera's pose can be asked for; the
+    /// is the gain change. With `hold` (a check of the camera's pose can be asked for; the
     /// probe pose's wagon sensitivity beside it), a step is held for it rather than raised;
     /// returns whether one was.
     pub(super) fn lamp_probe(
@@ -186,7 +185,6 @@ impl ProbeStage {
         ledger: &Ledger,
         input: &CaptureInput,
         m: &Measured,
-        pose_ln: f64,
         hold: Option<Option<f64>>,
         out: &mut CheckOutput,
     ) -> bool {
@@ -199,19 +197,16 @@ impl ProbeStage {
         };
         let at = (Some(input.idx), Some(input.t));
         let (t0, y0) = (orig.t, orig.xyz[1]);
-        let pose = if pose_ln.is_finite() {
-            (-pose_ln).exp()
-        } else {
-            1.0
-        };
-        let xyz = m.checked.xyz.map(|v| v * pose);
-        if y0 > 0.0 && xyz[1] > 0.0 {
-            self.last_lamp_probe = Some((input.idx, (xyz[1] / y0).ln()));
+        if y0 > 0.0 && m.checked.xyz[1] > 0.0 {
+            self.last_lamp_probe = Some((input.idx, (m.checked.xyz[1] / y0).ln()));
         }
-        for ev in self
-            .drift
-            .add(input.idx, t0 / 3600.0, y0, input.t / 3600.0, xyz[1])
-        {
+        for ev in self.drift.add(
+            input.idx,
+            t0 / 3600.0,
+            y0,
+            input.t / 3600.0,
+            m.checked.xyz[1],
+        ) {
             // a step happened after the last probe before this one
             let since = self.last_probe_idx.map(|i| i + 1);
             let alarm = drift_alarm(ev, Source::Probes, at, since);
@@ -243,7 +238,7 @@ impl ProbeStage {
             colour.observe(
                 (0, 0),
                 (t0 / 3600.0, orig.xyz),
-                (input.t / 3600.0, xyz),
+                (input.t / 3600.0, m.checked.xyz),
                 at,
                 &mut out.alarms,
             );

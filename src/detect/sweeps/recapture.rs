@@ -222,27 +222,6 @@ impl SweepMonitor {
         });
     }
 
-    /// What the wagon's named lag moves ln Y of a re-capture of plan entry `entry` approached
-    /// from `dir` against its original (its original too when taken after the lag began): 0
-    /// while no lag is named, for an entry not among the sweeps' captures, or where the smooth
-    /// model gives no slope. The lamp probe's readings are taken without it.
-    pub(crate) fn named_lag_effect(&self, entry: usize, dir: f64) -> f64 {
-        let Some(lag) = self.named_lag else {
-            return 0.0;
-        };
-        let Some(c) = self.captures.iter().find(|c| c.entry == entry) else {
-            return 0.0;
-        };
-        let original = Original {
-            idx: c.idx,
-            wagon_dir: c.wagon_dir,
-            s_wagon: self
-                .sensitivities(&c.cmd, Model::Smooth)
-                .map_or(f64::NAN, |s| s[2]),
-        };
-        lag.effect(&original, dir)
-    }
-
     /// Plan entries that are not offered for re-capture (the lamp probe's and the sentinel's:
     /// a probe of them is theirs).
     pub(crate) fn reserve_entries(&mut self, entries: &[usize]) {

@@ -889,52 +889,6 @@ fn a_named_lag_is_read_out_of_a_slips_re_captures() {
     assert_eq!(refuted(&findings).len(), 1, "{findings:?}");
 }
 
-/// The lamp probe is read without a named lag: a re-capture of an entry approached from `dir`
-/// moved by −b·s_w·dir against an original taken before the lag began, by −b·s_w·(dir − d0)
-/// against one taken after, and by nothing while no lag is named.
-#[test]
-fn a_named_lag_moves_a_re_capture_by_the_way_the_wagon_came_to_it() {
-    let (mut m, _, _) = simulate_with(
-        Fault::None,
-        usize::MAX,
-        LAST,
-        1,
-        true,
-        (0.0, 0.0),
-        Some(0.004),
-    );
-    let c = m
-        .captures
-        .iter()
-        .find(|c| c.layer == 30_000 && c.omega_o.z < 0.9 && c.wagon_dir != 0.0)
-        .cloned()
-        .expect("a capture of the 30° layer");
-    let s = m.sensitivities(&c.cmd, Model::Smooth).expect("a slope")[2];
-    assert!(s.is_finite() && s != 0.0);
-    assert_eq!(m.named_lag_effect(c.entry, 1.0), 0.0, "no lag named");
-    m.named_lag = Some(recapture::NamedLag {
-        backlash_deg: 0.8,
-        from_idx: c.idx + 1,
-    });
-    for dir in [1.0, -1.0] {
-        let e = m.named_lag_effect(c.entry, dir);
-        assert!((e + 0.8 * s * dir).abs() < 1e-12, "{e} {s}");
-    }
-    m.named_lag = Some(recapture::NamedLag {
-        backlash_deg: 0.8,
-        from_idx: c.idx,
-    });
-    assert!(
-        m.named_lag_effect(c.entry, c.wagon_dir).abs() < 1e-12,
-        "the same side as its original"
-    );
-    assert_eq!(
-        m.named_lag_effect(usize::MAX, 1.0),
-        0.0,
-        "not a sweep's capture"
-    );
-}
-
 /// On a probe-taking rig a lag of the wagon from mid-run is named as the wagon's lag with its
 /// size, once, and never as an offset, although the re-captured pair reads a lag as an offset of
 /// either sign (each pose's lag follows the way the wagon came to it): on this synthetic session
