@@ -23,7 +23,7 @@ use super::*;
 
 /// A lag is named when the reading shows it by this many standard errors (and by the joint
 /// tolerance).
-pub(super) const APPROACH_Z: f64 = 3.0;
+const APPROACH_Z: f64 = 3.0;
 /// The poses approached from are at least this far from the pose in wagon angle: more than any
 /// play the drive could hide in a move.
 const APPROACH_MARGIN_DEG: f64 = 2.0;
@@ -230,16 +230,9 @@ mod tests {
     use super::*;
 
     fn question() -> Approach {
-        Approach {
-            entries: [100, 200, 300, 200],
-            taken: [false; 4],
-            s: 0.04,
-            var: 2.0 * 0.004f64.powi(2),
-            asked: true,
-            waited: 0,
-            readings: Vec::new(),
-            spoiled: false,
-        }
+        let mut q = Approach::for_test([100, 200, 300, 200], 0.04, 2.0 * 0.004f64.powi(2));
+        q.asked();
+        q
     }
 
     /// The pose's luminance under a lag `b` (degrees) approached from `dir`.
@@ -293,13 +286,21 @@ mod tests {
             q.handle(200, y(0.15, -1.0), -1.0, 0.25),
             Some(ApproachOutcome::NoLag(_))
         ));
-        // both from the same side: no reading
+        // both from the same side, or a side not known (the wagon had not moved yet): no
+        // reading
+        for (d1, d2) in [(1.0, 1.0), (-1.0, -1.0), (0.0, -1.0), (1.0, 0.0)] {
+            let mut q = question();
+            q.handle(200, y(1.0, d1), d1, 0.25);
+            assert_eq!(
+                q.handle(200, y(1.0, d2), d2, 0.25),
+                Some(ApproachOutcome::Unread),
+                "{d1} {d2}"
+            );
+        }
+        // a pose the question does not wait for changes nothing
         let mut q = question();
-        q.handle(200, y(1.0, 1.0), 1.0, 0.25);
-        assert_eq!(
-            q.handle(200, y(1.0, 1.0), 1.0, 0.25),
-            Some(ApproachOutcome::Unread)
-        );
+        assert_eq!(q.handle(999, 0.5, 1.0, 0.25), None);
+        assert!(q.awaits(100) && q.awaits(200));
         // a dark or broken capture of the pose
         for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
             let mut q = question();

@@ -27,8 +27,8 @@
 //! joint tolerances. It is a change of the camera's pose: play in the wagon's drive, which one
 //! of the pair's poses re-captured from below and from above shows first (`approach`), or the
 //! wagon's or joint 1's offset, which the light sweeps tell apart (`attribute_departure`):
-//! joint 1 moves the light too, which the sweeps see. A joint slip the sweeps name restarts the watch's reference: the pose changed,
-//! and the slip's alarm covers it.
+//! joint 1 moves the light too, which the sweeps see. A joint slip the sweeps name restarts
+//! the watch's reference: the pose changed, and the slip's alarm covers it.
 //!
 //! What it cannot see: an offset the wagon had before the pair's originals (a calibration error
 //! from the start), and an offset smaller than its noise allows on a sample whose luminance
@@ -223,7 +223,7 @@ impl WagonWatch {
 
     /// Whether a probe of `entry` is a re-capture a question waits for.
     pub(super) fn awaits(&self, entry: usize) -> bool {
-        if self.approach.as_ref().is_some_and(|a| a.awaits(entry)) {
+        if self.awaits_approach(entry) {
             return true;
         }
         let (Some(p), Some(q)) = (self.pair.as_ref(), self.question.as_ref()) else {
