@@ -300,6 +300,9 @@ pub struct JointSlip {
     /// What re-capturing two earlier poses said (a probe-taking rig; none when not asked).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub recapture: Option<SlipRecapture>,
+    /// Joint 1 told from the wagon by re-captures, when the wagon watch's pair departed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis: Option<AxisReading>,
 }
 
 /// Earlier poses of one sweep re-captured back to back to check a slip the light sweeps
@@ -384,6 +387,24 @@ pub struct WagonOffset {
     /// One of the two poses re-captured from both sides, which read no lag.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub approach: Option<ApproachReading>,
+    /// The re-captures chosen to tell the wagon from joint 1, when they were read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis: Option<AxisReading>,
+}
+
+/// Poses re-captured to tell the wagon from arm joint 1 after the re-captured pair departed:
+/// the plan entries (the first `up` those a joint-1 slip moves up against the wagon), their
+/// contrast (%: the first ones' mean ln Y against their originals less the others'), what a
+/// joint-1 slip and a wagon offset that move the pair as it moved would make it (%), and its
+/// standard error (%).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AxisReading {
+    pub entries: Vec<usize>,
+    pub up: usize,
+    pub change_pct: f64,
+    pub joint1_pct: f64,
+    pub wagon_pct: f64,
+    pub se_pct: f64,
 }
 
 /// A slip the light sweeps' pattern named (`joint`, `offset_deg`), refuted by re-captures.

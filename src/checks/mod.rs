@@ -284,10 +284,10 @@ impl Checker {
     ) -> Self {
         let light_outer = !matches!(plan.order(), AcquisitionOrder::CameraOuter);
         // a probe-taking rig re-captures earlier poses before a slip the sweeps name is
-        // alarmed; a re-capture's ratio to its original holds two captures' noise, each at the
-        // probes' design scatter where the lamp probe's luminance is (`light_seen` sets it)
+        // alarmed; each capture's noise is the probes' design scatter where the lamp probe's
+        // luminance is (`light_seen` sets it)
         let recapture = (probes.cadence() > 0).then_some(RecaptureNoise {
-            sd: std::f64::consts::SQRT_2 * probes.design_scatter_pct / 100.0,
+            capture_sd: probes.design_scatter_pct / 100.0,
             y_ref: None,
         });
         let sweeps = (isotropic && spec.sweeps.enabled && light_outer).then(|| {
@@ -561,15 +561,15 @@ impl Checker {
             .map(|(lamp, sentinel)| std::iter::once(lamp).chain(sentinel).collect())
             .unwrap_or_default();
         // the re-captures' noise scales from the lamp probe's luminance once it is known, and is
-        // at least what the probes measure (a probe is a re-capture against its original: a
-        // flickering lamp scatters both alike)
+        // at least what the probes measure (their scatter about their trend is one capture's:
+        // their original is common to all of them; a flickering lamp scatters both alike)
         let measured = self.probes.drift().scatter().filter(|s| s.is_finite());
         let recapture = self.recapture.map(|n| RecaptureNoise {
             y_ref: round
                 .and_then(|(lamp, _)| self.ledger.get(lamp))
                 .map(|c| c.xyz[1])
                 .filter(|y| *y > 0.0 && y.is_finite()),
-            sd: measured.map_or(n.sd, |m| n.sd.max(m)),
+            capture_sd: measured.map_or(n.capture_sd, |m| n.capture_sd.max(m)),
         });
         if let Some(sweeps) = self.sweeps.as_mut() {
             let mount = self.drift.as_ref().and_then(|d| d.mount());

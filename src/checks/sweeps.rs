@@ -4,8 +4,8 @@
 use super::evidence::{self, Evidence, Source};
 use crate::checks::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::detect::sweeps::{
-    ApproachReading, JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt, SweepFinding,
-    WagonBacklash, WagonOffset,
+    ApproachReading, AxisReading, JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt,
+    SweepFinding, WagonBacklash, WagonOffset,
 };
 
 /// The alarm a finding of the sweep checks raises.
@@ -302,11 +302,19 @@ fn joint_slip(at: &SweepAt, x: &JointSlip) -> Alarm {
                 entries: entries.clone(),
             }),
         },
+        axis: x.axis.as_ref().map(axis_evidence),
     });
     let recaptured = match &x.recapture {
         Recapture::NoProbes => "; from the light sweeps alone, which cannot tell a slip from a stationary pattern of the geometry that follows the pose (a lamp beam aimed beside the rotation centre, a holder's rim): on a rig that takes drift probes ([probes] every) earlier poses are re-captured to decide".to_string(),
         Recapture::NotAsked => "; from the light sweeps alone (no re-capture of earlier poses could check it yet)".to_string(),
-        Recapture::Confirmed(r) => format!("; confirmed by a re-capture: {}", reading_words(r)),
+        Recapture::Confirmed(r) => format!(
+            "; confirmed by a re-capture: {}{}",
+            reading_words(r),
+            match &x.axis {
+                Some(a) => format!("; {}: joint 1's, not the wagon's", axis_words(a)),
+                None => String::new(),
+            }
+        ),
         Recapture::Unanswered { entries } => format!(
             "; not confirmed: the re-captures asked for (entries {}) were not taken",
             entry_list(entries)
@@ -358,6 +366,30 @@ fn approach_evidence(r: &ApproachReading) -> evidence::ApproachReading {
         backlash_deg: r.backlash_deg,
         se_deg: r.se_deg,
     }
+}
+
+/// Re-captures that told the wagon from joint 1, for the alarms' evidence.
+fn axis_evidence(r: &AxisReading) -> evidence::AxisReading {
+    evidence::AxisReading {
+        entries: r.entries.clone(),
+        up: r.up,
+        change_pct: r.change_pct,
+        joint1_pct: r.joint1_pct,
+        wagon_pct: r.wagon_pct,
+        se_pct: r.se_pct,
+    }
+}
+
+/// What the re-captures that tell the wagon from joint 1 read, for a message.
+fn axis_words(r: &AxisReading) -> String {
+    format!(
+        "{} earlier poses re-captured back to back to tell the wagon from joint 1 moved {:+.2} % against each other (± {:.2}), where the wagon would have moved them {:+.2} % and joint 1 {:+.2} %",
+        r.entries.len(),
+        r.change_pct,
+        r.se_pct,
+        r.wagon_pct,
+        r.joint1_pct,
+    )
 }
 
 fn wagon_backlash(at: &SweepAt, x: &WagonBacklash) -> Alarm {
@@ -439,9 +471,11 @@ fn wagon_offset(x: &WagonOffset) -> Alarm {
             x.threshold,
             x.joint_leak[0],
             x.joint_leak[1],
-            match x.sweeps_z {
-                Some(z) => format!("the light sweeps since then show the wagon's offset, not a joint's, at {z:.1} standard deviations"),
-                None => format!("the light sweeps since then name no axis: joint 1 by {:+.2}° would read the same", x.offset_deg / x.joint_leak[0]),
+            match (x.sweeps_z, &x.axis) {
+                (Some(z), _) => format!("the light sweeps since then show the wagon's offset, not a joint's, at {z:.1} standard deviations"),
+                (None, Some(r)) if r.share_and_se().0 < 0.5 => format!("{}: the wagon's", axis_words(r)),
+                (None, Some(r)) => format!("the light sweeps since then name no axis and {}: joint 1 by {:+.2}° would read the same as the pair", axis_words(r), x.offset_deg / x.joint_leak[0]),
+                (None, None) => format!("the light sweeps since then name no axis: joint 1 by {:+.2}° would read the same", x.offset_deg / x.joint_leak[0]),
             },
             match &x.approach {
                 Some(r) => format!("; plan entry {} re-captured from below and from above read {:+.2} % apart ({:+.2}° ± {:.2}° of lag): not play in the drive", r.entries[1], r.change_pct, r.backlash_deg, r.se_deg),
@@ -464,6 +498,7 @@ fn wagon_offset(x: &WagonOffset) -> Alarm {
         statistic: x.statistic,
         threshold: x.threshold,
         approach: x.approach.as_ref().map(approach_evidence),
+        axis: x.axis.as_ref().map(axis_evidence),
     }))
     .advise(
         &format!(
@@ -609,6 +644,7 @@ mod tests {
             threshold: 6.0,
             attributed_level_pct: None,
             recapture: Recapture::NotAsked,
+            axis: None,
             other_joints: vec![JointFit {
                 joint: 1,
                 offset_deg: 0.5,
@@ -696,6 +732,7 @@ mod tests {
             threshold: 2.7,
             since_idx: 3564,
             approach: None,
+            axis: None,
         };
         let a = alarm(&SweepFinding::WagonOffset {
             at: AT,
@@ -727,7 +764,7 @@ mod tests {
             at: AT,
             offset: WagonOffset {
                 sweeps_z: None,
-                ..x
+                ..x.clone()
             },
         });
         assert!(a.message.contains("joint 1 by -0.67°"), "{}", a.message);

@@ -2,6 +2,7 @@
 //! alarms.
 
 pub(crate) use super::approach::ApproachReading;
+pub(crate) use super::axis::AxisReading;
 use super::JointFit;
 
 /// The sweep a finding was made at: its light direction, its last capture with that capture's
@@ -72,6 +73,8 @@ pub(crate) struct WagonOffset {
     pub since_idx: u64,
     /// One of the pair's poses re-captured from both sides, when it read no lag (`approach`).
     pub approach: Option<ApproachReading>,
+    /// The re-captures that tell the wagon from joint 1 (`axis`), when they were read.
+    pub axis: Option<AxisReading>,
 }
 
 /// A joint named as slipped: its estimated offset (degrees) with its standard error and the
@@ -96,6 +99,9 @@ pub(crate) struct JointSlip {
     pub other_joints: Vec<JointFit>,
     /// What re-capturing earlier poses said of it (`recapture`).
     pub recapture: Recapture,
+    /// The re-captures that told joint 1 from the wagon when the wagon watch's pair departed
+    /// (`axis`).
+    pub axis: Option<AxisReading>,
 }
 
 /// Whether a slip the sweeps name was checked by re-capturing earlier poses (`recapture`).

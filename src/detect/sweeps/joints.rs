@@ -467,6 +467,7 @@ impl SweepMonitor {
                 .cloned()
                 .collect(),
             recapture,
+            axis: None,
         }
     }
 }

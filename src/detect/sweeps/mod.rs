@@ -41,6 +41,7 @@ use std::collections::{HashMap, HashSet};
 use std::f64::consts::TAU;
 
 mod approach;
+mod axis;
 mod findings;
 mod joints;
 mod level;
@@ -56,8 +57,8 @@ mod wagon;
 mod wagon_watch;
 
 pub(crate) use findings::{
-    ApproachReading, JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt, SweepFinding,
-    WagonBacklash, WagonOffset,
+    ApproachReading, AxisReading, JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt,
+    SweepFinding, WagonBacklash, WagonOffset,
 };
 use level::ScaleHistory;
 use model::{Model, PatternFit, Reference, Row};

@@ -46,7 +46,7 @@ pub(super) const RECAPTURE_EXPECTED_Z: f64 = 5.0;
 pub(super) const RECAPTURE_PER_SIDE: [usize; 3] = [4, 6, 8];
 /// The re-captured poses come from a sweep at least this many sweeps before the one the slip is
 /// placed in ...
-const RECAPTURE_BACK_SWEEPS: usize = 6;
+pub(super) const RECAPTURE_BACK_SWEEPS: usize = 6;
 /// Re-captured poses are at most this far from the normal on the camera side (cos θo): at
 /// grazing view the captures are dim and their luminance turns fastest with a jitter.
 const RECAPTURE_MIN_COS_THETA_O: f64 = 0.42; // θo ≤ 65°
@@ -71,6 +71,8 @@ pub(super) struct RecaptureSet {
     s: Vec<f64>,
     var: Vec<f64>,
     originals: Vec<Original>,
+    /// The smooth model's sensitivities [joint 1, joint 2, wagon] at each pose (NaN: none).
+    smooth: Vec<[f64; 3]>,
 }
 
 /// What a lag of the wagon did to a re-captured pose's original: its capture, the wagon's
@@ -91,6 +93,18 @@ pub(super) struct NamedLag {
     pub from_idx: u64,
 }
 
+#[cfg(test)]
+impl Original {
+    /// An original taken at capture `idx`, approached from below, with no wagon slope known.
+    pub(super) fn for_test(idx: u64) -> Self {
+        Original {
+            idx,
+            wagon_dir: 1.0,
+            s_wagon: f64::NAN,
+        }
+    }
+}
+
 impl NamedLag {
     /// What the lag moves ln Y of a re-capture approached from `dir` against its original
     /// `o`: each sits at −b·dir of wagon, the original only when taken once the lag began.
@@ -108,14 +122,33 @@ impl NamedLag {
 }
 
 impl RecaptureSet {
+    pub(super) fn entries(&self) -> &[usize] {
+        &self.entries
+    }
+
+    /// The rising poses' count: the first `up` of `entries`.
+    pub(super) fn up(&self) -> usize {
+        self.up
+    }
+
+    /// The originals' luminance.
+    pub(super) fn y0(&self) -> &[f64] {
+        &self.y0
+    }
+
+    /// The smooth model's sensitivities [joint 1, joint 2, wagon] at each pose (NaN: none).
+    pub(super) fn smooth(&self) -> &[[f64; 3]] {
+        &self.smooth
+    }
+
     /// The difference of the two sides' mean values of `v`.
-    fn contrast(&self, v: &[f64]) -> f64 {
+    pub(super) fn contrast(&self, v: &[f64]) -> f64 {
         let (a, b) = v.split_at(self.up);
         a.iter().sum::<f64>() / a.len() as f64 - b.iter().sum::<f64>() / b.len() as f64
     }
 
     /// The contrast's sensitivity (ln Y per degree) and standard deviation (ln units).
-    fn sensitivity_and_sd(&self) -> (f64, f64) {
+    pub(super) fn sensitivity_and_sd(&self) -> (f64, f64) {
         let (a, b) = self.var.split_at(self.up);
         let na = a.len() as f64;
         let nb = b.len() as f64;
@@ -124,19 +157,27 @@ impl RecaptureSet {
     }
 }
 
-/// The re-captures' noise: the SD of one re-capture's r at the reference luminance (None: not
-/// known yet, then taken at every luminance).
+/// The re-captures' noise: the SD of one capture's ln Y at the reference luminance, the probes'
+/// scatter (None: the reference not known yet, then taken at every luminance). A re-capture
+/// read against its own original holds two captures' noise; readings that share their
+/// originals (the wagon watch's) differ from one another by the re-captures' alone.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct RecaptureNoise {
-    pub sd: f64,
+    pub capture_sd: f64,
     pub y_ref: Option<f64>,
 }
 
 impl RecaptureNoise {
-    /// The variance of r for a pose of luminance `y`: shot noise below the reference.
-    pub(super) fn var_at(&self, y: f64) -> f64 {
+    /// The variance of one capture's ln Y at luminance `y`: shot noise below the reference.
+    pub(super) fn capture_var(&self, y: f64) -> f64 {
         let scale = self.y_ref.map_or(1.0, |r| (r / y).max(1.0));
-        self.sd * self.sd * scale
+        self.capture_sd * self.capture_sd * scale
+    }
+
+    /// The variance of r = ln(Y/Y₀), a re-capture at luminance `y` against its original (or
+    /// of two captures of one pose against each other).
+    pub(super) fn var_at(&self, y: f64) -> f64 {
+        2.0 * self.capture_var(y)
     }
 }
 
@@ -204,6 +245,7 @@ impl PendingSlip {
                     };
                     n
                 ],
+                smooth: vec![[f64::NAN; 3]; n],
             },
             asked: false,
             waited: 0,
@@ -218,7 +260,9 @@ impl SweepMonitor {
     /// slip already waiting keeps waiting and is named unconfirmed when its wait runs out.
     pub(crate) fn set_recapture(&mut self, noise: Option<RecaptureNoise>) {
         self.recapture = noise.filter(|n| {
-            n.sd.is_finite() && n.sd > 0.0 && n.y_ref.is_none_or(|y| y.is_finite() && y > 0.0)
+            n.capture_sd.is_finite()
+                && n.capture_sd > 0.0
+                && n.y_ref.is_none_or(|y| y.is_finite() && y > 0.0)
         });
     }
 
@@ -271,6 +315,9 @@ impl SweepMonitor {
     ) -> SweepOutcome {
         if self.wagon_watch.awaits_approach(entry) {
             return self.handle_approach(entry, y, wagon_dir);
+        }
+        if self.wagon_watch.awaits_axis(entry) {
+            return self.handle_axis(entry, y);
         }
         if self.wagon_watch.awaits(entry) {
             // its reading is judged here, named at a sweep's end (`wagon_watch`)
@@ -448,69 +495,12 @@ impl SweepMonitor {
         };
         let j = x.joint;
         let cut = self.slip_first_idx(x.since);
-        let mut spans: Vec<_> = self
-            .sweep_starts
-            .iter()
-            .filter(|s| s.last_idx < cut)
-            .collect();
-        spans.sort_by_key(|s| std::cmp::Reverse(s.last_idx));
-        // per sweep, its candidate poses sorted by their sensitivity, largest first
-        let candidates: Vec<Vec<(f64, usize, f64, Original)>> = spans
-            .into_iter()
-            .skip(RECAPTURE_BACK_SWEEPS.saturating_sub(1))
-            .take(RECAPTURE_SWEEPS)
-            .map(|span| {
-                let mut poses: Vec<(f64, usize, f64, Original)> = self
-                    .captures
-                    .iter()
-                    .filter(|c| {
-                        c.light == span.light
-                            && c.omega_o.z >= RECAPTURE_MIN_COS_THETA_O
-                            && !self.reserved.contains(&c.entry)
-                            && !self.wagon_watch.holds(c.entry)
-                    })
-                    .filter_map(|c| {
-                        let smooth = self.sensitivities(&c.cmd, Model::Smooth);
-                        let s = smooth
-                            .or_else(|| self.sensitivities(&c.cmd, Model::Interpolant))
-                            .map(|s| s[j])
-                            .filter(|s| s.is_finite())?;
-                        let original = Original {
-                            idx: c.idx,
-                            wagon_dir: c.wagon_dir,
-                            s_wagon: smooth.map_or(f64::NAN, |s| s[2]),
-                        };
-                        Some((s, c.entry, c.y, original))
-                    })
-                    .collect();
-                poses.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-                poses
-            })
-            .collect();
+        let candidates = self.set_candidates(cut, RECAPTURE_BACK_SWEEPS, |smooth, interpolant| {
+            smooth.or(interpolant).map(|s| s[j])
+        });
         let mut strongest: Option<f64> = None;
         for per_side in RECAPTURE_PER_SIDE {
-            let mut best: Option<(f64, RecaptureSet)> = None;
-            for poses in candidates.iter().filter(|p| p.len() >= 2 * per_side) {
-                let chosen: Vec<_> = poses[..per_side]
-                    .iter()
-                    .chain(&poses[poses.len() - per_side..])
-                    .copied()
-                    .collect();
-                let set = RecaptureSet {
-                    entries: chosen.iter().map(|p| p.1).collect(),
-                    up: per_side,
-                    y0: chosen.iter().map(|p| p.2).collect(),
-                    s: chosen.iter().map(|p| p.0).collect(),
-                    var: chosen.iter().map(|p| noise.var_at(p.2)).collect(),
-                    originals: chosen.iter().map(|p| p.3).collect(),
-                };
-                let (sensitivity, sd) = set.sensitivity_and_sd();
-                let z = sensitivity / sd;
-                if sensitivity > 0.0 && z.is_finite() && best.as_ref().is_none_or(|b| z > b.0) {
-                    best = Some((z, set));
-                }
-            }
-            let Some((z, set)) = best else {
+            let Some((z, set)) = best_set(&candidates, per_side, &noise) else {
                 continue;
             };
             if z * x.mean.abs() >= RECAPTURE_EXPECTED_Z {
@@ -522,5 +512,105 @@ impl SweepMonitor {
             Some(z) => SetChoice::TooWeak { z_per_deg: z },
             None => SetChoice::None,
         }
+    }
+}
+
+/// A pose a set of re-captures can be chosen from: the value that orders the set (ln Y per unit
+/// of what the set is to show), its plan entry and original, and the smooth model's
+/// sensitivities [joint 1, joint 2, wagon] at it (NaN where the model gives none).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Candidate {
+    pub value: f64,
+    pub entry: usize,
+    pub y0: f64,
+    pub original: Original,
+    pub smooth: [f64; 3],
+}
+
+/// Of the sweeps' candidate poses (each sweep's sorted by value, largest first), the set of
+/// `per_side` largest and as many smallest that shows the value's contrast at the most standard
+/// errors of the noise, with that number. None when no sweep has enough poses.
+pub(super) fn best_set(
+    candidates: &[Vec<Candidate>],
+    per_side: usize,
+    noise: &RecaptureNoise,
+) -> Option<(f64, RecaptureSet)> {
+    let mut best: Option<(f64, RecaptureSet)> = None;
+    for poses in candidates.iter().filter(|p| p.len() >= 2 * per_side) {
+        let chosen: Vec<&Candidate> = poses[..per_side]
+            .iter()
+            .chain(&poses[poses.len() - per_side..])
+            .collect();
+        let set = RecaptureSet {
+            entries: chosen.iter().map(|c| c.entry).collect(),
+            up: per_side,
+            y0: chosen.iter().map(|c| c.y0).collect(),
+            s: chosen.iter().map(|c| c.value).collect(),
+            var: chosen.iter().map(|c| noise.var_at(c.y0)).collect(),
+            originals: chosen.iter().map(|c| c.original).collect(),
+            smooth: chosen.iter().map(|c| c.smooth).collect(),
+        };
+        let (sensitivity, sd) = set.sensitivity_and_sd();
+        let z = sensitivity / sd;
+        if sensitivity > 0.0 && z.is_finite() && best.as_ref().is_none_or(|b| z > b.0) {
+            best = Some((z, set));
+        }
+    }
+    best
+}
+
+impl SweepMonitor {
+    /// The candidate poses of the `RECAPTURE_SWEEPS` sweeps completed before capture `cut`,
+    /// from the `back`th last on (1: the last), each sweep's sorted by `value` (of the smooth
+    /// model's sensitivities and the interpolant's; None leaves the pose out), largest first:
+    /// θo within `RECAPTURE_MIN_COS_THETA_O`, not a reserved entry nor one of the wagon watch's.
+    pub(super) fn set_candidates(
+        &self,
+        cut: u64,
+        back: usize,
+        value: impl Fn(Option<[f64; 3]>, Option<[f64; 3]>) -> Option<f64>,
+    ) -> Vec<Vec<Candidate>> {
+        let mut spans: Vec<_> = self
+            .sweep_starts
+            .iter()
+            .filter(|s| s.last_idx < cut)
+            .collect();
+        spans.sort_by_key(|s| std::cmp::Reverse(s.last_idx));
+        spans
+            .into_iter()
+            .skip(back.saturating_sub(1))
+            .take(RECAPTURE_SWEEPS)
+            .map(|span| {
+                let mut poses: Vec<Candidate> = self
+                    .captures
+                    .iter()
+                    .filter(|c| {
+                        c.light == span.light
+                            && c.omega_o.z >= RECAPTURE_MIN_COS_THETA_O
+                            && !self.reserved.contains(&c.entry)
+                            && !self.wagon_watch.holds(c.entry)
+                    })
+                    .filter_map(|c| {
+                        let smooth = self.sensitivities(&c.cmd, Model::Smooth);
+                        let interpolant = || self.sensitivities(&c.cmd, Model::Interpolant);
+                        let value = value(smooth, smooth.is_none().then(interpolant).flatten())
+                            .filter(|v| v.is_finite())?;
+                        Some(Candidate {
+                            value,
+                            entry: c.entry,
+                            y0: c.y,
+                            original: Original {
+                                idx: c.idx,
+                                wagon_dir: c.wagon_dir,
+                                s_wagon: smooth.map_or(f64::NAN, |s| s[2]),
+                            },
+                            smooth: smooth.unwrap_or([f64::NAN; 3]),
+                        })
+                    })
+                    .collect();
+                poses.sort_by(|a, b| b.value.total_cmp(&a.value).then(a.entry.cmp(&b.entry)));
+                poses
+            })
+            .collect()
     }
 }

@@ -110,7 +110,10 @@ fn simulate_with(
     let plan = SamplingPlan::ubo();
     let rig = Rig::new(Default::default()).unwrap();
     let mut m = SweepMonitor::new(SweepSpec::default(), rig.clone(), plan.direction_count());
-    m.set_recapture(recapture.map(|sd| RecaptureNoise { sd, y_ref: None }));
+    m.set_recapture(recapture.map(|sd| RecaptureNoise {
+        capture_sd: sd / std::f64::consts::SQRT_2,
+        y_ref: None,
+    }));
     let dirs = plan.directions().to_vec();
     // the wagon's last commanded direction of motion at each plan entry (the plan's order)
     let mut wagon_dirs = Vec::with_capacity(plan.capture_count());
@@ -782,7 +785,7 @@ fn a_slip_whose_re_captures_never_come_is_named_unconfirmed() {
     let rig = Rig::new(Default::default()).unwrap();
     let mut m = SweepMonitor::new(SweepSpec::default(), rig, plan.direction_count());
     m.set_recapture(Some(RecaptureNoise {
-        sd: 0.014,
+        capture_sd: 0.014 / std::f64::consts::SQRT_2,
         y_ref: None,
     }));
     let x = JointCrossing {
@@ -870,7 +873,7 @@ fn a_named_lag_is_read_out_of_a_slips_re_captures() {
     let new = || {
         let mut m = SweepMonitor::new(SweepSpec::default(), rig.clone(), plan.direction_count());
         m.set_recapture(Some(RecaptureNoise {
-            sd: 0.004,
+            capture_sd: 0.004 / std::f64::consts::SQRT_2,
             y_ref: None,
         }));
         m

@@ -35,6 +35,7 @@
 //! barely changes with the view (the summary gives the pair's standard error per reading).
 
 use super::approach::{Approach, ApproachOutcome, ApproachReading};
+use super::axis::{AxisOutcome, AxisQuestion, AxisReading};
 use super::level::ScaleHistory;
 use super::model::{Model, Row, ATTRIBUTION_Z, SMOOTH_SE_MAX_DEG};
 use super::recapture::RecaptureNoise;
@@ -83,7 +84,8 @@ pub(super) struct WagonPair {
     lights: [usize; 2],
     /// ln Y per degree of wagon, joint 1 and joint 2 of the difference, when chosen.
     s: [f64; 3],
-    /// The variance of d from the noise model.
+    /// The variance of one reading of d against another from the noise model (the two
+    /// re-captures'; the originals are common to every reading).
     var: f64,
     /// The last capture before the pair was chosen.
     chosen_idx: u64,
@@ -118,6 +120,8 @@ struct Departed {
     s: [f64; 3],
     /// Sweeps completed since.
     sweeps: usize,
+    /// Whether the question of which axis moved (`axis`) was asked or could not be.
+    axis_asked: bool,
 }
 
 /// A reading of the pair the checks asked for out of turn (a lamp probe that departed from its
@@ -183,6 +187,10 @@ pub(super) struct WagonWatch {
     approach: Option<Approach>,
     /// What it read when it showed no lag: the offset's alarm carries it.
     approach_read: Option<ApproachReading>,
+    /// Then re-captures that tell the wagon from joint 1 (`axis`), while under way ...
+    axis: Option<AxisQuestion>,
+    /// ... and what they read: the alarm that names the departure carries it.
+    axis_read: Option<AxisReading>,
 }
 
 impl WagonWatch {
@@ -198,6 +206,9 @@ impl WagonWatch {
         if let Some(a) = self.approach.as_ref() {
             return a.wanted();
         }
+        if let Some(a) = self.axis.as_ref() {
+            return a.wanted();
+        }
         let p = self.pair.as_ref()?;
         self.question
             .as_ref()
@@ -206,13 +217,12 @@ impl WagonWatch {
     }
 
     pub(super) fn asked(&mut self) {
-        match self.approach.as_mut() {
-            Some(a) => a.asked(),
-            None => {
-                if let Some(q) = self.question.as_mut() {
-                    q.asked = true;
-                }
-            }
+        if let Some(a) = self.approach.as_mut() {
+            a.asked();
+        } else if let Some(a) = self.axis.as_mut() {
+            a.asked();
+        } else if let Some(q) = self.question.as_mut() {
+            q.asked = true;
         }
     }
 
@@ -221,9 +231,14 @@ impl WagonWatch {
         self.approach.as_ref().is_some_and(|a| a.awaits(entry))
     }
 
+    /// Whether a probe of `entry` is a re-capture the question of which axis moved waits for.
+    pub(super) fn awaits_axis(&self, entry: usize) -> bool {
+        self.axis.as_ref().is_some_and(|a| a.awaits(entry))
+    }
+
     /// Whether a probe of `entry` is a re-capture a question waits for.
     pub(super) fn awaits(&self, entry: usize) -> bool {
-        if self.awaits_approach(entry) {
+        if self.awaits_approach(entry) || self.awaits_axis(entry) {
             return true;
         }
         let (Some(p), Some(q)) = (self.pair.as_ref(), self.question.as_ref()) else {
@@ -243,6 +258,8 @@ impl WagonWatch {
         self.departed = None;
         self.approach = None;
         self.approach_read = None;
+        self.axis = None;
+        self.axis_read = None;
         self.end_pose_check(PoseCheck::Unanswered);
     }
 
@@ -372,6 +389,10 @@ impl SweepMonitor {
             // and naming it here too would name it twice (its naming restarts the watch)
             return None;
         }
+        if self.wagon_watch.axis.is_some() || self.ask_axis() {
+            // the re-captures that tell the wagon from joint 1 say first
+            return None;
+        }
         x.sweeps += 1;
         self.wagon_watch.departed = Some(x);
         let fits = self.refit_axes(x.since_idx, x.run_start, known);
@@ -397,9 +418,28 @@ impl SweepMonitor {
             }
             None => return None,
         };
+        self.name_departure(now, &x, axis, z, offset, se, findings)
+    }
+
+    /// Names the departure `x` as axis `axis` (0 the wagon, 1 or 2 a joint) with size `offset`
+    /// ± `se` and, when the light sweeps' refit named it, its standard errors `z`: the wagon's
+    /// offset (once a run), or a joint's slip the re-captures confirm.
+    #[allow(clippy::too_many_arguments)]
+    fn name_departure(
+        &mut self,
+        now: SweepAt,
+        x: &Departed,
+        axis: usize,
+        z: Option<f64>,
+        offset: f64,
+        se: f64,
+        findings: &mut Vec<SweepFinding>,
+    ) -> Option<NamedSlip> {
         let p = self.wagon_watch.pair.clone()?;
         self.wagon_watch.departed = None;
+        self.wagon_watch.axis = None;
         let approach = self.wagon_watch.approach_read.take();
+        let axis_read = self.wagon_watch.axis_read.take();
         if axis == 0 {
             if !self.latched.insert(Latch::Wagon) {
                 // the lag test named the wagon already
@@ -421,6 +461,7 @@ impl SweepMonitor {
                     threshold: x.threshold,
                     since_idx: x.since_idx,
                     approach,
+                    axis: axis_read,
                 },
             });
             return None;
@@ -451,7 +492,11 @@ impl SweepMonitor {
             offset_deg: x.change / x.s[axis],
             se_deg: (x.change_se / x.s[axis]).abs(),
         };
-        Some(self.name_slip(now, &crossing, &[], Recapture::Confirmed(reading), findings))
+        let named = self.name_slip(now, &crossing, &[], Recapture::Confirmed(reading), findings);
+        if let Some(SweepFinding::JointSlip { slip, .. }) = findings.last_mut() {
+            slip.axis = axis_read;
+        }
+        Some(named)
     }
 
     /// The mean offset and its standard error of [wagon, joint 1, joint 2] over the completed
@@ -522,7 +567,9 @@ impl SweepMonitor {
             .collect();
         let mut best: Option<(f64, usize, usize, [f64; 3], f64)> = None;
         for (a, sa, ca) in &candidates {
-            let var_a = noise.var_at(self.captures[*a].y);
+            // the readings share their originals: one differs from the next by the two
+            // re-captures' noise alone
+            let var_a = noise.capture_var(self.captures[*a].y);
             for (b, sb, cb) in &candidates {
                 // [wagon, joint 1, joint 2] of a less b: a rises with the wagon against b
                 let ds = [sa[2] - sb[2], sa[0] - sb[0], sa[1] - sb[1]];
@@ -532,7 +579,7 @@ impl SweepMonitor {
                 {
                     continue;
                 }
-                let var = var_a + noise.var_at(self.captures[*b].y);
+                let var = var_a + noise.capture_var(self.captures[*b].y);
                 let z = ds[0] / var.sqrt();
                 if z.is_finite() && z >= MIN_Z_PER_DEG && best.is_none_or(|bb| z > bb.0) {
                     best = Some((z, *a, *b, ds, var));
@@ -617,6 +664,9 @@ impl SweepMonitor {
         if !departed && self.wagon_watch.departed.is_some() && !self.probes_unstable {
             // before the sweeps are asked which axis moved: a lag reads from both sides
             self.wagon_watch.approach = self.choose_approach(&p);
+            if self.wagon_watch.approach.is_none() {
+                self.ask_axis();
+            }
         }
         self.wagon_watch.end_pose_check(PoseCheck::Unanswered);
     }
@@ -678,11 +728,72 @@ impl SweepMonitor {
                     }
                 }
             }
-            ApproachOutcome::NoLag(reading) => self.wagon_watch.approach_read = Some(reading),
-            ApproachOutcome::Unread => {}
+            ApproachOutcome::NoLag(reading) => {
+                self.wagon_watch.approach_read = Some(reading);
+                self.ask_axis();
+            }
+            ApproachOutcome::Unread => {
+                self.ask_axis();
+            }
         }
         SweepOutcome {
             findings,
+            ..SweepOutcome::default()
+        }
+    }
+
+    /// Asks the question of which axis moved (`axis`) for the departure under way, once: true
+    /// when it was asked. Not while the probes see the lamp unstable.
+    fn ask_axis(&mut self) -> bool {
+        let Some(mut x) = self.wagon_watch.departed else {
+            return false;
+        };
+        if x.axis_asked {
+            return false;
+        }
+        x.axis_asked = true;
+        self.wagon_watch.departed = Some(x);
+        if self.probes_unstable {
+            return false;
+        }
+        self.wagon_watch.axis = self.choose_axis(x.change, x.s, x.since_idx);
+        self.wagon_watch.axis.is_some()
+    }
+
+    /// A re-capture the question of which axis moved waited for (`awaits_axis`), with
+    /// luminance `y`. Once all are in, a reading that is one axis's and not the other's names
+    /// it; otherwise the light sweeps' refit decides, and the wagon's alarm carries the reading.
+    pub(super) fn handle_axis(&mut self, entry: usize, y: f64) -> SweepOutcome {
+        let Some(outcome) = self
+            .wagon_watch
+            .axis
+            .as_mut()
+            .and_then(|a| a.handle(entry, y))
+        else {
+            return SweepOutcome::default();
+        };
+        self.wagon_watch.axis = None;
+        let Some(x) = self.wagon_watch.departed else {
+            return SweepOutcome::default();
+        };
+        let mut findings = Vec::new();
+        let (axis, reading) = match outcome {
+            AxisOutcome::Joint1(r) => (1, r),
+            AxisOutcome::Wagon(r) => (0, r),
+            AxisOutcome::Undecided(r) => {
+                self.wagon_watch.axis_read = Some(r);
+                return SweepOutcome::default();
+            }
+            AxisOutcome::Unread => return SweepOutcome::default(),
+        };
+        self.wagon_watch.axis_read = Some(reading);
+        let (offset, se) = (x.change / x.s[axis], (x.change_se / x.s[axis]).abs());
+        let at = self.wagon_watch.last_at.unwrap_or(x.at);
+        let named = self.name_departure(at, &x, axis, None, offset, se, &mut findings);
+        SweepOutcome {
+            findings,
+            slip_at_s: named.as_ref().and_then(|n| n.at_s),
+            withdrawn_steps_s: named.map(|n| n.withdrawn_steps_s).unwrap_or_default(),
             ..SweepOutcome::default()
         }
     }
@@ -743,6 +854,7 @@ impl SweepMonitor {
                     run_start: run.start,
                     s,
                     sweeps: 0,
+                    axis_asked: false,
                 });
             }
         }
@@ -754,6 +866,9 @@ impl SweepMonitor {
         if self.wagon_watch.approach.as_mut().is_some_and(|a| a.wait()) {
             // the departure goes to the sweeps' attribution without it
             self.wagon_watch.approach = None;
+        }
+        if self.wagon_watch.axis.as_mut().is_some_and(|a| a.wait()) {
+            self.wagon_watch.axis = None;
         }
         if let Some(q) = self.wagon_watch.question.as_mut().filter(|q| q.asked) {
             q.waited += 1;
@@ -853,7 +968,7 @@ mod tests {
         let rig = Rig::new(Default::default()).unwrap();
         let mut m = SweepMonitor::new(SweepSpec::default(), rig, 81);
         m.set_recapture(Some(RecaptureNoise {
-            sd: 0.004,
+            capture_sd: 0.004 / std::f64::consts::SQRT_2,
             y_ref: None,
         }));
         m.wagon_watch.pair = Some(WagonPair {
@@ -1029,6 +1144,8 @@ mod tests {
             run_start: 809,
             s: [0.05, -0.05, 0.0],
             sweeps: 0,
+            // the question of which axis moved is left out here (`axis` has its own tests)
+            axis_asked: true,
         });
         m.wagon_watch.approach = Some(Approach::for_test([640, 650, 660, 650], 0.04, 3.2e-5));
         m
