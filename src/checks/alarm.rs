@@ -48,6 +48,9 @@ pub enum AlarmCode {
     BadAnnouncement,
     /// A capture names a plan entry the plan does not have.
     BadEntry,
+    /// Re-captures show the camera's pose moved, and nothing tells whether the wagon or arm
+    /// joint 1 moved it.
+    CameraPoseMoved,
     /// A line from the controller failed its framing or CRC.
     BadLine,
     /// A capture's commanded or encoder pose is not a pose of the rig.
@@ -148,10 +151,11 @@ pub enum AlarmCode {
 
 impl AlarmCode {
     /// Every code.
-    pub(crate) const ALL: [AlarmCode; 51] = [
+    pub(crate) const ALL: [AlarmCode; 52] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
+        AlarmCode::CameraPoseMoved,
         AlarmCode::BadLine,
         AlarmCode::BadPose,
         AlarmCode::CaptureFailed,
@@ -208,6 +212,7 @@ impl AlarmCode {
             AlarmCode::AnnouncementRefused => "announcement-refused",
             AlarmCode::BadAnnouncement => "bad-announcement",
             AlarmCode::BadEntry => "bad-entry",
+            AlarmCode::CameraPoseMoved => "camera-pose-moved",
             AlarmCode::BadLine => "bad-line",
             AlarmCode::BadPose => "bad-pose",
             AlarmCode::CaptureFailed => "capture-failed",
@@ -265,6 +270,7 @@ impl AlarmCode {
             AlarmCode::AnnouncementRefused => "a CAPTURE line stayed unreadable after it was asked for again; that capture is skipped",
             AlarmCode::BadAnnouncement => "a CAPTURE line was malformed; it is asked for again",
             AlarmCode::BadEntry => "a capture names a plan entry the plan does not have",
+            AlarmCode::CameraPoseMoved => "re-captures of two earlier poses show the camera's pose moved, by the wagon or by arm joint 1",
             AlarmCode::BadLine => "a line from the controller failed its framing or CRC",
             AlarmCode::BadPose => "a capture's commanded or encoder pose is not a pose of the rig",
             AlarmCode::CaptureFailed => "a capture's file could not be decoded or averaged",

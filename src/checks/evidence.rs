@@ -654,7 +654,7 @@ impl Evidence {
             C::SlipRefuted => parse(&v, Evidence::SlipRefuted),
             C::SlipUnverifiable => parse(&v, Evidence::SlipUnverifiable),
             C::WagonBacklashSuspected => parse(&v, Evidence::WagonBacklash),
-            C::WagonOffsetSuspected => parse(&v, Evidence::WagonOffset),
+            C::WagonOffsetSuspected | C::CameraPoseMoved => parse(&v, Evidence::WagonOffset),
             C::ProbeMovedWithPose => parse(&v, Evidence::ProbePoseMoved),
             C::LampUnstable | C::LampUnstableCleared => {
                 parse(&v, Evidence::LampScatter).or_else(|| parse(&v, Evidence::SweepScatter))
@@ -720,7 +720,9 @@ impl Evidence {
             Evidence::SlipRefuted(_) => code == C::SlipRefuted,
             Evidence::SlipUnverifiable(_) => code == C::SlipUnverifiable,
             Evidence::WagonBacklash(_) => code == C::WagonBacklashSuspected,
-            Evidence::WagonOffset(_) => code == C::WagonOffsetSuspected,
+            Evidence::WagonOffset(_) => {
+                matches!(code, C::WagonOffsetSuspected | C::CameraPoseMoved)
+            }
             Evidence::ProbePoseMoved(_) => code == C::ProbeMovedWithPose,
             Evidence::LampScatter(_) | Evidence::SweepScatter(_) => {
                 matches!(code, C::LampUnstable | C::LampUnstableCleared)

@@ -452,15 +452,35 @@ fn wagon_backlash(at: &SweepAt, x: &WagonBacklash) -> Alarm {
 }
 
 fn wagon_offset(x: &WagonOffset) -> Alarm {
+    // told: the wagon; not told: the camera's pose moved, by the wagon or by joint 1
+    let (code, opening, check) = if x.told {
+        (
+            AlarmCode::WagonOffsetSuspected,
+            format!(
+                "the wagon stands about {:+.2}° (± {:.2}°, from {} reading(s)) off its commanded angle",
+                x.offset_deg, x.se_deg, x.readings
+            ),
+            "check the wagon against its reference mark on the arc (re-home it if it slipped)",
+        )
+    } else {
+        (
+            AlarmCode::CameraPoseMoved,
+            format!(
+                "the camera's pose moved: the wagon by about {:+.2}° (± {:.2}°, from {} reading(s)) or arm joint 1 by {:+.2}°, and nothing yet tells which",
+                x.offset_deg,
+                x.se_deg,
+                x.readings,
+                x.offset_deg / x.joint_leak[0]
+            ),
+            "check both the wagon against its reference mark on the arc and arm joint 1 (re-home whichever slipped, re-seat the sample if it moved)",
+        )
+    };
     Alarm::new(
         AlarmKind::Positioning,
         Severity::Warning,
-        AlarmCode::WagonOffsetSuspected,
+        code,
         format!(
-            "the wagon stands about {:+.2}° (± {:.2}°, from {} reading(s)) off its commanded angle: two earlier poses (entries {} and {}, of light sweeps {} and {}), re-captured back to back, moved {:+.2} % against each other, at {:+.2} %/° of wagon (CUSUM {:.1} > {:.1}); a stationary effect of the geometry does not move a re-captured pose, the lamp cancels between the two, and a degree of joint 1 or 2 would read as {:+.2}° or {:+.2}° of wagon; {}{}",
-            x.offset_deg,
-            x.se_deg,
-            x.readings,
+            "{opening}: two earlier poses (entries {} and {}, of light sweeps {} and {}), re-captured back to back, moved {:+.2} % against each other, at {:+.2} %/° of wagon (CUSUM {:.1} > {:.1}); a stationary effect of the geometry does not move a re-captured pose, the lamp cancels between the two, and a degree of joint 1 or 2 would read as {:+.2}° or {:+.2}° of wagon; {}{}",
             x.entries[0],
             x.entries[1],
             x.originals_lights[0],
@@ -473,9 +493,9 @@ fn wagon_offset(x: &WagonOffset) -> Alarm {
             x.joint_leak[1],
             match (x.sweeps_z, &x.axis) {
                 (Some(z), _) => format!("the light sweeps since then show the wagon's offset, not a joint's, at {z:.1} standard deviations"),
-                (None, Some(r)) if r.share_and_se().0 < 0.5 => format!("{}: the wagon's", axis_words(r)),
-                (None, Some(r)) => format!("the light sweeps since then name no axis and {}: joint 1 by {:+.2}° would read the same as the pair", axis_words(r), x.offset_deg / x.joint_leak[0]),
-                (None, None) => format!("the light sweeps since then name no axis: joint 1 by {:+.2}° would read the same", x.offset_deg / x.joint_leak[0]),
+                (None, Some(r)) if x.told => format!("{}: the wagon's", axis_words(r)),
+                (None, Some(r)) => format!("the light sweeps since then name no axis, and {}: neither's", axis_words(r)),
+                (None, None) => "the light sweeps since then name no axis, and no set of earlier poses could be re-captured to tell the two apart".to_string(),
             },
             match &x.approach {
                 Some(r) => format!("; plan entry {} re-captured from below and from above read {:+.2} % apart ({:+.2}° ± {:.2}° of lag): not play in the drive", r.entries[1], r.change_pct, r.backlash_deg, r.se_deg),
@@ -502,7 +522,7 @@ fn wagon_offset(x: &WagonOffset) -> Alarm {
     }))
     .advise(
         &format!(
-            "Pause the run; check the wagon against its reference mark on the arc (re-home it if it slipped), then resume; every capture since {} (after the last reading in control) is on the retake list.",
+            "Pause the run; {check}, then resume; every capture since {} (after the last reading in control) is on the retake list.",
             x.since_idx,
         ),
         Some(Affects::Since { from_idx: x.since_idx, handling: Handling::Retake }),
@@ -733,6 +753,7 @@ mod tests {
             since_idx: 3564,
             approach: None,
             axis: None,
+            told: true,
         };
         let a = alarm(&SweepFinding::WagonOffset {
             at: AT,
@@ -759,15 +780,60 @@ mod tests {
         assert!(
             matches!(&a.evidence, Evidence::WagonOffset(e) if e.source == Source::Recaptures && e.sweeps_z == Some(6.5))
         );
-        // not attributed by the sweeps: the joint-1 slip that would read the same is named
+        // told from joint 1 by neither the sweeps nor re-captures: the camera's pose moved, by
+        // the wagon or by the joint-1 slip that would read the same
         let a = alarm(&SweepFinding::WagonOffset {
             at: AT,
             offset: WagonOffset {
                 sweeps_z: None,
+                told: false,
                 ..x.clone()
             },
         });
-        assert!(a.message.contains("joint 1 by -0.67°"), "{}", a.message);
+        assert_eq!(a.code, AlarmCode::CameraPoseMoved);
+        assert!(
+            a.message
+                .starts_with("the camera's pose moved: the wagon by about +1.00°")
+                && a.message.contains("or arm joint 1 by -0.67°")
+                && a.message
+                    .contains("no set of earlier poses could be re-captured"),
+            "{}",
+            a.message
+        );
+        assert!(
+            a.action
+                .as_deref()
+                .is_some_and(|t| t.contains("arm joint 1")),
+            "{:?}",
+            a.action
+        );
+        assert!(matches!(&a.evidence, Evidence::WagonOffset(e) if e.sweeps_z.is_none()));
+        // re-captures chosen to tell the two apart read the wagon's
+        let axis = AxisReading {
+            entries: vec![1, 2, 3, 4, 5, 6, 7, 8],
+            up: 4,
+            change_pct: 0.3,
+            joint1_pct: 3.1,
+            wagon_pct: 0.2,
+            se_pct: 0.4,
+        };
+        let a = alarm(&SweepFinding::WagonOffset {
+            at: AT,
+            offset: WagonOffset {
+                sweeps_z: None,
+                axis: Some(axis.clone()),
+                ..x.clone()
+            },
+        });
+        assert_eq!(a.code, AlarmCode::WagonOffsetSuspected);
+        assert!(
+            a.message.contains("8 earlier poses re-captured back to back to tell the wagon from joint 1 moved +0.30 % against each other (± 0.40), where the wagon would have moved them +0.20 % and joint 1 +3.10 %: the wagon's"),
+            "{}",
+            a.message
+        );
+        assert!(
+            matches!(&a.evidence, Evidence::WagonOffset(e) if e.axis.as_ref().is_some_and(|r| r.up == 4 && r.entries.len() == 8))
+        );
         // a pose re-captured from both sides read no lag: the alarm says so
         let reading = ApproachReading {
             entries: [640, 650, 660, 650],

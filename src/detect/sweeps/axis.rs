@@ -17,10 +17,10 @@
 //! With u = (D − c·K_w/a_w) / (c·K₁/a₁ − c·K_w/a_w), 0 for the wagon and 1 for the slip, and
 //! its standard error from the re-capture noise, an axis is named when u is within `AXIS_Z`
 //! standard errors and `MODEL_SHARE` of its value (the model's slopes) and beyond them from the
-//! other's. Otherwise (or with no
-//! reading) the light sweeps' refit decides as before. The fewest per side of `RECAPTURE_PER_SIDE` whose
-//! two predictions are 2·`AXIS_Z` standard errors apart; none asked when no set is. 8 to 16
-//! captures, once a departure.
+//! other's. Otherwise (or with no reading) the light sweeps' refit decides as before. The
+//! fewest per side of `RECAPTURE_PER_SIDE` whose two predictions stand `EXPECTED_SEPARATION`
+//! standard errors apart, else the strongest set if a reading at either prediction can decide
+//! at all (`MIN_SEPARATION`); none asked otherwise. 8 to 16 captures, once a departure.
 
 use super::recapture::{
     best_set, RecaptureSet, RECAPTURE_BACK_SWEEPS, RECAPTURE_PER_SIDE, RECAPTURE_WAIT_CAPTURES,
@@ -34,6 +34,13 @@ pub(super) const AXIS_Z: f64 = 3.0;
 /// two predictions: a reading between them is neither's (the quarter `wagon_watch` allows a
 /// pose's response to depart from its slope).
 pub(super) const MODEL_SHARE: f64 = 0.25;
+/// A set is asked for when its two predictions stand this many standard errors apart (a
+/// reading at either then decides with room for the noise) ...
+const EXPECTED_SEPARATION: f64 = 5.0;
+/// ... or, when none of up to 8 poses a side does, the strongest if they stand this far apart:
+/// the least at which a reading at either prediction decides at all,
+/// `AXIS_Z` / (1 − `MODEL_SHARE`).
+const MIN_SEPARATION: f64 = AXIS_Z / (1.0 - MODEL_SHARE);
 
 /// The question: the set asked for and what each hypothesis predicts of it.
 #[derive(Debug, Clone)]
@@ -92,7 +99,7 @@ impl AxisQuestion {
     /// The question for a change `change` (ln units) of the pair `p` with sensitivities
     /// `s` = [wagon, joint 1, joint 2] (ln Y per degree), from the candidate poses of sweeps
     /// completed before it (`SweepMonitor::set_candidates`, valued by v). None when no set
-    /// separates the two predictions by 2·`AXIS_Z` standard errors.
+    /// separates the two predictions by `MIN_SEPARATION` standard errors.
     pub(super) fn choose(
         change: f64,
         s: [f64; 3],
@@ -102,34 +109,47 @@ impl AxisQuestion {
         if !(change.is_finite() && change != 0.0 && s[0] != 0.0 && s[1] != 0.0) {
             return None;
         }
+        // the fewest per side whose predictions stand `EXPECTED_SEPARATION` apart, else the
+        // strongest set if a reading at either prediction can decide at all
+        let mut strongest: Option<(f64, RecaptureSet)> = None;
+        let mut chosen = None;
         for per_side in RECAPTURE_PER_SIDE {
             let Some((z, set)) = best_set(candidates, per_side, noise) else {
                 continue;
             };
-            if z * change.abs() < 2.0 * AXIS_Z {
-                continue;
+            let separation = z * change.abs();
+            if separation >= EXPECTED_SEPARATION {
+                chosen = Some(set);
+                break;
             }
-            let k = |col: usize| {
-                let v: Vec<f64> = set.smooth().iter().map(|x| x[col]).collect();
-                set.contrast(&v)
-            };
-            let (joint, wagon) = (change * k(0) / s[1], change * k(2) / s[0]);
-            let (_, sd) = set.sensitivity_and_sd();
-            if !(joint.is_finite() && wagon.is_finite() && sd.is_finite() && sd > 0.0) {
-                return None;
+            if strongest.as_ref().is_none_or(|(s, _)| separation > *s) {
+                strongest = Some((separation, set));
             }
-            let n = set.entries().len();
-            return Some(AxisQuestion {
-                set,
-                joint,
-                wagon,
-                sd,
-                asked: false,
-                waited: 0,
-                readings: vec![None; n],
-            });
         }
-        None
+        let set = match (chosen, strongest) {
+            (Some(set), _) => set,
+            (None, Some((separation, set))) if separation >= MIN_SEPARATION => set,
+            _ => return None,
+        };
+        let k = |col: usize| {
+            let v: Vec<f64> = set.smooth().iter().map(|x| x[col]).collect();
+            set.contrast(&v)
+        };
+        let (joint, wagon) = (change * k(0) / s[1], change * k(2) / s[0]);
+        let (_, sd) = set.sensitivity_and_sd();
+        if !(joint.is_finite() && wagon.is_finite() && sd.is_finite() && sd > 0.0) {
+            return None;
+        }
+        let n = set.entries().len();
+        Some(AxisQuestion {
+            set,
+            joint,
+            wagon,
+            sd,
+            asked: false,
+            waited: 0,
+            readings: vec![None; n],
+        })
     }
 
     pub(super) fn wanted(&self) -> Option<Vec<usize>> {

@@ -75,6 +75,9 @@ pub(crate) struct WagonOffset {
     pub approach: Option<ApproachReading>,
     /// The re-captures that tell the wagon from joint 1 (`axis`), when they were read.
     pub axis: Option<AxisReading>,
+    /// Whether the wagon was told from joint 1 (by the light sweeps' refit or by `axis`);
+    /// otherwise the camera's pose moved and nothing says which of the two moved it.
+    pub told: bool,
 }
 
 /// A joint named as slipped: its estimated offset (degrees) with its standard error and the

@@ -461,6 +461,8 @@ impl SweepMonitor {
                     threshold: x.threshold,
                     since_idx: x.since_idx,
                     approach,
+                    told: z.is_some()
+                        || axis_read.as_ref().is_some_and(|r| r.share_and_se().0 < 0.5),
                     axis: axis_read,
                 },
             });
