@@ -19,7 +19,8 @@ How a run is judged (the onset is the fault's first capture; a fault-free run's 
   `wagon-backlash-suspected` or `wagon-offset-suspected` after the onset names its axis (the
   wagon is axis 4; its lag as `wagon-backlash-suspected`, its offset as
   `wagon-offset-suspected`) with its sign within 600 captures; named wrong when a positioning alarm after the onset names another axis
-  or sign (or comes late);
+  or sign (or comes late); a `camera-pose-moved` (the wagon or joint 1, not told apart) is
+  counted on its own;
 - a flickering lamp is flagged by `lamp-unstable` within 1,000 captures;
 - an encoder episode is right when after its onset there is an `encoder-mismatch` and neither
   a drift nor a `joint-offset-suspected` alarm;
@@ -195,12 +196,15 @@ def positioning_table(records) -> str:
             cells.append(of(sum(1 for r in h if named(r) and delay(r, "joint_after") <= JOINT_WITHIN), len(h)) if h else "–")
         right = [r for r in g if named(r) and delay(r, "joint_after") <= JOINT_WITHIN]
         silent = [r for r in g if r["positioning_after"] is None]
+        untold = [r for r in g if r["joint_after"] is None and "camera-pose-moved" in r["codes_after"]]
         wrong_axis = [r for r in g if r["joint_after"] and (r["joint_after"]["joint"] != f["axis"] or wrong_kind(r))]
         q = sorted(r["joint_after"]["offset_deg"] / f["size"] for r in g if named(r))
         est = f"{statistics.median(q):.2f} ({q[0]:.2f} … {q[-1]:.2f})" if q else "–"
-        rows.append(cells + [of(len(right), len(g)), len(wrong_axis), len(silent), est])
+        rows.append(cells + [of(len(right), len(g)), len(wrong_axis), len(untold), len(silent), est])
     return table(["row", "probes"] + [f"named right within {JOINT_WITHIN}, {p}" for p in fault_models(records)]
-                 + ["named right", "named as another axis (or the wagon's other fault)", "not named", "estimate / truth: median (range)"], rows)
+                 + ["named right", "named as another axis (or the wagon's other fault)",
+                    "`camera-pose-moved`: the wagon or joint 1, not told", "no positioning alarm",
+                    "estimate / truth: median (range)"], rows)
 
 
 def other_table(records) -> str:

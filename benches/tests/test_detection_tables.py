@@ -80,6 +80,20 @@ def test_the_wagons_lag_must_be_named_as_a_lag_and_its_offset_as_an_offset():
     assert not T.wrong_kind(rec(row="wagon +1° at mid-run", fault=lag, joint_after=alarm(300, "joint-offset-suspected", 1, 0.9)))
 
 
+def test_a_camera_pose_moved_is_counted_on_its_own_neither_named_nor_silent():
+    f = {"kind": "joint", "onset": 100, "size": 1.0, "axis": 4}
+    moved = alarm(300, "camera-pose-moved", None, 0.9)
+    rs = [rec(row="wagon +1° at mid-run", fault=f, positioning_after=moved, codes_after=["camera-pose-moved"]),
+          rec(row="wagon +1° at mid-run", fault=f, joint_after=alarm(300, "wagon-offset-suspected", 4, 0.9),
+              positioning_after=alarm(300, "wagon-offset-suspected", 4, 0.9), codes_after=["wagon-offset-suspected"]),
+          rec(row="wagon +1° at mid-run", fault=f)]
+    assert not T.named(rs[0]) and not T.false_alarm(rs[0])
+    line = T.positioning_table(rs).splitlines()[2]
+    cells = [c.strip() for c in line.strip("|").split("|")]
+    # named right, named as another axis, camera-pose-moved, no positioning alarm
+    assert cells[-5:-1] == ["1 of 3", "0", "1", "1"], cells
+
+
 def test_a_false_alarm_is_one_in_a_fault_free_run_or_before_the_onset():
     assert T.false_alarm(rec(drift_after=alarm(10)))
     assert not T.false_alarm(rec())
