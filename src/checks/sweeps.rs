@@ -328,8 +328,12 @@ fn joint_slip(at: &SweepAt, x: &JointSlip) -> Alarm {
         AlarmKind::Positioning,
         Severity::Warning,
         AlarmCode::JointOffsetSuspected,
-        match x.attributed_level_pct {
-            Some(level_pct) => format!(
+        match (&x.axis, x.attributed_level_pct) {
+            (Some(_), _) => format!(
+                "joint {} looks offset by about {:+.2}° (± {:.2}°, from the re-captured pair): two earlier poses re-captured back to back departed from their readings in control (CUSUM {:.1} > {:.1}), and re-captures chosen to tell joint 1 from the wagon read the joint's",
+                x.joint, x.offset_deg, x.se_deg, x.statistic, x.threshold
+            ),
+            (None, Some(level_pct)) => format!(
                 "{size}: light sweep {} and the {} before it sit {:+.2} % off the earlier sweeps of θi = {}°, and that joint's pattern across their cameras departs from the earlier sweeps' by {:.1} standard deviations (threshold {}) in the direction that explains the level, while the encoders agree with the commands: read as the tilt's, not as a lamp step, and not taken into the drift model; a slipped joint or a moved sample is likely",
                 at.light,
                 x.sweeps.saturating_sub(1),
@@ -338,7 +342,7 @@ fn joint_slip(at: &SweepAt, x: &JointSlip) -> Alarm {
                 x.statistic,
                 x.threshold,
             ),
-            None => format!(
+            (None, None) => format!(
                 "{size}: the pattern across the cameras of light sweep {} and the {} before it follows that joint's sensitivity while the encoders agree with the commands; a slipped joint or a moved sample is likely (CUSUM {:.1} > {:.1})",
                 at.light,
                 x.sweeps.saturating_sub(1),
@@ -698,6 +702,34 @@ mod tests {
             ),
             "{}",
             a.message
+        );
+        // named by re-captures that told joint 1 from the wagon: the message says so, not
+        // that a sweep's pattern showed it
+        let by_axis = alarm(&SweepFinding::JointSlip {
+            at: AT,
+            slip: JointSlip {
+                joint: 1,
+                estimate_sweeps: 0,
+                axis: Some(AxisReading {
+                    entries: vec![1, 2, 3, 4, 5, 6, 7, 8],
+                    up: 4,
+                    change_pct: -3.0,
+                    joint1_pct: -2.9,
+                    wagon_pct: -0.6,
+                    se_pct: 0.4,
+                }),
+                ..slip.clone()
+            },
+        });
+        assert!(
+            by_axis.message.starts_with("joint 1 looks offset by about +1.25° (± 0.25°, from the re-captured pair): two earlier poses re-captured back to back departed")
+                && by_axis.message.contains("(CUSUM 9.5 > 6.0)")
+                && !by_axis.message.contains("the pattern across the cameras"),
+            "{}",
+            by_axis.message
+        );
+        assert!(
+            matches!(&by_axis.evidence, Evidence::JointSlip(e) if e.axis.as_ref().is_some_and(|r| r.up == 4))
         );
         // without probes the message says what would decide
         let no_probes = alarm(&SweepFinding::JointSlip {

@@ -496,6 +496,11 @@ impl SweepMonitor {
         };
         let named = self.name_slip(now, &crossing, &[], Recapture::Confirmed(reading), findings);
         if let Some(SweepFinding::JointSlip { slip, .. }) = findings.last_mut() {
+            if axis_read.is_some() {
+                // named by the re-captures, not by a sweeps' CUSUM: the pair's is the statistic
+                slip.statistic = x.statistic;
+                slip.threshold = x.threshold;
+            }
             slip.axis = axis_read;
         }
         Some(named)
