@@ -135,6 +135,9 @@ pub enum AlarmCode {
     SlipRefuted,
     /// A joint pattern of the light sweeps too small for re-captures of earlier poses to check.
     SlipUnverifiable,
+    /// A joint pattern of the light sweeps present since its θi layer began, on a rig without
+    /// re-captures: a slip at the layer's start or the new θi's geometry.
+    SlipUnresolved,
     /// Capture times went back.
     TimeSteppedBack,
     /// A trend in the isotropy classes that a stationary light-side pattern could also make.
@@ -151,7 +154,7 @@ pub enum AlarmCode {
 
 impl AlarmCode {
     /// Every code.
-    pub(crate) const ALL: [AlarmCode; 52] = [
+    pub(crate) const ALL: [AlarmCode; 53] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
@@ -198,6 +201,7 @@ impl AlarmCode {
         AlarmCode::SkippedFiles,
         AlarmCode::SlipRefuted,
         AlarmCode::SlipUnverifiable,
+        AlarmCode::SlipUnresolved,
         AlarmCode::TimeSteppedBack,
         AlarmCode::TrendUnresolved,
         AlarmCode::UnannouncedFiles,
@@ -255,6 +259,7 @@ impl AlarmCode {
             AlarmCode::SkippedFiles => "skipped-files",
             AlarmCode::SlipRefuted => "slip-refuted",
             AlarmCode::SlipUnverifiable => "slip-unverifiable",
+            AlarmCode::SlipUnresolved => "slip-unresolved",
             AlarmCode::TimeSteppedBack => "time-stepped-back",
             AlarmCode::TrendUnresolved => "trend-unresolved",
             AlarmCode::UnannouncedFiles => "unannounced-files",
@@ -315,6 +320,7 @@ impl AlarmCode {
             AlarmCode::SkippedFiles => "files in the capture folder not placed as captures",
             AlarmCode::SlipRefuted => "a joint slip the light sweeps suggested, which a re-capture of earlier poses refutes",
             AlarmCode::SlipUnverifiable => "a joint pattern of the light sweeps too small for re-captures of earlier poses to check: not named",
+            AlarmCode::SlipUnresolved => "a joint pattern of the light sweeps present since its θi layer began, without re-captures to tell a slip from the geometry: not named",
             AlarmCode::TimeSteppedBack => "capture times went back",
             AlarmCode::TrendUnresolved => "a trend in the isotropy classes that a stationary light-side pattern could also make",
             AlarmCode::UnannouncedFiles => "files in the capture folder no CAPTURE line named",

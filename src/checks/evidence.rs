@@ -108,6 +108,8 @@ pub enum Evidence {
     SlipRefuted(SlipRefuted),
     /// `slip-unverifiable`.
     SlipUnverifiable(SlipUnverifiable),
+    /// `slip-unresolved`.
+    SlipUnresolved(SlipUnresolved),
     /// `wagon-backlash-suspected`.
     WagonBacklash(WagonBacklash),
     /// `wagon-offset-suspected`.
@@ -428,6 +430,24 @@ pub struct SlipUnverifiable {
     pub light: usize,
 }
 
+/// A pattern the light sweeps' fit took for `joint` offset by `offset_deg`, on a rig without
+/// re-captures, against the earlier sweeps of its θi layer: `sweeps_before` of them tested
+/// before its run began, their mean offset and its standard error (null without any), and the
+/// run's departure from them in standard errors (null without any), under `threshold_z`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SlipUnresolved {
+    pub source: Source,
+    pub joint: usize,
+    pub offset_deg: f64,
+    pub layer_deg: f64,
+    pub light: usize,
+    pub sweeps_before: usize,
+    pub before_deg: Option<f64>,
+    pub before_se_deg: Option<f64>,
+    pub change_z: Option<f64>,
+    pub threshold_z: f64,
+}
+
 /// Arm joint 3 named by its sentinel: the turn, the first capture after the last reading in
 /// control, the statistic and its threshold, and the sentinel's pose.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -653,6 +673,7 @@ impl Evidence {
             C::TrendUnresolved => parse(&v, Evidence::UnresolvedTrend),
             C::SlipRefuted => parse(&v, Evidence::SlipRefuted),
             C::SlipUnverifiable => parse(&v, Evidence::SlipUnverifiable),
+            C::SlipUnresolved => parse(&v, Evidence::SlipUnresolved),
             C::WagonBacklashSuspected => parse(&v, Evidence::WagonBacklash),
             C::WagonOffsetSuspected | C::CameraPoseMoved => parse(&v, Evidence::WagonOffset),
             C::ProbeMovedWithPose => parse(&v, Evidence::ProbePoseMoved),
@@ -719,6 +740,7 @@ impl Evidence {
             Evidence::UnresolvedTrend(_) => code == C::TrendUnresolved,
             Evidence::SlipRefuted(_) => code == C::SlipRefuted,
             Evidence::SlipUnverifiable(_) => code == C::SlipUnverifiable,
+            Evidence::SlipUnresolved(_) => code == C::SlipUnresolved,
             Evidence::WagonBacklash(_) => code == C::WagonBacklashSuspected,
             Evidence::WagonOffset(_) => {
                 matches!(code, C::WagonOffsetSuspected | C::CameraPoseMoved)

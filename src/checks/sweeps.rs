@@ -4,8 +4,8 @@
 use super::evidence::{self, Evidence, Source};
 use crate::checks::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::detect::sweeps::{
-    ApproachReading, AxisReading, JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt,
-    SweepFinding, WagonBacklash, WagonOffset,
+    ApproachReading, AxisReading, JointSlip, LayerChange, LevelRun, Recapture, RecaptureReading,
+    SweepAt, SweepFinding, WagonBacklash, WagonOffset, LAYER_CHANGE_Z,
 };
 
 /// The alarm a finding of the sweep checks raises.
@@ -45,6 +45,12 @@ pub(crate) fn alarm(f: &SweepFinding) -> Alarm {
             offset_deg,
             checkable_deg,
         } => slip_unverifiable(at, *joint, *offset_deg, *checkable_deg),
+        SweepFinding::SlipUnresolved {
+            at,
+            joint,
+            offset_deg,
+            change,
+        } => slip_unresolved(at, *joint, *offset_deg, change),
         SweepFinding::WagonBacklash { at, backlash } => wagon_backlash(at, backlash),
         SweepFinding::WagonOffset { offset, .. } => wagon_offset(offset),
         SweepFinding::LampUnstable {
@@ -177,6 +183,38 @@ fn slip_unverifiable(at: &SweepAt, joint: usize, offset_deg: f64, checkable_deg:
         checkable_deg,
         layer_deg: layer_deg(at),
         light: at.light,
+    }))
+}
+
+fn slip_unresolved(at: &SweepAt, joint: usize, offset_deg: f64, change: &LayerChange) -> Alarm {
+    let layer = layer_deg(at);
+    let against = match (change.before, change.change_z) {
+        (Some((before, se)), Some(z)) => format!(
+            "its {} sweep(s) tested before the pattern's run read {before:+.2}° ± {se:.2}, and the run departs from them by {z:+.1} standard errors, under {LAYER_CHANGE_Z:.1}",
+            change.sweeps_before
+        ),
+        _ => "no sweep of the layer was tested before the pattern's run".to_string(),
+    };
+    Alarm::new(
+        AlarmKind::Positioning,
+        Severity::Info,
+        AlarmCode::SlipUnresolved,
+        format!(
+            "not named: the pattern across the cameras of light sweep {} (θi = {layer}°) follows joint {joint}'s sensitivity as an offset of {offset_deg:+.2}° would, but it has held since the layer began ({against}); without re-captures of earlier poses the sweeps cannot tell a slip at the layer's start from the new θi's geometry (a lamp beam or a holder that follows the pose); a slip later in this layer is still named against this pattern; drift probes ([probes] every) would tell them apart",
+            at.light,
+        ),
+    )
+    .with(Evidence::SlipUnresolved(evidence::SlipUnresolved {
+        source: Source::LightSweeps,
+        joint,
+        offset_deg,
+        layer_deg: layer,
+        light: at.light,
+        sweeps_before: change.sweeps_before,
+        before_deg: change.before.map(|b| b.0),
+        before_se_deg: change.before.map(|b| b.1),
+        change_z: change.change_z,
+        threshold_z: LAYER_CHANGE_Z,
     }))
 }
 
@@ -651,6 +689,61 @@ mod tests {
             serde_json::to_value(&a).unwrap()["evidence"].to_string(),
             r#"{"checkable_deg":0.375,"joint":2,"layer_deg":60.0,"light":47,"offset_deg":0.35,"source":"light sweeps"}"#
         );
+    }
+
+    #[test]
+    fn a_pattern_no_change_within_its_layer_shows_is_an_info_that_says_what_would_decide() {
+        let shown_not = LayerChange {
+            sweeps_before: 1,
+            before: Some((0.19, 0.23)),
+            change_z: Some(2.14),
+        };
+        let a = alarm(&SweepFinding::SlipUnresolved {
+            at: AT,
+            joint: 2,
+            offset_deg: 0.86,
+            change: shown_not,
+        });
+        assert_eq!(
+            (a.code, a.kind, a.severity),
+            (
+                AlarmCode::SlipUnresolved,
+                AlarmKind::Positioning,
+                Severity::Info
+            )
+        );
+        assert_eq!(a.affects, None);
+        assert!(
+            a.message.starts_with("not named: the pattern across the cameras of light sweep 47 (θi = 60°) follows joint 2's sensitivity as an offset of +0.86° would, but it has held since the layer began (its 1 sweep(s) tested before the pattern's run read +0.19° ± 0.23, and the run departs from them by +2.1 standard errors, under 3.0)")
+                && a.message.contains("drift probes ([probes] every) would tell them apart"),
+            "{}",
+            a.message
+        );
+        assert_eq!(
+            serde_json::to_value(&a).unwrap()["evidence"].to_string(),
+            r#"{"before_deg":0.19,"before_se_deg":0.23,"change_z":2.14,"joint":2,"layer_deg":60.0,"light":47,"offset_deg":0.86,"source":"light sweeps","sweeps_before":1,"threshold_z":3.0}"#
+        );
+        // none tested before: said so, and the evidence has nulls
+        let a = alarm(&SweepFinding::SlipUnresolved {
+            at: AT,
+            joint: 1,
+            offset_deg: -0.4,
+            change: LayerChange::default(),
+        });
+        assert!(
+            a.message
+                .contains("(no sweep of the layer was tested before the pattern's run)"),
+            "{}",
+            a.message
+        );
+        let ev = serde_json::to_value(&a).unwrap()["evidence"].clone();
+        assert_eq!(
+            (ev["sweeps_before"].as_u64(), ev["change_z"].is_null()),
+            (Some(0), true)
+        );
+        // the evidence reads back as its code's
+        let back: Alarm = serde_json::from_value(serde_json::to_value(&a).unwrap()).unwrap();
+        assert_eq!(back, a);
     }
 
     #[test]

@@ -26,6 +26,17 @@ pub(crate) struct LevelRun {
     pub threshold: f64,
 }
 
+/// A joint's pattern against the earlier sweeps of its own θi layer (`SweepMonitor::
+/// layer_change`): the layer's sweeps tested before the pattern's CUSUM run began, their mean offset
+/// and its standard error (none without such sweeps), and the run's mean offset less theirs in
+/// standard errors.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct LayerChange {
+    pub sweeps_before: usize,
+    pub before: Option<(f64, f64)>,
+    pub change_z: Option<f64>,
+}
+
 /// The wagon named as lagging (`wagon`): the lag's estimate (degrees) with its standard error
 /// and the sweeps behind it, the CUSUM run's own mean and length, the wagon's offset in the
 /// sweep that named it (untested, for the operator), the capture that ended the run's first
@@ -191,6 +202,16 @@ pub(crate) enum SweepFinding {
         offset_deg: f64,
         checkable_deg: f64,
     },
+    /// (A rig without re-captures) The sweeps' pattern named `joint` offset by `offset_deg`,
+    /// but no change within its θi layer shows it: a slip at the layer's start or a
+    /// stationary pattern of the new θi's geometry, which only re-captures of earlier poses
+    /// tell apart; not named (once a layer).
+    SlipUnresolved {
+        at: SweepAt,
+        joint: usize,
+        offset_deg: f64,
+        change: LayerChange,
+    },
     /// The wagon lags behind its commanded angle against its last direction of motion.
     WagonBacklash {
         at: SweepAt,
@@ -228,6 +249,7 @@ impl SweepFinding {
             | SweepFinding::JointSlip { at, .. }
             | SweepFinding::SlipRefuted { at, .. }
             | SweepFinding::SlipUnverifiable { at, .. }
+            | SweepFinding::SlipUnresolved { at, .. }
             | SweepFinding::WagonBacklash { at, .. }
             | SweepFinding::WagonOffset { at, .. }
             | SweepFinding::LampUnstable { at, .. }

@@ -32,7 +32,87 @@ pub(super) fn slip_start(run: &[(f64, f64, f64, u64)], centre: f64, offset: f64)
     run.get(k).or(run.first()).map_or(0, |v| v.3)
 }
 
+/// Without re-captures, a joint's pattern is a slip only when its CUSUM run departs from the
+/// earlier sweeps of its own θi layer by this many standard errors (one-sided normal tail
+/// 0.13 %, as `ATTRIBUTION_Z`): a pattern present since the layer began is as much the new
+/// θi's geometry (a beam or holder that follows the pose) as a slip at its start.
+pub(crate) const LAYER_CHANGE_Z: f64 = 3.0;
+
+/// The inverse-variance weighted mean of (value, variance) pairs and its variance; None for
+/// none.
+fn weighted_mean(v: &[(f64, f64)]) -> Option<(f64, f64)> {
+    let w: f64 = v.iter().map(|s| 1.0 / s.1).sum();
+    let m = v.iter().map(|s| s.0 / s.1).sum::<f64>() / w;
+    (w > 0.0 && m.is_finite()).then(|| (m, 1.0 / w))
+}
+
+impl LayerChange {
+    /// Whether the run departs from the layer's earlier sweeps in the direction of `offset`.
+    pub(super) fn shown(&self, offset: f64) -> bool {
+        self.change_z
+            .is_some_and(|z| z * offset.signum() >= LAYER_CHANGE_Z)
+    }
+}
+
 impl SweepMonitor {
+    /// Joint `x.joint`'s offsets (detection's fit) in the θi layer `layer`: the mean of the
+    /// sweeps of the crossing's run (from `x.since`) against that of the layer's sweeps
+    /// tested before it, each sweep weighted by the variance its CUSUM is scaled by (its
+    /// standard error and the joint's sweep-to-sweep scale).
+    pub(super) fn layer_change(&self, x: &JointCrossing, layer: i64) -> LayerChange {
+        let j = x.joint;
+        let nuisance = self.joint_history[j].scale();
+        let (mut before, mut run) = (Vec::new(), Vec::new());
+        for s in self.sweep_starts.iter().filter(|s| s.layer == layer) {
+            let (b, se) = (s.offsets[j], s.offset_se[j]);
+            if !(b.is_finite() && se.is_finite() && se > 0.0) {
+                continue;
+            }
+            let v = (b, se * se + nuisance * nuisance);
+            if s.last_idx < x.since {
+                before.push(v);
+            } else {
+                run.push(v);
+            }
+        }
+        let b = weighted_mean(&before);
+        let change_z = b.zip(weighted_mean(&run)).and_then(|(b, r)| {
+            let z = (r.0 - b.0) / (r.1 + b.1).sqrt();
+            z.is_finite().then_some(z)
+        });
+        LayerChange {
+            sweeps_before: before.len(),
+            before: b.map(|(m, v)| (m, v.sqrt())),
+            change_z,
+        }
+    }
+
+    /// Joint `j`'s offset and its standard error in the captures of light `light` against
+    /// `reference`: from the smooth model's sensitivities, the wagon's among them; where that
+    /// fit is too loose (a θi layer with too few lights for the model to know its slope in θi),
+    /// the interpolant's.
+    fn refit(
+        &self,
+        light: usize,
+        reference: &Reference,
+        known: &Known,
+        j: usize,
+    ) -> Option<(f64, f64)> {
+        let current = self.captures_of_light(light);
+        let (_, rows) = self.residuals(&current, reference, known, Model::Smooth);
+        let fit = self.pattern_fit(rows.iter().filter_map(Row::with_wagon).collect());
+        let smooth = fit
+            .se(j + 1)
+            .filter(|v| v.is_finite() && *v > 0.0 && *v <= SMOOTH_SE_MAX_DEG)
+            .map(|se| (fit.beta[j + 1], se));
+        smooth.or_else(|| {
+            let (_, rows) = self.residuals(&current, reference, known, Model::Interpolant);
+            let fit = self.pattern_fit(rows.iter().map(Row::joints).collect());
+            let se = fit.se(j + 1).filter(|v| v.is_finite() && *v > 0.0)?;
+            Some((fit.beta[j + 1], se))
+        })
+    }
+
     /// What a slip named without re-captures says of them: the rig takes none, or none was
     /// asked.
     pub(super) fn unasked(&self) -> Recapture {
@@ -50,6 +130,7 @@ impl SweepMonitor {
         let bse = pattern.se(j + 1).filter(|v| v.is_finite() && *v > 0.0)?;
         if let Some(span) = self.sweep_starts.last_mut() {
             span.offsets[j] = b;
+            span.offset_se[j] = bse;
         }
         Some(JointFit {
             joint: j + 1,
@@ -151,6 +232,26 @@ impl SweepMonitor {
             {
                 match self.hold_for_recapture(sweep.at(), x, &rec.joints) {
                     Hold::Held => {}
+                    // without re-captures, the evidence of a slip is a change within its layer
+                    Hold::NotAsked if self.recapture.is_none() => {
+                        let change = self.layer_change(x, sweep.layer);
+                        if change.shown(x.mean) {
+                            named = Some(self.name_slip(
+                                sweep.at(),
+                                x,
+                                &rec.joints,
+                                Recapture::NoProbes,
+                                findings,
+                            ));
+                        } else if self.unresolved.insert(sweep.layer) {
+                            findings.push(SweepFinding::SlipUnresolved {
+                                at: sweep.at(),
+                                joint: x.joint + 1,
+                                offset_deg: x.mean,
+                                change,
+                            });
+                        }
+                    }
                     Hold::NotAsked => {
                         let recapture = self.unasked();
                         named =
@@ -402,24 +503,7 @@ impl SweepMonitor {
         let reference = self.reference_before(self.slip_first_idx(run[k].last_idx), known);
         let refits: Vec<(f64, f64)> = run[k..]
             .iter()
-            .filter_map(|s| {
-                let current = self.captures_of_light(s.light);
-                // the size from the smooth model's sensitivities, the wagon's among them; where
-                // that fit is too loose (a θi layer with too few lights for the model to know
-                // its slope in θi), the interpolant's
-                let (_, rows) = self.residuals(&current, &reference, known, Model::Smooth);
-                let fit = self.pattern_fit(rows.iter().filter_map(Row::with_wagon).collect());
-                let smooth = fit
-                    .se(j + 1)
-                    .filter(|v| v.is_finite() && *v > 0.0 && *v <= SMOOTH_SE_MAX_DEG)
-                    .map(|se| (fit.beta[j + 1], se));
-                smooth.or_else(|| {
-                    let (_, rows) = self.residuals(&current, &reference, known, Model::Interpolant);
-                    let fit = self.pattern_fit(rows.iter().map(Row::joints).collect());
-                    let se = fit.se(j + 1).filter(|v| v.is_finite() && *v > 0.0)?;
-                    Some((fit.beta[j + 1], se))
-                })
-            })
+            .filter_map(|s| self.refit(s.light, &reference, known, j))
             .collect();
         let refitted: Vec<f64> = refits.iter().map(|r| r.0).collect();
         let (used, se_fallback) = match change_point(&refitted, sign) {

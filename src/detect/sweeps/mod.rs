@@ -57,9 +57,10 @@ mod wagon;
 mod wagon_watch;
 
 pub(crate) use findings::{
-    ApproachReading, AxisReading, JointSlip, LevelRun, Recapture, RecaptureReading, SweepAt,
-    SweepFinding, WagonBacklash, WagonOffset,
+    ApproachReading, AxisReading, JointSlip, LayerChange, LevelRun, Recapture, RecaptureReading,
+    SweepAt, SweepFinding, WagonBacklash, WagonOffset,
 };
+pub(crate) use joints::LAYER_CHANGE_Z;
 use level::ScaleHistory;
 use model::{Model, PatternFit, Reference, Row};
 pub(crate) use recapture::{RecaptureNoise, RECAPTURE_WAIT_CAPTURES};
@@ -365,6 +366,9 @@ pub(crate) struct SweepMonitor {
     refuted: HashMap<i64, usize>,
     /// The θi layers that reported a pattern the re-captures could not check (once a layer).
     unverifiable: HashSet<i64>,
+    /// The θi layers that reported a pattern their own earlier sweeps do not show begin
+    /// (a rig without re-captures; once a layer).
+    unresolved: HashSet<i64>,
     /// The wagon's offset from re-captures of two poses (a probe-taking rig).
     wagon_watch: wagon_watch::WagonWatch,
 }
@@ -378,8 +382,10 @@ struct SweepSpan {
     last_idx: u64,
     first_t: f64,
     layer: i64,
-    /// The joints' offsets of detection's fit (the interpolant's sensitivities).
+    /// The joints' offsets of detection's fit (the interpolant's sensitivities), and their
+    /// standard errors.
     offsets: [f64; 2],
+    offset_se: [f64; 2],
     /// The joints' offsets and standard errors of the smooth model's fit, and the sweep's mean
     /// smooth sensitivity to each joint (ln Y per degree): what a level change is attributed
     /// by (`SweepMonitor::attribute_level`). NaN where there is no fit.
@@ -463,6 +469,7 @@ impl SweepMonitor {
             pending: None,
             refuted: HashMap::new(),
             unverifiable: HashSet::new(),
+            unresolved: HashSet::new(),
             wagon_watch: Default::default(),
         }
     }
@@ -589,6 +596,7 @@ impl SweepMonitor {
             first_t: sweep.first_t,
             layer: sweep.layer,
             offsets: [f64::NAN; 2],
+            offset_se: [f64::NAN; 2],
             smooth: [(f64::NAN, f64::NAN); 2],
             smooth_s: [f64::NAN; 2],
             wagon_offset: (f64::NAN, f64::NAN),

@@ -1052,3 +1052,58 @@ fn the_probes_lamp_unstable_suspends_the_sweeps_pose_tests() {
     m.set_probes_unstable(false);
     assert!(!m.lamp_unstable());
 }
+
+/// The `SlipUnresolved` findings: the layer (millidegrees), the joint and the layer change.
+fn unresolved(findings: &[SweepFinding]) -> Vec<(i64, usize, LayerChange)> {
+    findings
+        .iter()
+        .filter_map(|f| match f {
+            SweepFinding::SlipUnresolved {
+                at, joint, change, ..
+            } => Some((at.layer_mdeg, *joint, *change)),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The first light of the θi = 75° layer.
+const LAYER_75: usize = 57;
+
+/// A pattern that follows the pose as a slip's would, from the θi = 75° layer's tenth light on,
+/// is a change within the layer: without re-captures it is named as the slip it looks like
+/// (the sweeps alone cannot do better; re-captures refute it). A real slip at the layer's
+/// first capture is confirmed by re-captures and named.
+#[test]
+fn a_change_within_a_layer_is_named_and_re_captures_confirm_a_slip_at_its_start() {
+    let (_, _, mid) = simulate(
+        Fault::LightPattern(1, 2.0, LAYER_75 + 9),
+        usize::MAX,
+        LAYER_75 + 16,
+        1,
+        false,
+        (0.0, 0.0),
+    );
+    let named: Vec<_> = slips(&mid).collect();
+    assert_eq!(named.len(), 1, "{mid:?}");
+    assert_eq!(named[0].1.joint, 2);
+    assert!(unresolved(&mid).is_empty(), "{mid:?}");
+
+    let (_, _, checked) = simulate_with(
+        Fault::Joint(1, 2.0),
+        LAYER_75 * 81,
+        LAYER_75 + 8,
+        1,
+        false,
+        (0.0, 0.0),
+        Some(0.014),
+    );
+    let named: Vec<_> = slips(&checked).collect();
+    assert_eq!(named.len(), 1, "{checked:?}");
+    assert_eq!(named[0].1.joint, 2);
+    assert!(
+        matches!(named[0].1.recapture, Recapture::Confirmed(_)),
+        "{:?}",
+        named[0].1
+    );
+    assert!(unresolved(&checked).is_empty(), "{checked:?}");
+}

@@ -58,6 +58,7 @@ fn with_smooth_fits(fits: &[(i64, f64, f64, f64)]) -> SweepMonitor {
             first_t: 7.0 * first_idx as f64,
             layer,
             offsets: [0.0; 2],
+            offset_se: [f64::NAN; 2],
             smooth: [(b, se), (0.01 * (k % 3) as f64, 0.05)],
             smooth_s: [s, 0.002],
             wagon_offset: (f64::NAN, f64::NAN),
@@ -269,4 +270,88 @@ fn thresholds_follow_the_false_alarm_budget() {
         81,
     );
     assert!(strict.thresholds().0 > hl);
+}
+
+/// A monitor whose completed sweeps, one of 81 captures each, carry joint 2's detection fits
+/// (θi layer, offset, standard error; NaN for an untested sweep), and whose joint-2 history
+/// scatters by 0.05°.
+fn monitor_with_joint2(fits: &[(i64, f64, f64)]) -> SweepMonitor {
+    let rig = Rig::new(Default::default()).unwrap();
+    let mut m = SweepMonitor::new(SweepSpec::default(), rig, fits.len());
+    for v in [0.05, -0.05, 0.05, -0.05, 0.05, -0.05] {
+        m.joint_history[1].record(v, false, false);
+    }
+    for (k, &(layer, b, se)) in fits.iter().enumerate() {
+        let first_idx = 81 * k as u64;
+        m.sweep_starts.push(SweepSpan {
+            light: k,
+            first_idx,
+            last_idx: first_idx + 80,
+            first_t: 7.0 * first_idx as f64,
+            layer,
+            offsets: [0.0, b],
+            offset_se: [0.02, se],
+            smooth: [(f64::NAN, f64::NAN); 2],
+            smooth_s: [f64::NAN; 2],
+            wagon_offset: (f64::NAN, f64::NAN),
+        });
+    }
+    m
+}
+
+/// A joint-2 crossing whose CUSUM run began with the sweep ending at `since`.
+fn crossing_since(since: u64, mean: f64) -> JointCrossing {
+    JointCrossing {
+        joint: 1,
+        statistic: 4.0,
+        mean,
+        mean_se: 0.1,
+        sweeps: 2,
+        since,
+        estimate_sweeps: 2,
+        run_mean: mean,
+        attributed_level: None,
+    }
+}
+
+#[test]
+fn a_joint_pattern_is_a_change_within_its_layer_only_against_sweeps_that_bound_it() {
+    let (l60, l75) = (60_000, 75_000);
+    let nan = f64::NAN;
+    // the layer's untested first sweeps, then two clean ones, then the run: shown
+    let m = monitor_with_joint2(&[
+        (l60, 0.0, 0.03),
+        (l75, nan, nan),
+        (l75, nan, nan),
+        (l75, 0.02, 0.05),
+        (l75, -0.03, 0.05),
+        (l75, 1.0, 0.08),
+        (l75, 0.9, 0.08),
+    ]);
+    let c = m.layer_change(&crossing_since(5 * 81 + 80, 0.95), l75);
+    assert_eq!(c.sweeps_before, 2, "{c:?}");
+    let (before, se) = c.before.unwrap();
+    assert!(before.abs() < 0.02 && se > 0.04 && se < 0.08, "{c:?}");
+    assert!(c.change_z.unwrap() > 8.0 && c.shown(0.95), "{c:?}");
+    // the other sign is not shown by it
+    assert!(!c.shown(-0.95));
+    // a run from the layer's first tested sweep: nothing before it in the layer (the sweep
+    // of the layer below does not count), not shown
+    let c = m.layer_change(&crossing_since(3 * 81 + 80, 0.5), l75);
+    assert_eq!(
+        (c.sweeps_before, c.before, c.change_z),
+        (0, None, None),
+        "{c:?}"
+    );
+    assert!(!c.shown(0.5));
+    // one imprecise sweep before the run cannot bound it: 0.8° of change at 2.7 SE
+    let m = monitor_with_joint2(&[
+        (l75, nan, nan),
+        (l75, 0.2, 0.3),
+        (l75, 1.0, 0.08),
+        (l75, 1.0, 0.08),
+    ]);
+    let c = m.layer_change(&crossing_since(2 * 81 + 80, 1.0), l75);
+    let z = c.change_z.unwrap();
+    assert!(z > 2.0 && z < LAYER_CHANGE_Z && !c.shown(1.0), "{c:?}");
 }
