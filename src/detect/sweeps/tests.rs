@@ -50,21 +50,32 @@ fn with_smooth_fits(fits: &[(i64, f64, f64, f64)]) -> SweepMonitor {
     let rig = Rig::new(Default::default()).unwrap();
     let mut m = SweepMonitor::new(SweepSpec::default(), rig, fits.len());
     for (k, &(layer, b, se, s)) in fits.iter().enumerate() {
-        let first_idx = 81 * k as u64;
         m.sweep_starts.push(SweepSpan {
-            light: k,
-            first_idx,
-            last_idx: first_idx + 80,
-            first_t: 7.0 * first_idx as f64,
-            layer,
             offsets: [0.0; 2],
-            offset_se: [f64::NAN; 2],
             smooth: [(b, se), (0.01 * (k % 3) as f64, 0.05)],
             smooth_s: [s, 0.002],
-            wagon_offset: (f64::NAN, f64::NAN),
+            ..span(k, layer)
         });
     }
     m
+}
+
+/// Light `k`'s sweep of 81 captures in θi layer `layer`, one after the other from capture 0,
+/// with no fits.
+fn span(k: usize, layer: i64) -> SweepSpan {
+    let first_idx = 81 * k as u64;
+    SweepSpan {
+        light: k,
+        first_idx,
+        last_idx: first_idx + 80,
+        first_t: 7.0 * first_idx as f64,
+        layer,
+        offsets: [f64::NAN; 2],
+        offset_se: [f64::NAN; 2],
+        smooth: [(f64::NAN, f64::NAN); 2],
+        smooth_s: [f64::NAN; 2],
+        wagon_offset: (f64::NAN, f64::NAN),
+    }
 }
 
 #[test]
@@ -282,18 +293,10 @@ fn monitor_with_joint2(fits: &[(i64, f64, f64)]) -> SweepMonitor {
         m.joint_history[1].record(v, false, false);
     }
     for (k, &(layer, b, se)) in fits.iter().enumerate() {
-        let first_idx = 81 * k as u64;
         m.sweep_starts.push(SweepSpan {
-            light: k,
-            first_idx,
-            last_idx: first_idx + 80,
-            first_t: 7.0 * first_idx as f64,
-            layer,
             offsets: [0.0, b],
             offset_se: [0.02, se],
-            smooth: [(f64::NAN, f64::NAN); 2],
-            smooth_s: [f64::NAN; 2],
-            wagon_offset: (f64::NAN, f64::NAN),
+            ..span(k, layer)
         });
     }
     m
