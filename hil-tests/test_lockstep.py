@@ -5,6 +5,8 @@ captures.
 
 A .chk file names a run of benches/matrix.py and what it must show:
 - `expect = "quiet"`: no drift or positioning alarm of warning severity or above in the run;
+  with `advisories = [CODE, ...]`, each of those codes raised at least once (what the run could
+  not decide, said rather than alarmed);
 - `expect = "caught"`: a drift alarm of the fault's sign within `within` captures of the onset,
   none before it; with `rate_within_pct_per_h`, the final rate that close to the truth;
 - `expect = "named"`: the first `joint-offset-suspected` (or `wagon-backlash-suspected` or
@@ -130,6 +132,10 @@ def test_regression_session(chk, tmp_path):
     if expect == "quiet":
         # no drift or positioning alarm, and the lamp not taken for unstable
         assert rec["drift_after"] is None and rec["positioning_after"] is None and rec["unstable_after"] is None, rec
+        raised = {a["code"] for a in read_jsonl(session / "alarms.jsonl")}
+        for code in want.get("advisories", []):
+            assert code in catalogue(), f"{chk}: {code} is not an alarm code"
+            assert code in raised, f"no {code} in the run: {sorted(raised)}"
         return
     assert rec["drift_before"] is None and rec["positioning_before"] is None, f"alarm before the onset: {rec}"
     if expect == "caught":
