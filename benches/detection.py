@@ -28,11 +28,14 @@ goniowatch binary, and compare the fast path with live runs.
   judged on every run of the matrix).
 
 Each prints its progress (runs done, left, the rate and the time left) and can be interrupted
-and resumed. GONIOWATCH_BIN overrides the binary (default target/release/goniowatch)."""
+and resumed. Recorders and scorers may run side by side on one lab, with overlapping matches:
+each run is taken under a lock (LAB/locks), and one another process holds is left to it. GONIOWATCH_BIN overrides the binary (default target/release/goniowatch)."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import fcntl
 import hashlib
 import json
 import math
@@ -192,8 +195,34 @@ def lockstep_into(run: M.Run, d: str, binary: str, label: str) -> tuple[int, flo
         shutil.rmtree(cap, ignore_errors=True)
 
 
+@contextlib.contextmanager
+def run_lock(lab: str, name: str):
+    """Holds the lab's lock called `name` while the block runs; yields False, holding nothing,
+    when another process (or another open of it) holds it."""
+    locks = os.path.join(lab, "locks")
+    os.makedirs(locks, exist_ok=True)
+    with open(os.path.join(locks, name + ".lock"), "w", encoding="utf-8") as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            yield False
+            return
+        try:
+            yield True
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
 def record_one(run: M.Run, lab: str, binary: str) -> float:
-    """Records one run through the fast path; returns its CPU seconds (simulator and daemon)."""
+    """Records one run through the fast path; returns its CPU seconds (simulator and daemon), 0
+    when another recorder has it or has finished it."""
+    with run_lock(lab, f"record-{run.id}") as mine:
+        if not mine or os.path.exists(os.path.join(lab, "runs", run.id, "record.json")):
+            return 0.0
+        return _record_one(run, lab, binary)
+
+
+def _record_one(run: M.Run, lab: str, binary: str) -> float:
     d = os.path.join(lab, "runs", run.id)
     _, cpu = lockstep_into(run, d, binary, run.id)
     s = os.path.join(d, "s")
@@ -215,7 +244,15 @@ def binary_id(binary: str) -> str:
 
 
 def score_one(run: M.Run, lab: str, binary: str, scores: str) -> float:
-    """Replays one recording with `binary` and scores it; returns the replay's CPU seconds."""
+    """Replays one recording with `binary` and scores it; returns the replay's CPU seconds, 0
+    when another scorer of the binary has it or has finished it."""
+    with run_lock(lab, f"score-{os.path.basename(scores)}-{run.id}") as mine:
+        if not mine or os.path.exists(os.path.join(scores, f"{run.id}.json")):
+            return 0.0
+        return _score_one(run, lab, binary, scores)
+
+
+def _score_one(run: M.Run, lab: str, binary: str, scores: str) -> float:
     s = os.path.join(lab, "runs", run.id, "s")
     out = tempfile.mkdtemp(prefix="gw-score-", dir=scratch_root())
     try:
@@ -283,12 +320,20 @@ def cmd_score(a) -> int:
           f"{len(todo)} to replay, {a.jobs} at once", flush=True)
     if todo:
         pool_map(lambda r: score_one(r, a.lab, a.bin, scores), todo, a.jobs, Progress("scored", len(todo), a.jobs))
-    records = []
+    records, elsewhere = [], 0
     for r in recorded:
-        with open(os.path.join(scores, f"{r.id}.json"), encoding="utf-8") as f:
+        path = os.path.join(scores, f"{r.id}.json")
+        if not os.path.exists(path):
+            # left to another scorer that has not finished it
+            elsewhere += 1
+            continue
+        with open(path, encoding="utf-8") as f:
             rec = json.load(f)
         rec.pop("replay_cpu_s", None)
         records.append(rec)
+    if elsewhere:
+        print(f"score: {elsewhere} runs are being scored by another process; run score again when it ends", flush=True)
+        return 1
     if a.out:
         with open(a.out, "w", encoding="utf-8") as f:
             json.dump({"binary": bid, "runs_in_matrix": len(M.RUNS), "records": records}, f, indent=0, sort_keys=True)
