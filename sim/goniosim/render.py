@@ -44,10 +44,13 @@ def render(
     """
     h, w, _ = albedo.shape
     ci = max(float(wi[2]), 0.0)
-    spec = specular(wi, wo, material)
-    img = gain * ci * (albedo + math.pi * spec)  # pi * (albedo/pi + spec)
-    holder = gain * ci * np.array(HOLDER_ALBEDO)
     mask, u, v = _pixel_grid(h, w, holder_px)
+    if realism.d is not None and realism.d.bow != 0.0:
+        img = gain * bowed(albedo, u, v * (h / w), wi, wo, material, realism.d)
+    else:
+        spec = specular(wi, wo, material)
+        img = gain * ci * (albedo + math.pi * spec)  # pi * (albedo/pi + spec)
+    holder = gain * ci * np.array(HOLDER_ALBEDO)
     if realism.footprint > 0.0:
         # lamp footprint: along the projected light direction
         pi_az = math.atan2(wi[1], wi[0])
@@ -71,7 +74,64 @@ def render(
         out = realism_b(out, u, v * (h / w), wi, wo, realism.b, gain)
     if realism.c is not None:
         out = realism_c(out, w, h, wi, wo, realism.c, gain, ci)
+    if realism.d is not None and realism.d.jaw_height > 0.0:
+        out = jaw_shadow(out, mask, u, v * (h / w), 0.5 - holder_px / w, wi, realism.d)
     return out
+
+
+# the bowed surface's tilt is evaluated at this many positions across its axis and interpolated
+BOW_STEPS = 17
+
+
+def _to_local(n: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """`x` in the frame whose normal is the unit vector `n` (the rotation taking n to +z about
+    n × z)."""
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(n, z)
+    s = float(np.linalg.norm(axis))
+    c = float(n[2])
+    if s < 1e-12:
+        return x
+    k = axis / s
+    return x * c + np.cross(k, x) * s + k * float(np.dot(k, x)) * (1.0 - c)
+
+
+def bowed(albedo: np.ndarray, u: np.ndarray, v: np.ndarray, wi: np.ndarray, wo: np.ndarray, material: Material, d) -> np.ndarray:
+    """cos theta_i * (albedo + pi * f_s) of a bowed sample (`RealismD`), each pixel in the frame
+    of its own normal; u, v in image-width units from the image centre."""
+    a = math.radians(d.bow_axis_deg)
+    # across the cylinder's axis, which lies along (cos a, sin a)
+    across = np.array([-math.sin(a), math.cos(a), 0.0])
+    s = u * across[0] + v * across[1]
+    grid = np.linspace(-0.75, 0.75, BOW_STEPS)
+    cos_i, lobe = np.zeros(BOW_STEPS), np.zeros(BOW_STEPS)
+    for k, sk in enumerate(grid):
+        slope = 8.0 * d.bow * sk
+        n = np.array([slope * across[0], slope * across[1], 1.0])
+        n = n / np.linalg.norm(n)
+        li, lo = _to_local(n, wi), _to_local(n, wo)
+        cos_i[k] = max(float(li[2]), 0.0)
+        lobe[k] = cos_i[k] * math.pi * specular(li, lo, material) if lo[2] > 0.0 else 0.0
+    ci_px = np.interp(s, grid, cos_i)
+    lobe_px = np.interp(s, grid, lobe)
+    return ci_px[..., None] * albedo + lobe_px[..., None]
+
+
+def jaw_shadow(img: np.ndarray, mask: np.ndarray, u: np.ndarray, v: np.ndarray, edge: float, wi: np.ndarray, d) -> np.ndarray:
+    """The gripper jaw's shadow (`RealismD`) on the sample, whose edges stand `edge` image widths
+    from the centre."""
+    ci = max(float(wi[2]), 1e-6)
+    ti = min(math.sqrt(max(1.0 - ci * ci, 0.0)) / ci, 10.0)
+    jaw = math.radians(d.jaw_azimuth_deg)
+    facing = math.cos(math.atan2(wi[1], wi[0]) - jaw)
+    width = d.jaw_height * ti * max(facing, 0.0)
+    if width <= 0.0:
+        return img
+    # distance inside the edge below the jaw
+    t = edge - (u * math.cos(jaw) + v * math.sin(jaw))
+    lit = 0.5 * (1.0 + np.tanh((t - width) / d.jaw_penumbra))
+    keep = np.where(mask, d.jaw_ambient + (1.0 - d.jaw_ambient) * lit, 1.0)
+    return img * keep[..., None]
 
 
 # the rim's supersampling: SUB × SUB points a pixel
