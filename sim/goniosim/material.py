@@ -259,11 +259,12 @@ class RealismD:
       is lit and seen in its own frame: cos theta_i and the lobe move with s, and the cosine the
       daemon divides by is the nominal one.
     jaw_height, jaw_azimuth_deg, jaw_penumbra, jaw_ambient: a jaw of the gripper stands
-      jaw_height above the sample's edge at jaw_azimuth_deg. Light from that side (phi_i within
-      90 degrees of it) leaves a band jaw_height * tan(theta_i) * cos(phi_i - jaw_azimuth) wide
-      along that edge in its shadow (jaw_ambient of the light kept, under a penumbra
-      jaw_penumbra wide); light from the other side passes. A light-side pattern that is zero
-      for half the turn.
+      jaw_height high along the line, square to jaw_azimuth_deg, at the sample's half-width from
+      its centre (across a square sample's corner, which it covers in every capture). Light from
+      that side (phi_i within 90 degrees of it) leaves a band jaw_height * tan(theta_i) *
+      cos(phi_i - jaw_azimuth) wide along the line in its shadow (jaw_ambient of the light
+      kept, under a penumbra up to jaw_penumbra wide that narrows with the band); light from
+      the other side passes. A light-side pattern that is zero for half the turn.
     """
 
     bow: float = 0.0

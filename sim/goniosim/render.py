@@ -68,14 +68,19 @@ def render(
         half = 0.5 * (w - 2 * holder_px) / w
         inside_edge = (half - t) * w
         mask = mask & (inside_edge > bleed)
+    jaw = realism.d is not None and realism.d.jaw_height > 0.0
+    if jaw:
+        # the jaw covers the sample beyond its line (a square sample's corner): seen as the holder
+        edge = 0.5 - holder_px / w
+        mask = mask & (jaw_inside(u, v * (h / w), edge, realism.d) >= 0.0)
     out = np.where(mask[..., None], img, holder)
     if realism.b is not None:
         # realism_b works in image-width units on both axes (u already is)
         out = realism_b(out, u, v * (h / w), wi, wo, realism.b, gain)
     if realism.c is not None:
         out = realism_c(out, w, h, wi, wo, realism.c, gain, ci)
-    if realism.d is not None and realism.d.jaw_height > 0.0:
-        out = jaw_shadow(out, mask, u, v * (h / w), 0.5 - holder_px / w, wi, realism.d)
+    if jaw:
+        out = jaw_shadow(out, mask, w, h, 0.5 - holder_px / w, wi, realism.d)
     return out
 
 
@@ -117,19 +122,29 @@ def bowed(albedo: np.ndarray, u: np.ndarray, v: np.ndarray, wi: np.ndarray, wo: 
     return ci_px[..., None] * albedo + lobe_px[..., None]
 
 
-def jaw_shadow(img: np.ndarray, mask: np.ndarray, u: np.ndarray, v: np.ndarray, edge: float, wi: np.ndarray, d) -> np.ndarray:
+def jaw_inside(u: np.ndarray, v: np.ndarray, edge: float, d) -> np.ndarray:
+    """Each point's distance inside the jaw's line, which stands `edge` image widths from the
+    centre towards the jaw (negative under the jaw)."""
+    jaw = math.radians(d.jaw_azimuth_deg)
+    return edge - (u * math.cos(jaw) + v * math.sin(jaw))
+
+
+def jaw_shadow(img: np.ndarray, mask: np.ndarray, w: int, h: int, edge: float, wi: np.ndarray, d) -> np.ndarray:
     """The gripper jaw's shadow (`RealismD`) on the sample, whose edges stand `edge` image widths
-    from the centre."""
+    from the centre: a band along the jaw's line that narrows to nothing as the light turns away
+    from the jaw's side; supersampled like the third model's rim, so that it does."""
     ci = max(float(wi[2]), 1e-6)
     ti = min(math.sqrt(max(1.0 - ci * ci, 0.0)) / ci, 10.0)
-    jaw = math.radians(d.jaw_azimuth_deg)
-    facing = math.cos(math.atan2(wi[1], wi[0]) - jaw)
+    facing = math.cos(math.atan2(wi[1], wi[0]) - math.radians(d.jaw_azimuth_deg))
     width = d.jaw_height * ti * max(facing, 0.0)
     if width <= 0.0:
         return img
-    # distance inside the edge below the jaw
-    t = edge - (u * math.cos(jaw) + v * math.sin(jaw))
-    lit = 0.5 * (1.0 + np.tanh((t - width) / d.jaw_penumbra))
+    us, vs = _subpixel_grid(h, w)
+    t = jaw_inside(us, vs, edge, d)
+    # lit beyond the band (points under the jaw are the holder's, in no shadow of its own); the
+    # penumbra shrinks with the band, so the shadow fades out with it
+    pen = d.jaw_penumbra * min(1.0, width / d.jaw_height)
+    lit = np.where(t < 0.0, 1.0, 0.5 * (1.0 + np.tanh((t - width) / max(pen, 1e-9)))).mean(axis=-1)
     keep = np.where(mask, d.jaw_ambient + (1.0 - d.jaw_ambient) * lit, 1.0)
     return img * keep[..., None]
 
