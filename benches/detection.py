@@ -309,17 +309,19 @@ def cmd_record(a) -> int:
     return 0
 
 
-def cmd_score(a) -> int:
-    bid = binary_id(a.bin)
-    scores = os.path.join(a.lab, "scores", bid)
+def score_runs(wanted: list[M.Run], lab: str, binary: str, jobs: int, label: str = "score") -> tuple[str, list[dict], int, int]:
+    """Scores the recorded runs of `wanted` with `binary` (each replayed once, its score kept per
+    binary): the binary's id, the records of the recorded runs (in `wanted`'s order), how many
+    are recorded, and how many of those another scorer has not finished yet (left out)."""
+    bid = binary_id(binary)
+    scores = os.path.join(lab, "scores", bid)
     os.makedirs(scores, exist_ok=True)
-    wanted = M.select(a.match)
-    recorded = [r for r in wanted if os.path.exists(os.path.join(a.lab, "runs", r.id, "record.json"))]
+    recorded = [r for r in wanted if os.path.exists(os.path.join(lab, "runs", r.id, "record.json"))]
     todo = [r for r in recorded if not os.path.exists(os.path.join(scores, f"{r.id}.json"))]
-    print(f"score: binary {a.bin} ({bid}); {len(recorded)} of {len(wanted)} runs recorded, "
-          f"{len(todo)} to replay, {a.jobs} at once", flush=True)
+    print(f"{label}: binary {binary} ({bid}); {len(recorded)} of {len(wanted)} runs recorded, "
+          f"{len(todo)} to replay, {jobs} at once", flush=True)
     if todo:
-        pool_map(lambda r: score_one(r, a.lab, a.bin, scores), todo, a.jobs, Progress("scored", len(todo), a.jobs))
+        pool_map(lambda r: score_one(r, lab, binary, scores), todo, jobs, Progress("scored", len(todo), jobs))
     records, elsewhere = [], 0
     for r in recorded:
         path = os.path.join(scores, f"{r.id}.json")
@@ -332,14 +334,21 @@ def cmd_score(a) -> int:
         rec.pop("replay_cpu_s", None)
         records.append(rec)
     if elsewhere:
-        print(f"score: {elsewhere} runs are being scored by another process; run score again when it ends", flush=True)
+        print(f"{label}: {elsewhere} runs are being scored by another process; run it again when that ends", flush=True)
+    return bid, records, len(recorded), elsewhere
+
+
+def cmd_score(a) -> int:
+    wanted = M.select(a.match)
+    bid, records, recorded, elsewhere = score_runs(wanted, a.lab, a.bin, a.jobs)
+    if elsewhere:
         return 1
     if a.out:
         with open(a.out, "w", encoding="utf-8") as f:
             json.dump({"binary": bid, "runs_in_matrix": len(M.RUNS), "records": records}, f, indent=0, sort_keys=True)
             f.write("\n")
-        print(f"score: {len(records)} records to {a.out}" + (f"; {len(wanted) - len(recorded)} runs not recorded yet" if len(recorded) < len(wanted) else ""))
-    return 0 if len(recorded) == len(wanted) else 1
+        print(f"score: {len(records)} records to {a.out}" + (f"; {len(wanted) - recorded} runs not recorded yet" if recorded < len(wanted) else ""))
+    return 0 if recorded == len(wanted) else 1
 
 
 # --- one run outside the matrix (benches/colour_drift.py, benches/probe_plan.py) -----------------

@@ -55,29 +55,14 @@ def cmd_record(a) -> int:
 
 
 def cmd_score(a) -> int:
-    bid = D.binary_id(a.bin)
-    scores = os.path.join(a.lab, "scores", bid)
-    os.makedirs(scores, exist_ok=True)
-    recorded = [r for r in runs() if os.path.exists(os.path.join(a.lab, "runs", r.id, "record.json"))]
-    todo = [r for r in recorded if not os.path.exists(os.path.join(scores, f"{r.id}.json"))]
-    print(f"holdout score: binary {a.bin} ({bid}); {len(recorded)} of {len(runs())} runs recorded, {len(todo)} to replay", flush=True)
-    if todo:
-        D.pool_map(lambda r: D.score_one(r, a.lab, a.bin, scores), todo, a.jobs, D.Progress("scored", len(todo), a.jobs))
-    records = []
-    for r in recorded:
-        path = os.path.join(scores, f"{r.id}.json")
-        if not os.path.exists(path):
-            print("holdout score: a run is being scored by another process; run score again when it ends")
-            return 1
-        with open(path, encoding="utf-8") as f:
-            rec = json.load(f)
-        rec.pop("replay_cpu_s", None)
-        records.append(rec)
+    bid, records, recorded, elsewhere = D.score_runs(runs(), a.lab, a.bin, a.jobs, "holdout score")
+    if elsewhere:
+        return 1
     with open(a.out, "w", encoding="utf-8") as f:
         json.dump({"binary": bid, "model": MODEL, "runs_in_plan": len(runs()), "records": records}, f, indent=0, sort_keys=True)
         f.write("\n")
     print(f"holdout score: {len(records)} records to {a.out}")
-    return 0 if len(recorded) == len(runs()) else 1
+    return 0 if recorded == len(runs()) else 1
 
 
 def blocks(records: list[dict]) -> dict[str, str]:
