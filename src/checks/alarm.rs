@@ -138,6 +138,9 @@ pub enum AlarmCode {
     /// A joint pattern of the light sweeps present since its θi layer began, on a rig without
     /// re-captures: a slip at the layer's start or the new θi's geometry.
     SlipUnresolved,
+    /// A level change of the light sweeps that the layer below's light-side pattern accounts
+    /// for, on a rig without probes: a lamp step or a stationary pattern grown towards grazing.
+    StepUnresolved,
     /// Capture times went back.
     TimeSteppedBack,
     /// A trend in the isotropy classes that a stationary light-side pattern could also make.
@@ -154,7 +157,7 @@ pub enum AlarmCode {
 
 impl AlarmCode {
     /// Every code.
-    pub(crate) const ALL: [AlarmCode; 53] = [
+    pub(crate) const ALL: [AlarmCode; 54] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
@@ -202,6 +205,7 @@ impl AlarmCode {
         AlarmCode::SlipRefuted,
         AlarmCode::SlipUnverifiable,
         AlarmCode::SlipUnresolved,
+        AlarmCode::StepUnresolved,
         AlarmCode::TimeSteppedBack,
         AlarmCode::TrendUnresolved,
         AlarmCode::UnannouncedFiles,
@@ -260,6 +264,7 @@ impl AlarmCode {
             AlarmCode::SlipRefuted => "slip-refuted",
             AlarmCode::SlipUnverifiable => "slip-unverifiable",
             AlarmCode::SlipUnresolved => "slip-unresolved",
+            AlarmCode::StepUnresolved => "step-unresolved",
             AlarmCode::TimeSteppedBack => "time-stepped-back",
             AlarmCode::TrendUnresolved => "trend-unresolved",
             AlarmCode::UnannouncedFiles => "unannounced-files",
@@ -321,6 +326,7 @@ impl AlarmCode {
             AlarmCode::SlipRefuted => "a joint slip the light sweeps suggested, which a re-capture of earlier poses refutes",
             AlarmCode::SlipUnverifiable => "a joint pattern of the light sweeps too small for re-captures of earlier poses to check: not named",
             AlarmCode::SlipUnresolved => "a joint pattern of the light sweeps present since its θi layer began, without re-captures to tell a slip from the geometry: not named",
+            AlarmCode::StepUnresolved => "a level change of the light sweeps that the layer below's light-side pattern accounts for, without probes to tell a lamp step from it: not raised",
             AlarmCode::TimeSteppedBack => "capture times went back",
             AlarmCode::TrendUnresolved => "a trend in the isotropy classes that a stationary light-side pattern could also make",
             AlarmCode::UnannouncedFiles => "files in the capture folder no CAPTURE line named",

@@ -110,6 +110,8 @@ pub enum Evidence {
     SlipUnverifiable(SlipUnverifiable),
     /// `slip-unresolved`.
     SlipUnresolved(SlipUnresolved),
+    /// `step-unresolved`.
+    StepUnresolved(StepUnresolved),
     /// `wagon-backlash-suspected`.
     WagonBacklash(WagonBacklash),
     /// `wagon-offset-suspected`.
@@ -448,6 +450,29 @@ pub struct SlipUnresolved {
     pub threshold_z: f64,
 }
 
+/// A level CUSUM run of the light sweeps (`level_pct` over `sweeps` sweeps, the first ending at
+/// capture `since_idx`; its sign the direction) that the θi layer below accounts for, on a rig
+/// without probes: at the run's light azimuths that layer (θi = `below_deg`) departed from its
+/// own azimuthal pattern by `below_pct` ± `below_se_pct` (standard error), which grown by
+/// `growth` (the lamp footprint's tan² law from that θi to `layer_deg`) reaches the run's
+/// level, and departs by at least `threshold_z` standard errors.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepUnresolved {
+    pub source: Source,
+    pub level_pct: f64,
+    pub sweeps: usize,
+    pub since_idx: u64,
+    pub statistic: f64,
+    pub threshold: f64,
+    pub layer_deg: f64,
+    pub light: usize,
+    pub below_deg: f64,
+    pub below_pct: f64,
+    pub below_se_pct: f64,
+    pub growth: f64,
+    pub threshold_z: f64,
+}
+
 /// Arm joint 3 named by its sentinel: the turn, the first capture after the last reading in
 /// control, the statistic and its threshold, and the sentinel's pose.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -674,6 +699,7 @@ impl Evidence {
             C::SlipRefuted => parse(&v, Evidence::SlipRefuted),
             C::SlipUnverifiable => parse(&v, Evidence::SlipUnverifiable),
             C::SlipUnresolved => parse(&v, Evidence::SlipUnresolved),
+            C::StepUnresolved => parse(&v, Evidence::StepUnresolved),
             C::WagonBacklashSuspected => parse(&v, Evidence::WagonBacklash),
             C::WagonOffsetSuspected | C::CameraPoseMoved => parse(&v, Evidence::WagonOffset),
             C::ProbeMovedWithPose => parse(&v, Evidence::ProbePoseMoved),
@@ -741,6 +767,7 @@ impl Evidence {
             Evidence::SlipRefuted(_) => code == C::SlipRefuted,
             Evidence::SlipUnverifiable(_) => code == C::SlipUnverifiable,
             Evidence::SlipUnresolved(_) => code == C::SlipUnresolved,
+            Evidence::StepUnresolved(_) => code == C::StepUnresolved,
             Evidence::WagonBacklash(_) => code == C::WagonBacklashSuspected,
             Evidence::WagonOffset(_) => {
                 matches!(code, C::WagonOffsetSuspected | C::CameraPoseMoved)

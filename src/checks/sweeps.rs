@@ -4,8 +4,9 @@
 use super::evidence::{self, Evidence, Source};
 use crate::checks::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::detect::sweeps::{
-    ApproachReading, AxisReading, JointSlip, LayerChange, LevelRun, Recapture, RecaptureReading,
-    SweepAt, SweepFinding, WagonBacklash, WagonOffset, LAYER_CHANGE_Z,
+    ApproachReading, AxisReading, JointSlip, LayerChange, LevelRun, PatternBelow, Recapture,
+    RecaptureReading, SweepAt, SweepFinding, WagonBacklash, WagonOffset, LAYER_CHANGE_Z,
+    PATTERN_BELOW_Z,
 };
 
 /// The alarm a finding of the sweep checks raises.
@@ -51,6 +52,12 @@ pub(crate) fn alarm(f: &SweepFinding) -> Alarm {
             offset_deg,
             change,
         } => slip_unresolved(at, *joint, *offset_deg, change),
+        SweepFinding::StepUnresolved {
+            at,
+            up,
+            run,
+            below,
+        } => step_unresolved(at, *up, run, below),
         SweepFinding::WagonBacklash { at, backlash } => wagon_backlash(at, backlash),
         SweepFinding::WagonOffset { offset, .. } => wagon_offset(offset),
         SweepFinding::LampUnstable {
@@ -215,6 +222,45 @@ fn slip_unresolved(at: &SweepAt, joint: usize, offset_deg: f64, change: &LayerCh
         before_se_deg: change.before.map(|b| b.1),
         change_z: change.change_z,
         threshold_z: LAYER_CHANGE_Z,
+    }))
+}
+
+fn step_unresolved(at: &SweepAt, up: bool, run: &LevelRun, below: &PatternBelow) -> Alarm {
+    let layer = layer_deg(at);
+    Alarm::new(
+        AlarmKind::Drift,
+        Severity::Info,
+        AlarmCode::StepUnresolved,
+        format!(
+            "not raised: light sweep {} (captures up to {}) and the {} before it sit {:+.2} % off the earlier sweeps of θi = {layer}° (CUSUM {:.1} > {:.1}), but at the same light azimuths the θi = {}° layer departed from its own pattern by {:+.2} % ± {:.2} ({:.1} standard errors), which grown towards grazing at the lamp footprint's law (×{:.1}) accounts for it: a stationary pattern of the light's direction (a holder's shadow, a bowed sample) or a lamp step {}; without probes the sweeps tell them apart only as the light turns on, and the step is raised if the level stays off where the layer below does not account for it; drift probes ([probes] every) would tell them apart at once",
+            at.light,
+            at.last_idx,
+            run.sweeps.saturating_sub(1),
+            run.level_pct,
+            run.statistic,
+            run.threshold,
+            below.below_deg,
+            100.0 * below.departure,
+            100.0 * below.se,
+            if below.se > 0.0 { below.departure.abs() / below.se } else { f64::INFINITY },
+            below.growth,
+            if up { "up" } else { "down" },
+        ),
+    )
+    .with(Evidence::StepUnresolved(evidence::StepUnresolved {
+        source: Source::LightSweeps,
+        level_pct: run.level_pct,
+        sweeps: run.sweeps,
+        since_idx: run.since_idx,
+        statistic: run.statistic,
+        threshold: run.threshold,
+        layer_deg: layer,
+        light: at.light,
+        below_deg: below.below_deg,
+        below_pct: 100.0 * below.departure,
+        below_se_pct: 100.0 * below.se,
+        growth: below.growth,
+        threshold_z: PATTERN_BELOW_Z,
     }))
 }
 
@@ -982,6 +1028,40 @@ mod tests {
         assert!(
             matches!(&a.evidence, Evidence::WagonOffset(e) if e.approach.as_ref().is_some_and(|r| r.entries == [640, 650, 660, 650]))
         );
+    }
+
+    #[test]
+    fn a_level_the_layer_below_accounts_for_is_an_advisory_with_that_layers_departure() {
+        let a = alarm(&SweepFinding::StepUnresolved {
+            at: AT,
+            up: false,
+            run: run(),
+            below: PatternBelow {
+                below_deg: 45.0,
+                departure: -0.0062,
+                se: 0.0011,
+                growth: 3.0,
+            },
+        });
+        assert_eq!(
+            (a.code, a.kind, a.severity),
+            (AlarmCode::StepUnresolved, AlarmKind::Drift, Severity::Info)
+        );
+        // nothing is corrected or retaken
+        assert_eq!(a.affects, None);
+        assert!(
+            a.message.starts_with("not raised: light sweep 47 (captures up to 3887) and the 2 before it sit -2.50 % off the earlier sweeps of θi = 60° (CUSUM 7.2 > 5.5), but at the same light azimuths the θi = 45° layer departed from its own pattern by -0.62 % ± 0.11 (5.6 standard errors), which grown towards grazing at the lamp footprint's law (×3.0) accounts for it")
+                && a.message.contains("drift probes ([probes] every) would tell them apart at once"),
+            "{}",
+            a.message
+        );
+        assert_eq!(
+            serde_json::to_value(&a).unwrap()["evidence"].to_string(),
+            r#"{"below_deg":45.0,"below_pct":-0.62,"below_se_pct":0.11,"growth":3.0,"layer_deg":60.0,"level_pct":-2.5,"light":47,"since_idx":3725,"source":"light sweeps","statistic":7.25,"sweeps":3,"threshold":5.5,"threshold_z":3.0}"#
+        );
+        // the evidence reads back as its code's
+        let back: Alarm = serde_json::from_value(serde_json::to_value(&a).unwrap()).unwrap();
+        assert_eq!(back, a);
     }
 
     #[test]

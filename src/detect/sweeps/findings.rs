@@ -37,6 +37,19 @@ pub(crate) struct LayerChange {
     pub change_z: Option<f64>,
 }
 
+/// The θi layer below a level crossing at the crossing run's light azimuths
+/// (`SweepMonitor::pattern_below`): its θi (degrees), the mean departure of its light effects
+/// from their own azimuthal pattern model there (ln units, interpolated between its lights),
+/// that mean's standard error from its sweeps' level standard errors, and the growth a
+/// light-side pattern may have from that θi to the crossing's (the lamp footprint's tan² law).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct PatternBelow {
+    pub below_deg: f64,
+    pub departure: f64,
+    pub se: f64,
+    pub growth: f64,
+}
+
 /// The wagon named as lagging (`wagon`): the lag's estimate (degrees) with its standard error
 /// and the sweeps behind it, the CUSUM run's own mean and length, the wagon's offset in the
 /// sweep that named it (untested, for the operator), the capture that ended the run's first
@@ -212,6 +225,18 @@ pub(crate) enum SweepFinding {
         offset_deg: f64,
         change: LayerChange,
     },
+    /// (No probes) The level of the layer's sweeps moved `up` or down, but at the same light
+    /// azimuths the layer below departed from its own pattern the same way, by enough to
+    /// account for the run when grown towards grazing (`below`): a stationary light-side
+    /// pattern (a holder's shadow, a bowed sample) or a lamp step, which only later sweeps or
+    /// re-captures tell apart; no alarm (once per sign and layer). The step is still raised
+    /// when the level stays off where the layer below does not explain it.
+    StepUnresolved {
+        at: SweepAt,
+        up: bool,
+        run: LevelRun,
+        below: PatternBelow,
+    },
     /// The wagon lags behind its commanded angle against its last direction of motion.
     WagonBacklash {
         at: SweepAt,
@@ -250,6 +275,7 @@ impl SweepFinding {
             | SweepFinding::SlipRefuted { at, .. }
             | SweepFinding::SlipUnverifiable { at, .. }
             | SweepFinding::SlipUnresolved { at, .. }
+            | SweepFinding::StepUnresolved { at, .. }
             | SweepFinding::WagonBacklash { at, .. }
             | SweepFinding::WagonOffset { at, .. }
             | SweepFinding::LampUnstable { at, .. }

@@ -1,5 +1,6 @@
 //! The level test: a sweep's level against the earlier sweeps of its θi layer.
 
+use super::model::{pattern_fit, pattern_row, PatternColumns, PATTERN_SAMPLES_PER_PERIOD};
 use super::*;
 
 /// The in-control history a statistic is scaled by. A value seen while its CUSUM has a run
@@ -24,6 +25,22 @@ pub(super) const PRIOR_MIN_SWEEPS: usize = 4;
 pub(super) const PRIOR_SAFETY: f64 = 2.0;
 /// The largest growth power the lent scale takes: the lamp footprint's tan²θi.
 pub(super) const PRIOR_MAX_POWER: f64 = 2.0;
+
+/// A level crossing is the light-side pattern's, not yet a step, when the θi layer below departs
+/// from its own azimuthal pattern at the run's light azimuths in the run's direction by this
+/// many standard errors, and by enough that growing at the lamp footprint's tan² law
+/// (`PRIOR_MAX_POWER`) it reaches the run's mean level.
+pub(crate) const PATTERN_BELOW_Z: f64 = 3.0;
+
+impl PatternBelow {
+    /// Whether the layer below accounts for a run of mean level `mean` (ln units) that moved
+    /// `up` or down.
+    pub(super) fn explains(&self, up: bool, mean: f64) -> bool {
+        let sign = if up { 1.0 } else { -1.0 };
+        let departure = sign * self.departure;
+        departure >= PATTERN_BELOW_Z * self.se && departure * self.growth >= sign * mean
+    }
+}
 
 impl ScaleHistory {
     pub(super) fn len(&self) -> usize {
@@ -58,6 +75,7 @@ impl SweepMonitor {
         &mut self,
         sweep: &Sweep,
         (level, raw, level_se, pattern_sd): (f64, f64, f64, Option<f64>),
+        reference: &Reference,
         known: &Known,
         rec: &mut SweepRecord,
         findings: &mut Vec<SweepFinding>,
@@ -95,7 +113,7 @@ impl SweepMonitor {
                 };
                 if stat > self.h_level
                     && 100.0 * f64::from(sign) * mean >= self.spec.level_tolerance_pct
-                    && self.latched.insert(Latch::Level { sign, layer })
+                    && !self.latched.contains(&Latch::Level { sign, layer })
                 {
                     let from_idx = self.sweep_first_idx(run.start);
                     // a tilt changes cos θi and the footprint over whole sweeps: a level change
@@ -145,6 +163,33 @@ impl SweepMonitor {
                             break;
                         }
                     }
+                    // a level the layer below's departure from its own pattern at the same light
+                    // azimuths accounts for is as much a stationary light-side pattern grown
+                    // towards grazing (a holder's shadow, a bowed sample) as a lamp step: no
+                    // alarm, and the CUSUM runs on, so the step is raised once the run reaches
+                    // azimuths where the layer below does not account for it
+                    let run_level = LevelRun {
+                        level_pct: 100.0 * mean,
+                        sweeps: run.n,
+                        since_idx: run.start,
+                        statistic: stat,
+                        threshold: self.h_level,
+                    };
+                    if let Some(below) = self
+                        .pattern_below(sweep, reference, run.start)
+                        .filter(|b| b.explains(sign > 0, mean))
+                    {
+                        if self.latched.insert(Latch::LevelUnresolved { sign, layer }) {
+                            findings.push(SweepFinding::StepUnresolved {
+                                at: sweep.at(),
+                                up: sign > 0,
+                                run: run_level,
+                                below,
+                            });
+                        }
+                        continue;
+                    }
+                    self.latched.insert(Latch::Level { sign, layer });
                     findings.push(SweepFinding::GainStep {
                         at: sweep.at(),
                         up: sign > 0,
@@ -178,6 +223,151 @@ impl SweepMonitor {
             .or_default()
             .record(raw, active, step.alarmed);
         step
+    }
+
+    /// The θi layer right below the sweep's, put through the test this layer's level CUSUM run
+    /// went through (the run began with the sweep ending at `run_start`): for each of the run's
+    /// sweeps, the layer below's light effects (the same back-fit as the level) interpolated
+    /// linearly round the turn to that sweep's light azimuth, less the layer pattern that
+    /// sweep's level was taken about (the same columns) fitted to the layer below's effects
+    /// interpolated to this layer's lights before it; averaged over the run. With its standard
+    /// error from the layer below's level standard errors and the growth to this θi at the
+    /// lamp footprint's law. A stationary light-side pattern of the sample frame (any smooth
+    /// function of the light's direction) that the pattern misses leaves the same departure
+    /// there first, smaller; a lamp step leaves none. `None` without a lower layer of four
+    /// lights with a level, or where a run sweep's pattern cannot be fitted to it.
+    pub(super) fn pattern_below(
+        &self,
+        sweep: &Sweep,
+        r: &Reference,
+        run_start: u64,
+    ) -> Option<PatternBelow> {
+        let below = sweep
+            .past
+            .iter()
+            .map(|&k| self.captures[k].layer)
+            .filter(|&l| l < sweep.layer && l >= 5000)
+            .max()?;
+        let phi = |l: usize| {
+            self.light_phi
+                .get(l)
+                .map_or(f64::NAN, |p| p.rem_euclid(TAU))
+        };
+        let span_of = |l: usize| self.sweep_starts.iter().rev().find(|s| s.light == l);
+        // the layer below's lights with a level: azimuth, effect, level standard error
+        let (lights, _) = self.layer_lights(sweep, below, r);
+        let mut points: Vec<(f64, f64, f64)> = lights
+            .iter()
+            .filter_map(|&l| {
+                let (a, v) = (phi(l), r.light[l]);
+                let se = span_of(l).map_or(f64::NAN, |s| s.level_se);
+                (a.is_finite() && v.is_finite() && se.is_finite()).then_some((a, v, se))
+            })
+            .collect();
+        points.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let n = points.len();
+        if n < 4 {
+            return None;
+        }
+        // each light's own noise: its level's standard error, or the layer's light-to-light
+        // scatter that is no smooth pattern if larger (a per-light nuisance such as the lamp's
+        // footprint moving between sweeps): half the mean square difference of neighbours'
+        // departures from the layer's whole pattern, round the turn (Rice's difference
+        // estimator; a smooth pattern differs little between neighbours)
+        let harmonics: Vec<f64> = [4.0, 2.0]
+            .into_iter()
+            .filter(|h| TAU / h >= PATTERN_SAMPLES_PER_PERIOD * (TAU / n as f64))
+            .collect();
+        let whole = PatternColumns::new(&harmonics, None);
+        if n > whole.count() + 1 {
+            let azimuths: Vec<f64> = points.iter().map(|p| p.0).collect();
+            let values: Vec<f64> = points.iter().map(|p| p.1).collect();
+            if let Some(fit) = pattern_fit(&azimuths, &values, whole.harmonics(), None, 0.0) {
+                let d: Vec<f64> = points
+                    .iter()
+                    .map(|p| {
+                        let x = pattern_row(p.0, whole.harmonics(), None);
+                        p.1 - x
+                            .iter()
+                            .zip(fit.coef.iter())
+                            .map(|(x, b)| x * b)
+                            .sum::<f64>()
+                    })
+                    .collect();
+                let rice =
+                    (0..n).map(|i| (d[(i + 1) % n] - d[i]).powi(2)).sum::<f64>() / (2 * n) as f64;
+                if rice.is_finite() {
+                    for p in points.iter_mut() {
+                        p.2 = p.2.max(rice.sqrt());
+                    }
+                }
+            }
+        }
+        // the weights of the layer below's lights in its value at azimuth `a`
+        let interpolate = |a: f64| -> DVector<f64> {
+            let mut w = DVector::zeros(n);
+            let j = points.iter().rposition(|p| p.0 <= a).unwrap_or(n - 1);
+            let k = (j + 1) % n;
+            let gap = (points[k].0 - points[j].0).rem_euclid(TAU);
+            let t = if gap > 1e-9 {
+                ((a - points[j].0).rem_euclid(TAU) / gap).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            w[j] += 1.0 - t;
+            w[k] += t;
+            w
+        };
+        // this layer's sweeps in completion order: light azimuth, last capture, pattern
+        let layer: Vec<(f64, u64, Option<PatternColumns>)> = self
+            .sweep_starts
+            .iter()
+            .filter(|s| s.layer == sweep.layer && phi(s.light).is_finite())
+            .map(|s| (phi(s.light), s.last_idx, s.pattern))
+            .collect();
+        let run: Vec<usize> = (0..layer.len())
+            .filter(|&i| layer[i].1 >= run_start)
+            .collect();
+        if run.is_empty() {
+            return None;
+        }
+        let share = 1.0 / run.len() as f64;
+        let mut weight = DVector::<f64>::zeros(n);
+        for &i in &run {
+            let (a, _, columns) = layer[i];
+            let columns = columns.unwrap_or_default();
+            let before: Vec<f64> = layer[..i].iter().map(|x| x.0).collect();
+            let cols = columns.count();
+            if before.len() < cols {
+                return None;
+            }
+            // the pattern's prediction at `a` from the values at `before`: x₀ᵀ(XᵀX)⁺Xᵀ
+            let x = DMatrix::from_fn(before.len(), cols, |row, col| {
+                pattern_row(before[row], columns.harmonics(), columns.borrowed)[col]
+            });
+            let x0 = DVector::from_vec(pattern_row(a, columns.harmonics(), columns.borrowed));
+            let hat = (x.transpose() * &x).pseudo_inverse(1e-12).ok()? * x.transpose();
+            let predict = hat.transpose() * x0;
+            weight += interpolate(a) * share;
+            for (b, p) in before.iter().zip(predict.iter()) {
+                weight -= interpolate(*b) * (p * share);
+            }
+        }
+        let departure: f64 = weight.iter().zip(&points).map(|(w, p)| w * p.1).sum();
+        let se = weight
+            .iter()
+            .zip(&points)
+            .map(|(w, p)| (w * p.2).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let tan = |l: i64| (l as f64 / 1000.0).to_radians().tan();
+        let growth = (tan(sweep.layer) / tan(below)).powf(PRIOR_MAX_POWER);
+        (departure.is_finite() && se.is_finite() && growth.is_finite()).then_some(PatternBelow {
+            below_deg: below as f64 / 1000.0,
+            departure,
+            se,
+            growth,
+        })
     }
 
     /// The level scale a θi layer with fewer than `OWN_SCALE_SWEEPS` sweeps is judged by: the

@@ -57,11 +57,12 @@ mod wagon;
 mod wagon_watch;
 
 pub(crate) use findings::{
-    ApproachReading, AxisReading, JointSlip, LayerChange, LevelRun, Recapture, RecaptureReading,
-    SweepAt, SweepFinding, WagonBacklash, WagonOffset,
+    ApproachReading, AxisReading, JointSlip, LayerChange, LevelRun, PatternBelow, Recapture,
+    RecaptureReading, SweepAt, SweepFinding, WagonBacklash, WagonOffset,
 };
 pub(crate) use joints::LAYER_CHANGE_Z;
 use level::ScaleHistory;
+pub(crate) use level::PATTERN_BELOW_Z;
 use model::{Model, PatternFit, Reference, Row};
 pub(crate) use recapture::{RecaptureNoise, RECAPTURE_WAIT_CAPTURES};
 pub(crate) use wagon_watch::{wagon_watch_questions, PoseCheck, WagonWatchSummary};
@@ -298,6 +299,12 @@ enum Latch {
     Joint {
         layer: i64,
     },
+    /// A level crossing the layer below's pattern accounts for (`step-unresolved`, once per
+    /// sign and layer).
+    LevelUnresolved {
+        sign: i8,
+        layer: i64,
+    },
     /// The wagon's lag, once per run (a property of its drive, not of a layer).
     Wagon,
 }
@@ -394,6 +401,10 @@ struct SweepSpan {
     /// The wagon's offset and its standard error in the same fit with the wagon's columns
     /// (`WagonFit`): what a re-captured pair's change is attributed by (`wagon_watch`).
     wagon_offset: (f64, f64),
+    /// The standard error of the sweep's level (ln units; NaN until it is measured).
+    level_se: f64,
+    /// The columns of the layer pattern its level was taken about (None: the raw level).
+    pattern: Option<model::PatternColumns>,
 }
 
 /// What testing one completed sweep gave.
@@ -600,6 +611,8 @@ impl SweepMonitor {
             smooth: [(f64::NAN, f64::NAN); 2],
             smooth_s: [f64::NAN; 2],
             wagon_offset: (f64::NAN, f64::NAN),
+            level_se: f64::NAN,
+            pattern: None,
         });
         let known = Known { mount, gain };
         let reference = self.backfit(&sweep.past, &known);
@@ -614,6 +627,9 @@ impl SweepMonitor {
         let level_se =
             (all.iter().map(|e| (e - level).powi(2)).sum::<f64>() / (na - 1.0).max(1.0) / na)
                 .sqrt();
+        if let Some(span) = self.sweep_starts.last_mut() {
+            span.level_se = level_se;
+        }
         let pattern = self.pattern_fit(rows.iter().map(Row::joints).collect());
         let wagon = self.smooth_offsets(&sweep, &reference, &known);
         let mut rec = SweepRecord {
@@ -640,6 +656,9 @@ impl SweepMonitor {
         let pattern_fit = self.expected_level(&sweep, &reference);
         let expected = pattern_fit.as_ref().map_or(0.0, |p| p.level);
         rec.level_expected_pct = 100.0 * expected;
+        if let Some(span) = self.sweep_starts.last_mut() {
+            span.pattern = pattern_fit.as_ref().map(|p| p.columns);
+        }
         // a layer whose pattern model grew restarts its scale history from the earlier lights'
         // residuals about the new model: the levels judged without the harmonics carry the
         // pattern's swing
@@ -667,6 +686,7 @@ impl SweepMonitor {
             self.test_level(
                 &sweep,
                 (level - expected, level, level_se, floor),
+                &reference,
                 &known,
                 &mut rec,
                 &mut findings,

@@ -120,9 +120,45 @@ pub(super) struct LayerPattern {
     pub(super) level: f64,
     pub(super) sd: f64,
     pub(super) harmonics: usize,
+    /// Its columns beyond the constant.
+    pub(super) columns: PatternColumns,
     /// The earlier lights' residuals about the fit, widened by √(n / (n − p)) to stand for
     /// out-of-sample ones: a layer's scale history restarts from them when its model grows.
     pub(super) residuals: Vec<f64>,
+}
+
+/// A level pattern's columns beyond the constant: a (cos, sin) pair per harmonic, and the
+/// borrowed 2nd harmonic of a phase ((cos 2φ, sin 2φ) weights) as one column.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(super) struct PatternColumns {
+    harmonics: [f64; 2],
+    len: usize,
+    pub(super) borrowed: Option<[f64; 2]>,
+}
+
+impl PatternColumns {
+    /// The columns of `harmonics` (at most the first two: the level pattern fits the 4th and
+    /// the 2nd) and `borrowed`.
+    pub(super) fn new(harmonics: &[f64], borrowed: Option<[f64; 2]>) -> Self {
+        let mut c = Self {
+            borrowed,
+            ..Self::default()
+        };
+        for h in harmonics.iter().take(2) {
+            c.harmonics[c.len] = *h;
+            c.len += 1;
+        }
+        c
+    }
+
+    pub(super) fn harmonics(&self) -> &[f64] {
+        &self.harmonics[..self.len]
+    }
+
+    /// The number of columns with the constant.
+    pub(super) fn count(&self) -> usize {
+        1 + 2 * self.len + usize::from(self.borrowed.is_some())
+    }
 }
 
 /// The layer below lends its 2nd harmonic's phase only when its amplitude is this many
@@ -150,9 +186,23 @@ pub(super) fn amplitude_t(b: &DVector<f64>, cov: &DMatrix<f64>, i: usize) -> f64
 
 /// A layer's level pattern fit: the pattern, the coefficients and their covariance.
 pub(super) struct LevelPatternFit {
-    pattern: LayerPattern,
-    coef: DVector<f64>,
+    pub(super) pattern: LayerPattern,
+    pub(super) coef: DVector<f64>,
     cov: DMatrix<f64>,
+}
+
+/// A row of the level pattern's design at azimuth `p`: the constant, a (cos, sin) pair per
+/// harmonic, and with `borrowed` the 2nd harmonic of that phase.
+pub(super) fn pattern_row(p: f64, harmonics: &[f64], borrowed: Option<[f64; 2]>) -> Vec<f64> {
+    let mut v = vec![1.0];
+    for h in harmonics {
+        v.push((h * p).cos());
+        v.push((h * p).sin());
+    }
+    if let Some(u) = borrowed {
+        v.push(u[0] * (2.0 * p).cos() + u[1] * (2.0 * p).sin());
+    }
+    v
 }
 
 /// A layer's level pattern at azimuth `here` from its earlier lights' levels `values` at
@@ -165,17 +215,7 @@ pub(super) fn pattern_fit(
     borrowed: Option<[f64; 2]>,
     here: f64,
 ) -> Option<LevelPatternFit> {
-    let row = |p: f64| -> Vec<f64> {
-        let mut v = vec![1.0];
-        for h in harmonics {
-            v.push((h * p).cos());
-            v.push((h * p).sin());
-        }
-        if let Some(u) = borrowed {
-            v.push(u[0] * (2.0 * p).cos() + u[1] * (2.0 * p).sin());
-        }
-        v
-    };
+    let row = |p: f64| pattern_row(p, harmonics, borrowed);
     let (n, cols) = (
         azimuths.len(),
         1 + 2 * harmonics.len() + borrowed.is_some() as usize,
@@ -202,6 +242,7 @@ pub(super) fn pattern_fit(
             level,
             sd,
             harmonics: cols - 1,
+            columns: PatternColumns::new(harmonics, borrowed),
             residuals: resid.iter().map(|e| e * widen).collect(),
         },
         cov: inv * sigma2,

@@ -75,6 +75,8 @@ fn span(k: usize, layer: i64) -> SweepSpan {
         smooth: [(f64::NAN, f64::NAN); 2],
         smooth_s: [f64::NAN; 2],
         wagon_offset: (f64::NAN, f64::NAN),
+        level_se: f64::NAN,
+        pattern: None,
     }
 }
 
@@ -357,4 +359,23 @@ fn a_joint_pattern_is_a_change_within_its_layer_only_against_sweeps_that_bound_i
     let c = m.layer_change(&crossing_since(2 * 81 + 80, 1.0), l75);
     let z = c.change_z.unwrap();
     assert!(z > 2.0 && z < LAYER_CHANGE_Z && !c.shown(1.0), "{c:?}");
+}
+
+#[test]
+fn the_layer_below_accounts_for_a_level_only_the_same_way_clearly_and_grown_far_enough() {
+    let below = |departure: f64, se: f64| PatternBelow {
+        below_deg: 60.0,
+        departure,
+        se,
+        growth: 4.64,
+    };
+    // −0.5 % ± 0.1 grown ×4.64 reaches −2.3 %: a −2 % run down is accounted for
+    assert!(below(-0.005, 0.001).explains(false, -0.02));
+    // not a run up, nor one larger than the grown departure
+    assert!(!below(-0.005, 0.001).explains(true, 0.02));
+    assert!(!below(-0.005, 0.001).explains(false, -0.025));
+    // nor a departure within 3 standard errors of none
+    assert!(!below(-0.005, 0.002).explains(false, -0.01));
+    // nor anything from an exactly flat layer below
+    assert!(!below(0.0, 0.0).explains(false, -0.01));
 }
