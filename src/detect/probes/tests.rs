@@ -282,3 +282,68 @@ fn a_flickering_segment_raises_no_step() {
     let ev = run(0.0, Some((6.0, -0.03)), 0.003, 1);
     assert_eq!(steps(&ev), 1, "{ev:?}");
 }
+
+/// A lagging wagon: probes approached against the original's motion read 1.2 % low, those
+/// approached with it read true, in an irregular order (where the probe falls in a sweep).
+fn lagged_probes(step_at: Option<usize>, sides: bool) -> Vec<(usize, DriftEvent)> {
+    let mut p = ProbeDrift::new(ProbeSpec::default());
+    let mut rng = crate::measure::stats::SplitMix64(11);
+    let mut events = Vec::new();
+    for k in 0..60usize {
+        if sides && k == 10 {
+            p.read_approach_sides();
+        }
+        // mostly against the original's motion, now and then with it
+        let x: f64 = if k % 7 == 3 || k % 11 == 5 { 0.0 } else { -1.0 };
+        let lamp = if step_at.is_some_and(|s| k >= s) {
+            0.98
+        } else {
+            1.0
+        };
+        let y = 40.0 * lamp * (0.012 * x).exp() * (1.0 + 0.001 * rng.gauss());
+        let e = p.add_approached(k as u64, (0.0, 40.0), (0.2 + 0.2 * k as f64, y), x);
+        events.extend(e.into_iter().map(|e| (k, e)));
+    }
+    events
+}
+
+#[test]
+fn once_a_lag_is_named_the_probes_are_read_by_the_side_they_were_approached_from() {
+    let steps = |ev: &[(usize, DriftEvent)]| -> Vec<usize> {
+        ev.iter()
+            .filter(|(_, e)| matches!(e, DriftEvent::Step { .. }))
+            .map(|(k, _)| *k)
+            .collect()
+    };
+    let unstable_from = |ev: &[(usize, DriftEvent)], from: usize| {
+        ev.iter()
+            .any(|(k, e)| *k >= from && matches!(e, DriftEvent::Unstable { .. }))
+    };
+    // read as one series, the two sides make a false flicker or false steps
+    let plain = lagged_probes(None, false);
+    assert!(
+        unstable_from(&plain, 0) || !steps(&plain).is_empty(),
+        "{plain:?}"
+    );
+    // read by side from probe 10 on: nothing after it, and a flicker read before it clears
+    let read = lagged_probes(None, true);
+    assert!(steps(&read).iter().all(|&k| k < 10), "{read:?}");
+    assert!(!unstable_from(&read, 10), "{read:?}");
+    assert!(
+        read.iter()
+            .all(|(_, e)| !matches!(e, DriftEvent::Unstable { .. }))
+            || read
+                .iter()
+                .any(|(_, e)| matches!(e, DriftEvent::UnstableCleared { .. })),
+        "{read:?}"
+    );
+    // and a −2 % lamp step at probe 40 is still found, on the probe that shows it
+    let stepped = lagged_probes(Some(40), true);
+    let after: Vec<usize> = steps(&stepped).into_iter().filter(|&k| k >= 10).collect();
+    assert_eq!(after.first(), Some(&40), "{stepped:?}");
+    let ev = stepped.iter().find(|(k, _)| *k == 40).map(|(_, e)| e);
+    assert!(
+        matches!(ev, Some(DriftEvent::Step { direction: -1, .. })),
+        "{ev:?}"
+    );
+}
