@@ -1192,25 +1192,19 @@ fn a_lamp_step_under_the_shadow_is_raised_once_the_level_stays_off_past_it() {
         );
     }
     // before the shaded side (φi < 90°), and without the shadow, the same step is raised
-    // where it is, with no advisory before it
-    let onset = 61 * 81 + 40;
-    let (_, findings) = run(Fault::Shadow(SHADOW, Some(0.97)), onset, 80, 1, true);
-    let (at, _, _) = gain_steps(&findings)
-        .next()
-        .unwrap_or_else(|| panic!("no gain step in {findings:?}"));
-    assert!(
-        (at.last_idx as usize) < onset + 4 * 81,
-        "{at:?} {findings:?}"
-    );
-    assert!(steps_unresolved(&findings).is_empty(), "{findings:?}");
-    let onset = 66 * 81 + 40;
-    let (_, findings) = run(Fault::Step(0.97), onset, 80, 1, true);
-    let (at, _, _) = gain_steps(&findings)
-        .next()
-        .unwrap_or_else(|| panic!("no gain step in {findings:?}"));
-    assert!(
-        (at.last_idx as usize) < onset + 4 * 81,
-        "{at:?} {findings:?}"
-    );
-    assert!(steps_unresolved(&findings).is_empty(), "{findings:?}");
+    // where it is, with no advisory
+    for (fault, onset) in [
+        (Fault::Shadow(SHADOW, Some(0.97)), 61 * 81 + 40),
+        (Fault::Step(0.97), 66 * 81 + 40),
+    ] {
+        let (_, findings) = run(fault, onset, 80, 1, true);
+        let (at, _, _) = gain_steps(&findings)
+            .next()
+            .unwrap_or_else(|| panic!("no gain step in {findings:?}"));
+        assert!(
+            (at.last_idx as usize) < onset + 4 * 81,
+            "{at:?} {findings:?}"
+        );
+        assert!(steps_unresolved(&findings).is_empty(), "{findings:?}");
+    }
 }
