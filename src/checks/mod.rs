@@ -591,19 +591,7 @@ impl Checker {
             .as_ref()
             .filter(|s| s.can_check_pose())
             .map(|s| s.wagon_sensitivity_of(input.entry));
-        // once the wagon is named as lagging, a probe approached from the other side than its
-        // original reads the lag: the probes are read by their side from then on
-        let approach = self
-            .sweeps
-            .as_ref()
-            .filter(|s| s.lag_named())
-            .and_then(|s| s.approach_of(input.entry))
-            .filter(|d| *d != 0.0 && self.wagon_dir != 0.0)
-            .map(|original| (self.wagon_dir - original) / 2.0);
-        let lag_named = self.sweeps.as_ref().is_some_and(|s| s.lag_named());
-        let held = self
-            .probes
-            .lamp_probe(&self.ledger, input, m, (hold, lag_named, approach), out);
+        let held = self.probes.lamp_probe(&self.ledger, input, m, hold, out);
         let unstable = self.probes.drift().unstable();
         if let Some(s) = self.sweeps.as_mut() {
             s.set_probes_unstable(unstable);

@@ -179,15 +179,13 @@ impl ProbeStage {
     /// A lamp probe re-captures its entry's pose: its luminance against the entry's original
     /// is the gain change. With `hold` (a check of the camera's pose can be asked for; the
     /// probe pose's wagon sensitivity beside it), a step is held for it rather than raised;
-    /// returns whether one was. With `lag_named` the probes are read by the side they were
-    /// approached from, `approach` being this one's column (`ProbeDrift::add_approached`;
-    /// None where a side is unknown: read as the original's).
+    /// returns whether one was.
     pub(super) fn lamp_probe(
         &mut self,
         ledger: &Ledger,
         input: &CaptureInput,
         m: &Measured,
-        (hold, lag_named, approach): (Option<Option<f64>>, bool, Option<f64>),
+        hold: Option<Option<f64>>,
         out: &mut CheckOutput,
     ) -> bool {
         let mut held = false;
@@ -202,14 +200,12 @@ impl ProbeStage {
         if y0 > 0.0 && m.checked.xyz[1] > 0.0 {
             self.last_lamp_probe = Some((input.idx, (m.checked.xyz[1] / y0).ln()));
         }
-        if lag_named {
-            self.drift.read_approach_sides();
-        }
-        for ev in self.drift.add_approached(
+        for ev in self.drift.add(
             input.idx,
-            (t0 / 3600.0, y0),
-            (input.t / 3600.0, m.checked.xyz[1]),
-            approach.unwrap_or(0.0),
+            t0 / 3600.0,
+            y0,
+            input.t / 3600.0,
+            m.checked.xyz[1],
         ) {
             // a step happened after the last probe before this one
             let since = self.last_probe_idx.map(|i| i + 1);

@@ -10,12 +10,6 @@
 //! standard deviations and `step_pct`, while the segment's residual SD is within what
 //! `lamp-unstable` allows (a segment that scatters more is the stability test's); the segment
 //! then restarts at that probe.
-//!
-//! Once the wagon is named as lagging (`ProbeDrift::read_approach_sides`), a probe approached
-//! from the other side than its original reads the lag through the pose's slope, as a constant
-//! offset for as long as the lag lasts: the segment restarts and takes a column for it,
-//! d(t) = a + r·(t − t₀) + c·x, x = 1 (or −1) for a probe approached against (with) the
-//! original's motion where they differ, 0 where they agree. The lamp's gain is then a + r·t.
 
 use super::drift::{DriftEstimate, DriftEvent, DriftSpec};
 use crate::measure::geometry::{angle_between, mirror, Vec3};
@@ -272,10 +266,6 @@ pub(crate) struct ProbeDrift {
     segment: Vec<(f64, f64)>,
     /// The capture index of each point of the segment (None: the original capture).
     segment_idx: Vec<Option<u64>>,
-    /// Each point's approach column x (0 before the sides are read, and for the original).
-    segment_x: Vec<f64>,
-    /// Whether probes are read by the side they were approached from (a lag was named).
-    approach_sides: bool,
     rate_alarm: bool,
     unstable: bool,
     /// The last scatter measured by `stability` (ln units).
@@ -286,14 +276,11 @@ pub(crate) struct ProbeDrift {
 struct Fit {
     a: f64,
     r: f64,
-    /// The approach column's coefficient (0 when the segment does not identify it).
-    c: f64,
     t0: f64,
     se: f64,
     sd: f64,
 }
 
-/// Least squares of d on [1, t − t₀].
 fn fit(points: &[(f64, f64)]) -> Option<Fit> {
     let n = points.len();
     if n < 3 {
@@ -318,53 +305,10 @@ fn fit(points: &[(f64, f64)]) -> Option<Fit> {
     Some(Fit {
         a,
         r,
-        c: 0.0,
         t0,
         se: (var / sxx).sqrt(),
         sd: var.sqrt(),
     })
-}
-
-impl Fit {
-    /// The fitted ln ratio at `t` for a probe with approach column `x`.
-    fn at(&self, t: f64, x: f64) -> f64 {
-        self.a + self.r * (t - self.t0) + self.c * x
-    }
-}
-
-/// Least squares of d on [1, t − t₀] and, where the points have more than one value of it, the
-/// approach column `xs` (which then takes one more degree of freedom).
-fn fit_approached(points: &[(f64, f64)], xs: &[f64]) -> Option<Fit> {
-    let n = points.len();
-    let with_x = xs.len() == n && xs.iter().any(|x| (x - xs[0]).abs() > 0.5);
-    if !with_x {
-        return fit(points);
-    }
-    let cols = 3;
-    if n < cols + 1 {
-        return None;
-    }
-    let t0 = points[0].0;
-    let x = nalgebra::DMatrix::from_fn(n, cols, |i, j| match j {
-        0 => 1.0,
-        1 => points[i].0 - t0,
-        _ => xs[i],
-    });
-    let y = nalgebra::DVector::from_iterator(n, points.iter().map(|p| p.1));
-    let xtx = x.transpose() * &x;
-    let inv = xtx.try_inverse()?;
-    let b = &inv * x.transpose() * &y;
-    let sse = (&y - &x * &b).norm_squared();
-    let var = sse / (n - cols) as f64;
-    let f = Fit {
-        a: b[0],
-        r: b[1],
-        c: b[2],
-        t0,
-        se: (var * inv[(1, 1)]).max(0.0).sqrt(),
-        sd: var.sqrt(),
-    };
-    (f.a.is_finite() && f.r.is_finite() && f.c.is_finite() && f.se.is_finite()).then_some(f)
 }
 
 impl ProbeDrift {
@@ -373,8 +317,6 @@ impl ProbeDrift {
             spec,
             segment: Vec::new(),
             segment_idx: Vec::new(),
-            segment_x: Vec::new(),
-            approach_sides: false,
             rate_alarm: false,
             unstable: false,
             scatter: None,
@@ -402,24 +344,12 @@ impl ProbeDrift {
     /// segment's line (its level includes any step since the start), and its relative standard
     /// uncertainty (intercept and slope). None until the segment has three points.
     pub(crate) fn gain_at(&self, t_h: f64) -> Option<(f64, f64)> {
-        let f = fit_approached(&self.segment, &self.segment_x)?;
+        let f = fit(&self.segment)?;
         let n = self.segment.len() as f64;
         let tm = self.segment.iter().map(|p| p.0).sum::<f64>() / n;
         let ln_g = f.a + f.r * (t_h - f.t0);
         let sigma = (f.sd * f.sd / n + (f.se * (t_h - tm)).powi(2)).sqrt();
         (ln_g.is_finite() && sigma.is_finite()).then(|| (ln_g.exp(), sigma))
-    }
-
-    /// From now on probes are read by the side they were approached from (the wagon was named
-    /// as lagging): the segment restarts at the next probe, with the approach column. Once.
-    pub(crate) fn read_approach_sides(&mut self) {
-        if !self.approach_sides {
-            self.approach_sides = true;
-            self.segment.clear();
-            self.segment_idx.clear();
-            self.segment_x.clear();
-            self.rate_alarm = false;
-        }
     }
 
     /// One probe, capture `idx`: its time and luminance, and the original capture's time and
@@ -432,24 +362,6 @@ impl ProbeDrift {
         t_h: f64,
         y: f64,
     ) -> Vec<DriftEvent> {
-        self.add_approached(idx, (t_orig_h, y_orig), (t_h, y), 0.0)
-    }
-
-    /// `add` with the probe's approach column `x` (`read_approach_sides`; ignored before): 0
-    /// when it was approached from the side its original was, ±1 (half the difference of the
-    /// wagon's directions of motion) when not.
-    pub(crate) fn add_approached(
-        &mut self,
-        idx: u64,
-        (t_orig_h, y_orig): (f64, f64),
-        (t_h, y): (f64, f64),
-        x: f64,
-    ) -> Vec<DriftEvent> {
-        let x = if self.approach_sides && x.is_finite() {
-            x
-        } else {
-            0.0
-        };
         let mut ev = Vec::new();
         if !(y_orig > 0.0 && y > 0.0 && t_h.is_finite() && t_orig_h.is_finite()) {
             return ev;
@@ -459,14 +371,10 @@ impl ProbeDrift {
             // the original capture anchors the first segment at ratio 1
             self.segment.push((t_orig_h, 0.0));
             self.segment_idx.push(None);
-            self.segment_x.push(0.0);
         }
         if self.segment.len() > self.spec.min_probes {
-            // a probe from a side the segment has not seen yet cannot be told from a step of its
-            // own: it waits for the next of its side
-            let seen = !self.approach_sides || self.segment_x.iter().any(|v| *v == x);
-            if let Some(f) = fit_approached(&self.segment, &self.segment_x).filter(|_| seen) {
-                let e = d - f.at(t_h, x);
+            if let Some(f) = fit(&self.segment) {
+                let e = d - (f.a + f.r * (t_h - f.t0));
                 let sd = f.sd.max(1e-4);
                 // a step is a lamp's that was steady: a segment that already scatters beyond
                 // what `lamp-unstable` allows (a flicker the stability window has not judged
@@ -485,15 +393,13 @@ impl ProbeDrift {
                     });
                     self.segment.clear();
                     self.segment_idx.clear();
-                    self.segment_x.clear();
                     self.rate_alarm = false;
                 }
             }
         }
         self.segment.push((t_h, d));
         self.segment_idx.push(Some(idx));
-        self.segment_x.push(x);
-        if let Some(f) = fit_approached(&self.segment, &self.segment_x) {
+        if let Some(f) = fit(&self.segment) {
             let est = DriftEstimate {
                 pairs: self.segment.len() - 1,
                 rate_pct_per_h: 100.0 * f.r,
@@ -541,7 +447,7 @@ impl ProbeDrift {
         let from_idx = window[0].1;
         let residual = |k: usize| {
             let p = self.segment[k];
-            p.1 - f.at(p.0, self.segment_x.get(k).copied().unwrap_or(0.0))
+            p.1 - f.a - f.r * (p.0 - f.t0)
         };
         let mad = |mut v: Vec<f64>, centre: bool| {
             v.sort_by(f64::total_cmp);

@@ -938,21 +938,6 @@ impl SweepMonitor {
         s.is_finite().then_some(s)
     }
 
-    /// Whether the wagon was named as lagging (the sweeps' lag test or a pose re-captured from
-    /// both sides).
-    pub(crate) fn lag_named(&self) -> bool {
-        self.named_lag.is_some()
-    }
-
-    /// The wagon's last direction of motion (±1, 0 unknown) at the regular capture of plan
-    /// entry `entry`: the side its pose was approached from.
-    pub(crate) fn approach_of(&self, entry: usize) -> Option<f64> {
-        self.captures
-            .iter()
-            .find(|c| c.entry == entry)
-            .map(|c| c.wagon_dir)
-    }
-
     /// The watch for the summary: none unless it is on (a probe-taking rig).
     pub(crate) fn wagon_watch_summary(&self) -> Option<WagonWatchSummary> {
         if self.spec.wagon_watch_sweeps == 0 || self.recapture.is_none() {
