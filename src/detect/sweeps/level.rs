@@ -255,7 +255,7 @@ impl SweepMonitor {
         };
         let span_of = |l: usize| self.sweep_starts.iter().rev().find(|s| s.light == l);
         // the layer below's lights with a level: azimuth, effect, level standard error
-        let (lights, _) = self.layer_lights(sweep, below, r);
+        let (lights, step) = self.layer_lights(sweep, below, r);
         let mut points: Vec<(f64, f64, f64)> = lights
             .iter()
             .filter_map(|&l| {
@@ -276,7 +276,7 @@ impl SweepMonitor {
         // estimator; a smooth pattern differs little between neighbours)
         let harmonics: Vec<f64> = [4.0, 2.0]
             .into_iter()
-            .filter(|h| TAU / h >= PATTERN_SAMPLES_PER_PERIOD * (TAU / n as f64))
+            .filter(|h| TAU / h >= PATTERN_SAMPLES_PER_PERIOD * step)
             .collect();
         let whole = PatternColumns::new(&harmonics, None);
         if n > whole.count() + 1 {

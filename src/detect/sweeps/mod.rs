@@ -662,7 +662,7 @@ impl SweepMonitor {
         // a layer whose pattern model grew restarts its scale history from the earlier lights'
         // residuals about the new model: the levels judged without the harmonics carry the
         // pattern's swing
-        let harmonics = pattern_fit.as_ref().map_or(0, |p| p.harmonics);
+        let harmonics = pattern_fit.as_ref().map_or(0, |p| p.columns.count() - 1);
         if self
             .level_model
             .insert(sweep.layer, harmonics)

@@ -112,15 +112,13 @@ pub(super) const TRIM_SCALES: f64 = 3.0;
 pub(super) const PATTERN_MIN_LIGHTS: [usize; 2] = [6, 10];
 
 /// A θi layer's level pattern at the current light (`SweepMonitor::expected_level`): the level
-/// it predicts, the prediction's standard deviation, and its model (`harmonics`: its columns
-/// beyond the constant, so a harmonic entering and the borrowed 2nd harmonic entering or
-/// leaving each change it).
+/// it predicts, the prediction's standard deviation, and its model's columns beyond the
+/// constant (their count changes when a harmonic enters or the borrowed 2nd harmonic enters or
+/// leaves).
 #[derive(Debug, Clone)]
 pub(super) struct LayerPattern {
     pub(super) level: f64,
     pub(super) sd: f64,
-    pub(super) harmonics: usize,
-    /// Its columns beyond the constant.
     pub(super) columns: PatternColumns,
     /// The earlier lights' residuals about the fit, widened by √(n / (n − p)) to stand for
     /// out-of-sample ones: a layer's scale history restarts from them when its model grows.
@@ -241,7 +239,6 @@ pub(super) fn pattern_fit(
         pattern: LayerPattern {
             level,
             sd,
-            harmonics: cols - 1,
             columns: PatternColumns::new(harmonics, borrowed),
             residuals: resid.iter().map(|e| e * widen).collect(),
         },
