@@ -47,9 +47,13 @@ def render(
     mask, u, v = _pixel_grid(h, w, holder_px)
     if realism.d is not None and realism.d.bow != 0.0:
         img = gain * bowed(albedo, u, v * (h / w), wi, wo, material, realism.d)
+    elif realism.e is not None:
+        img = gain * wedged(albedo, wi, wo, material, realism.e)
     else:
         spec = specular(wi, wo, material)
         img = gain * ci * (albedo + math.pi * spec)  # pi * (albedo/pi + spec)
+    if realism.e is not None and realism.e.wall > 0.0:
+        img = img + gain * bracket_light(u, v * (h / w), wi, realism.e)[..., None] * albedo * np.asarray(realism.e.wall_rgb)
     holder = gain * ci * np.array(HOLDER_ALBEDO)
     if realism.footprint > 0.0:
         # lamp footprint: along the projected light direction
@@ -120,6 +124,30 @@ def bowed(albedo: np.ndarray, u: np.ndarray, v: np.ndarray, wi: np.ndarray, wo: 
     ci_px = np.interp(s, grid, cos_i)
     lobe_px = np.interp(s, grid, lobe)
     return ci_px[..., None] * albedo + lobe_px[..., None]
+
+
+def wedged(albedo: np.ndarray, wi: np.ndarray, wo: np.ndarray, material: Material, e) -> np.ndarray:
+    """cos theta_i * (albedo + pi * f_s) of a sample seated on a wedge (`RealismE`): lit and seen
+    in the frame of its tilted normal, with the model's trace of anisotropy."""
+    a, t = math.radians(e.wedge_azimuth_deg), math.radians(e.wedge_deg)
+    n = np.array([math.sin(t) * math.cos(a), math.sin(t) * math.sin(a), math.cos(t)])
+    li, lo = _to_local(n, wi), _to_local(n, wo)
+    ci = max(float(li[2]), 0.0)
+    lobe = math.pi * specular(li, lo, e.material(material)) if lo[2] > 0.0 else 0.0
+    return ci * (albedo + lobe)
+
+
+def bracket_light(u: np.ndarray, v: np.ndarray, wi: np.ndarray, e) -> np.ndarray:
+    """The irradiance the bracket's face (`RealismE`) sends to each point, in units of the lamp's
+    at normal incidence; u, v in image widths from the image centre."""
+    ci = max(float(wi[2]), 0.0)
+    sin_i = math.sqrt(max(1.0 - ci * ci, 0.0))
+    if sin_i == 0.0:
+        return np.zeros(np.shape(u))
+    a = math.radians(e.wall_azimuth_deg)
+    facing = max(math.cos(math.atan2(wi[1], wi[0]) - a), 0.0)
+    near = 1.0 + e.wall_gradient * 2.0 * (u * math.cos(a) + v * math.sin(a))
+    return e.wall * sin_i * facing * near
 
 
 def jaw_inside(u: np.ndarray, v: np.ndarray, edge: float, d) -> np.ndarray:
