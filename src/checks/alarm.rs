@@ -127,6 +127,8 @@ pub enum AlarmCode {
     ReciprocityOutlier,
     /// The sample's surface sits off the arm's rotation centre.
     SampleOffCentre,
+    /// The light sweeps' levels follow the light's azimuth as a tilted sample makes them.
+    SampleTilted,
     /// The controller announced another session.
     SessionChanged,
     /// Files in the capture folder not placed as captures.
@@ -157,7 +159,7 @@ pub enum AlarmCode {
 
 impl AlarmCode {
     /// Every code.
-    pub(crate) const ALL: [AlarmCode; 54] = [
+    pub(crate) const ALL: [AlarmCode; 55] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
@@ -200,6 +202,7 @@ impl AlarmCode {
         AlarmCode::ProbesRefused,
         AlarmCode::ReciprocityOutlier,
         AlarmCode::SampleOffCentre,
+        AlarmCode::SampleTilted,
         AlarmCode::SessionChanged,
         AlarmCode::SkippedFiles,
         AlarmCode::SlipRefuted,
@@ -259,6 +262,7 @@ impl AlarmCode {
             AlarmCode::ProbesRefused => "probes-refused",
             AlarmCode::ReciprocityOutlier => "reciprocity-outlier",
             AlarmCode::SampleOffCentre => "sample-off-centre",
+            AlarmCode::SampleTilted => "sample-tilted",
             AlarmCode::SessionChanged => "session-changed",
             AlarmCode::SkippedFiles => "skipped-files",
             AlarmCode::SlipRefuted => "slip-refuted",
@@ -321,6 +325,7 @@ impl AlarmCode {
             }
             AlarmCode::ReciprocityOutlier => "a reciprocal pair departs beyond the configured limit",
             AlarmCode::SampleOffCentre => "the sample's surface sits off the arm's rotation centre",
+            AlarmCode::SampleTilted => "the light sweeps' levels follow the light's azimuth, growing as tan θi, in every θi layer: the sample sits tilted in its holder, or the lamp's beam falls off across the arm's reach",
             AlarmCode::SessionChanged => "the controller announced another session",
             AlarmCode::SkippedFiles => "files in the capture folder not placed as captures",
             AlarmCode::SlipRefuted => "a joint slip the light sweeps suggested, which a re-capture of earlier poses refutes",
