@@ -382,14 +382,8 @@ pub(crate) struct SweepMonitor {
     unresolved: HashSet<i64>,
     /// The wagon's offset from re-captures of two poses (a probe-taking rig).
     wagon_watch: wagon_watch::WagonWatch,
-    /// The light-side tilt modelled (`tilt`), the θi layer it was last estimated at, the named
-    /// slip it was estimated after (its first capture), whether it is yet to be named, and
-    /// whether it has been (once a run).
-    tilt: Option<LightTilt>,
-    tilt_layer: Option<i64>,
-    tilt_slip: Option<u64>,
-    tilt_unnamed: bool,
-    tilt_named: bool,
+    /// The light-side tilt the sweeps model (`tilt`).
+    tilt: tilt::TiltState,
 }
 
 /// Where a completed sweep lies in the session, and the joint offsets its pattern fit gave
@@ -494,11 +488,7 @@ impl SweepMonitor {
             unverifiable: HashSet::new(),
             unresolved: HashSet::new(),
             wagon_watch: Default::default(),
-            tilt: None,
-            tilt_layer: None,
-            tilt_slip: None,
-            tilt_unnamed: false,
-            tilt_named: false,
+            tilt: Default::default(),
         }
     }
 
@@ -634,36 +624,10 @@ impl SweepMonitor {
         let mut known = Known {
             mount,
             gain,
-            tilt: self.tilt.as_ref().map(|t| t.coef),
+            tilt: self.tilt.coef(),
         };
         let mut reference = self.backfit(&sweep.past, &known);
-        // the light-side tilt, estimated again at each new θi layer from the layers below: once
-        // modelled, the reference is built without it
-        if self.tilt_layer != Some(sweep.layer) {
-            self.tilt_layer = Some(sweep.layer);
-            let slip = self.slip.map(|s| s.2);
-            if self.tilt_slip != slip {
-                // the pose changed since the tilt was estimated
-                self.tilt_slip = slip;
-                if self.tilt.take().is_some() {
-                    known.tilt = None;
-                    reference = self.backfit(&sweep.past, &known);
-                }
-            }
-            // the model is the latest estimate: a pattern the layers no longer agree on (the
-            // new layer does not follow the tan θi law) is dropped
-            let estimate = self.estimate_tilt(&sweep, &reference, known.tilt);
-            let coef = estimate.as_ref().map(|t| t.coef);
-            if coef != known.tilt {
-                known.tilt = coef;
-                reference = self.backfit(&sweep.past, &known);
-            }
-            if estimate.is_some() && !self.tilt_named {
-                self.tilt_named = true;
-                self.tilt_unnamed = true;
-            }
-            self.tilt = estimate;
-        }
+        self.update_tilt(&sweep, &mut known, &mut reference);
         self.ensure_model(sweep.layer, &reference.class_effects());
         let (all, rows) = self.residuals(&sweep.current, &reference, &known, Model::Interpolant);
         if all.len() < self.spec.min_captures {
@@ -729,15 +693,7 @@ impl SweepMonitor {
             );
         }
         let mut findings = Vec::new();
-        // named at the first sweep that reaches the tests (a layer's first sweep may not)
-        if std::mem::take(&mut self.tilt_unnamed) {
-            if let Some(tilt) = self.tilt.clone() {
-                findings.push(SweepFinding::LightTilt {
-                    at: sweep.at(),
-                    tilt,
-                });
-            }
-        }
+        findings.extend(self.tilt.name_at(sweep.at()));
         let level_step = if level_test {
             let floor = pattern_fit.as_ref().map(|p| p.sd);
             self.test_level(
@@ -807,7 +763,7 @@ impl SweepMonitor {
 
     /// The light-side tilt the sweeps model (`tilt`): ln Y per unit tan θi·(cos φi, sin φi).
     pub(crate) fn light_tilt(&self) -> Option<[f64; 2]> {
-        self.tilt.as_ref().map(|t| t.coef)
+        self.tilt.coef()
     }
 
     /// Whether the probes' `lamp-unstable` stands: the sweeps' joint and lag tests are then

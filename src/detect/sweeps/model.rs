@@ -412,7 +412,7 @@ impl SweepMonitor {
                 .or_else(|| pattern_fit(&azimuths, values, &harmonics, None, here))
         };
         let fitted = fit(&values);
-        let Some(t) = self.tilt.as_ref() else {
+        let Some(t) = self.tilt.model() else {
             return fitted.map(|f| f.pattern);
         };
         // the light-side tilt taken out of the effects (`tilt`) is extrapolated to this θi by

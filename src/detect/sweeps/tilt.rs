@@ -71,6 +71,49 @@ impl LightTilt {
     }
 }
 
+/// Whether the tilt has been named: once a run, at the first sweep that reaches the tests
+/// after it is first modelled (a layer's first sweep may not).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+enum Naming {
+    #[default]
+    NotYet,
+    Due,
+    Done,
+}
+
+/// The tilt the sweeps model: the latest estimate, the θi layer it was made at, and the named
+/// slip (its first capture) the layers it used lie after.
+#[derive(Debug, Clone, Default)]
+pub(super) struct TiltState {
+    model: Option<LightTilt>,
+    layer: Option<i64>,
+    slip: Option<u64>,
+    naming: Naming,
+}
+
+impl TiltState {
+    /// The modelled tilt.
+    pub(super) fn model(&self) -> Option<&LightTilt> {
+        self.model.as_ref()
+    }
+
+    /// The modelled tilt's coefficients.
+    pub(super) fn coef(&self) -> Option<[f64; 2]> {
+        self.model.as_ref().map(|t| t.coef)
+    }
+
+    /// The finding that names the tilt, once, at sweep `at`.
+    pub(super) fn name_at(&mut self, at: SweepAt) -> Option<SweepFinding> {
+        if self.naming != Naming::Due {
+            return None;
+        }
+        self.naming = Naming::Done;
+        self.model
+            .clone()
+            .map(|tilt| SweepFinding::LightTilt { at, tilt })
+    }
+}
+
 /// One layer's own first harmonic per unit tan θi and its covariance.
 struct LayerHarmonic {
     theta_deg: f64,
@@ -141,6 +184,39 @@ fn pool(layers: &[LayerHarmonic]) -> Option<LightTilt> {
 }
 
 impl SweepMonitor {
+    /// At a new θi layer, the tilt estimated again from the layers below (`known` and the
+    /// `reference` built with it are updated when the model changes). A joint slip named since
+    /// the last estimate drops it first: the pose changed.
+    pub(super) fn update_tilt(
+        &mut self,
+        sweep: &Sweep,
+        known: &mut Known,
+        reference: &mut Reference,
+    ) {
+        if self.tilt.layer == Some(sweep.layer) {
+            return;
+        }
+        self.tilt.layer = Some(sweep.layer);
+        let slip = self.slip.map(|s| s.2);
+        if self.tilt.slip != slip {
+            self.tilt.slip = slip;
+            if self.tilt.model.take().is_some() {
+                known.tilt = None;
+                *reference = self.backfit(&sweep.past, known);
+            }
+        }
+        let estimate = self.estimate_tilt(sweep, reference, known.tilt);
+        let coef = estimate.as_ref().map(|t| t.coef);
+        if coef != known.tilt {
+            known.tilt = coef;
+            *reference = self.backfit(&sweep.past, known);
+        }
+        if estimate.is_some() && self.tilt.naming == Naming::NotYet {
+            self.tilt.naming = Naming::Due;
+        }
+        self.tilt.model = estimate;
+    }
+
     /// The light-side tilt from the completed θi layers below the sweep's (the module comment),
     /// from the reference `r` built with `current` taken out of ln Y.
     pub(super) fn estimate_tilt(
