@@ -10,27 +10,32 @@
 //! towards and away from the tilt, growing towards grazing: on the synthetic sessions a 0.5°
 //! tilt raised one to three false gain steps a run.
 //!
-//! It is identified across the completed θi layers below the current one, each on its own:
-//! the layer's light effects L (the back-fit's, the pattern put back) on a constant, the first
-//! harmonic and the even harmonics the layer samples (`PATTERN_SAMPLES_PER_PERIOD`), the first
-//! harmonic divided by the layer's tan θi. A tilt gives every layer the same coefficients; a
-//! lamp step inside one layer (not yet in the gain path) gives that layer a first harmonic of
-//! its own, which the others do not share. So the layers' coefficients are pooled (inverse
-//! covariance weights) only when they agree (`HOMOGENEITY_CHI2`: Cochran's Q against χ² at
-//! 99.9 %), from two layers on, and the pattern is modelled when the pooled amplitude stands
-//! `TILT_SIGMAS` standard errors from zero. Each layer's noise is its residual variance,
-//! floored at its sweeps' mean squared level standard error (a layer of few lights can fit its
-//! own noise away). It is estimated again at each new layer, and the model is the latest
-//! estimate: a pattern the layers stop agreeing on once a new layer is in (a light-side pattern
-//! that does not grow as tan θi, extrapolated, would make level changes of its own) is dropped.
-//! A named joint slip changed the pose (a joint-1 slip tilts the sample itself): only layers
-//! wholly after it are used from then on.
-//! A gain step raised in a layer gets a column of its own there (half a turn of a level shift
-//! is a first harmonic).
+//! It is identified across the completed θi layers below the current one with at least
+//! `MIN_LAYER_LIGHTS` lights, each on its own: the layer's light effects L (the back-fit's, the
+//! pattern put back) on a constant, a ramp in time (a drift the gain path misses is no
+//! harmonic), the even harmonics the layer samples (`PATTERN_SAMPLES_PER_PERIOD`), a column per
+//! gain step raised in it (half a turn of a level shift is a first harmonic) and the first
+//! harmonic, divided by the layer's tan θi. A tilt gives every layer the same coefficients; a
+//! step or a slip inside one layer gives that layer a first harmonic of its own, which the
+//! others do not share. So the layers' coefficients are pooled (inverse covariance weights)
+//! only when they agree (`HOMOGENEITY_CHI2`: Cochran's Q against χ² at 99.9 %), from two layers
+//! on, and the pattern is modelled when the pooled amplitude stands `TILT_SIGMAS` standard
+//! errors from zero. Each layer's noise is its residual variance, floored at its sweeps' mean
+//! squared level standard error (a layer of few lights can fit its own noise away).
+//!
+//! It is estimated again at each new layer, and the model is the latest estimate: a pattern the
+//! layers stop agreeing on is dropped. A named joint slip changed the pose (a joint-1 slip tilts
+//! the sample itself): only layers wholly after it are used from then on. The current layer
+//! takes the tilt extrapolated by the tan θi law, and once it has lights enough for its own 2nd
+//! harmonic it keeps it only if its lights fit its pattern better with it than without it
+//! (`SweepMonitor::expected_level`): a light-side pattern that stops growing as tan θi at
+//! grazing light would otherwise make level changes of its own.
 //!
 //! Taking it out of ln Y moves only the light effects L: the class and camera effects and every
 //! sweep's pattern across its cameras (the joint and wagon tests) are unchanged, and the level
-//! test judges each sweep against its layer less the tilt.
+//! test judges each sweep against its layer less the tilt. The drift model takes it out of the
+//! isotropy classes' pairs too (`DriftDetector::set_light_tilt`): in light-outer order the
+//! pattern moves with time as a rate does.
 
 use super::model::PATTERN_SAMPLES_PER_PERIOD;
 use super::*;
