@@ -325,7 +325,7 @@ impl AlarmCode {
             }
             AlarmCode::ReciprocityOutlier => "a reciprocal pair departs beyond the configured limit",
             AlarmCode::SampleOffCentre => "the sample's surface sits off the arm's rotation centre",
-            AlarmCode::SampleTilted => "the light sweeps' levels follow the light's azimuth, growing as tan θi, in every θi layer: the sample sits tilted in its holder, or the lamp's beam falls off across the arm's reach",
+            AlarmCode::SampleTilted => "the light sweeps' levels follow the light's azimuth, growing as tan θi, alike in the θi layers: a sample tilted in its holder, or a lamp whose light falls off across the sample",
             AlarmCode::SessionChanged => "the controller announced another session",
             AlarmCode::SkippedFiles => "files in the capture folder not placed as captures",
             AlarmCode::SlipRefuted => "a joint slip the light sweeps suggested, which a re-capture of earlier poses refutes",

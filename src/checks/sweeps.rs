@@ -239,7 +239,7 @@ fn sample_tilted(at: &SweepAt, tilt: &LightTilt) -> Alarm {
         Severity::Warning,
         AlarmCode::SampleTilted,
         format!(
-            "the light sweeps' levels follow the light's azimuth by {:.2} ± {:.2} % per unit tan θi (brightest with the light from φ = {azimuth:.0}°) alike in the θi = {layers} layers: the sample sits tilted by about {:.2}° towards φ = {azimuth:.0}° in its holder, or the lamp's beam falls off across the arm's reach. The light sweeps model this pattern from now on (from light sweep {}, θi = {}°), so it is not read as a level change",
+            "the light sweeps' levels follow the light's azimuth by {:.2} ± {:.2} % per unit tan θi (brightest with the light from φ = {azimuth:.0}°) alike in the θi = {layers} layers: as a sample tilted by about {:.2}° towards φ = {azimuth:.0}° in its holder would make them, or a lamp whose light falls off across the sample (a near lamp, a beam not centred on it, a sample off the rotation centre). The light sweeps model this pattern from now on (from light sweep {}, θi = {}°), so it is not read as a level change",
             100.0 * amplitude,
             100.0 * tilt.se,
             amplitude.to_degrees(),
@@ -1092,7 +1092,7 @@ mod tests {
         // nothing is retaken
         assert_eq!(a.affects, None);
         assert!(
-            a.message.starts_with("the light sweeps' levels follow the light's azimuth by 0.87 ± 0.08 % per unit tan θi (brightest with the light from φ = 115°) alike in the θi = 30°, 45° layers: the sample sits tilted by about 0.50° towards φ = 115° in its holder")
+            a.message.starts_with("the light sweeps' levels follow the light's azimuth by 0.87 ± 0.08 % per unit tan θi (brightest with the light from φ = 115°) alike in the θi = 30°, 45° layers: as a sample tilted by about 0.50° towards φ = 115° in its holder would make them, or a lamp whose light falls off across the sample")
                 && a.message.contains("The light sweeps model this pattern from now on (from light sweep 47, θi = 60°)"),
             "{}",
             a.message

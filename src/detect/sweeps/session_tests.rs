@@ -1160,11 +1160,14 @@ fn a_shadow_that_the_layers_harmonics_miss_is_unresolved_where_it_grows_never_a_
             "seed {seed}: {findings:?}"
         );
         let unresolved = steps_unresolved(&findings);
-        // where the shadow grows past the tolerance: the θi = 75° layer, at the shadow's side
+        // where the shadow grows past the tolerance, the θi = 75° layer at the shadow's side, a
+        // level change is an advisory, unless the shadow's first harmonic, named as a tilt of
+        // the light side (`tilt`), is modelled and leaves none
         assert!(
-            unresolved
-                .iter()
-                .any(|(at, _, _)| at.layer_mdeg == 75_000 && (63..=75).contains(&at.light)),
+            !light_tilts(&findings).is_empty()
+                || unresolved
+                    .iter()
+                    .any(|(at, _, _)| at.layer_mdeg == 75_000 && (63..=75).contains(&at.light)),
             "seed {seed}: {findings:?}"
         );
         for (_, run, below) in unresolved {
@@ -1181,22 +1184,28 @@ fn a_shadow_that_the_layers_harmonics_miss_is_unresolved_where_it_grows_never_a_
 
 #[test]
 fn a_lamp_step_under_the_shadow_is_raised_once_the_level_stays_off_past_it() {
-    // −3 % from inside the θi = 75° layer's shaded side: first as much the shadow's as the
-    // lamp's, then raised, before the run ends, once the level stays off where the layer
-    // below shows no shadow
+    // −3 % from inside the θi = 75° layer's shaded side: raised before the run ends, once the
+    // level stays off where the layer below shows no shadow (first as much the shadow's as the
+    // lamp's, an advisory, where the shadow is not modelled as a tilt)
     for onset in [66 * 81 + 40, 68 * 81 + 40] {
         let (_, findings) = run(Fault::Shadow(SHADOW, Some(0.97)), onset, 80, 1, true);
         let (step_at, step_run, up) = gain_steps(&findings)
             .find(|(at, _, _)| at.last_idx as usize >= onset)
             .unwrap_or_else(|| panic!("{onset}: no gain step in {findings:?}"));
         assert!(!up && step_run.level_pct < -1.0, "{step_run:?}");
+        // an advisory, if any (none where the shadow's first harmonic is modelled as a tilt),
+        // comes before the step
         let unresolved: Vec<u64> = steps_unresolved(&findings)
             .iter()
             .map(|(at, _, _)| at.last_idx)
             .filter(|&i| i as usize >= onset)
             .collect();
         assert!(
-            unresolved.first().is_some_and(|&i| i < step_at.last_idx),
+            unresolved.first().is_none_or(|&i| i < step_at.last_idx),
+            "{onset}: {findings:?}"
+        );
+        assert!(
+            !unresolved.is_empty() || !light_tilts(&findings).is_empty(),
             "{onset}: {findings:?}"
         );
     }
