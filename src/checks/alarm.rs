@@ -127,8 +127,6 @@ pub enum AlarmCode {
     ReciprocityOutlier,
     /// The sample's surface sits off the arm's rotation centre.
     SampleOffCentre,
-    /// The light sweeps' levels follow the light's azimuth as a tilted sample makes them.
-    SampleTilted,
     /// The controller announced another session.
     SessionChanged,
     /// Files in the capture folder not placed as captures.
@@ -159,7 +157,7 @@ pub enum AlarmCode {
 
 impl AlarmCode {
     /// Every code.
-    pub(crate) const ALL: [AlarmCode; 55] = [
+    pub(crate) const ALL: [AlarmCode; 54] = [
         AlarmCode::AnnouncementRefused,
         AlarmCode::BadAnnouncement,
         AlarmCode::BadEntry,
@@ -202,7 +200,6 @@ impl AlarmCode {
         AlarmCode::ProbesRefused,
         AlarmCode::ReciprocityOutlier,
         AlarmCode::SampleOffCentre,
-        AlarmCode::SampleTilted,
         AlarmCode::SessionChanged,
         AlarmCode::SkippedFiles,
         AlarmCode::SlipRefuted,
@@ -262,7 +259,6 @@ impl AlarmCode {
             AlarmCode::ProbesRefused => "probes-refused",
             AlarmCode::ReciprocityOutlier => "reciprocity-outlier",
             AlarmCode::SampleOffCentre => "sample-off-centre",
-            AlarmCode::SampleTilted => "sample-tilted",
             AlarmCode::SessionChanged => "session-changed",
             AlarmCode::SkippedFiles => "skipped-files",
             AlarmCode::SlipRefuted => "slip-refuted",
@@ -325,7 +321,6 @@ impl AlarmCode {
             }
             AlarmCode::ReciprocityOutlier => "a reciprocal pair departs beyond the configured limit",
             AlarmCode::SampleOffCentre => "the sample's surface sits off the arm's rotation centre",
-            AlarmCode::SampleTilted => "the light sweeps' levels follow the light's azimuth, growing as tan θi, alike in the θi layers: a sample tilted in its holder, or a lamp whose light falls off across the sample",
             AlarmCode::SessionChanged => "the controller announced another session",
             AlarmCode::SkippedFiles => "files in the capture folder not placed as captures",
             AlarmCode::SlipRefuted => "a joint slip the light sweeps suggested, which a re-capture of earlier poses refutes",

@@ -387,12 +387,6 @@ impl DriftStage {
         raise(events, at, alarms);
     }
 
-    /// The light-side tilt the light sweeps model (`DriftDetector::set_light_tilt`); none is
-    /// no tilt.
-    pub(super) fn set_light_tilt(&mut self, tilt: Option<[f64; 2]>) {
-        self.detector.set_light_tilt(tilt.unwrap_or([0.0; 2]));
-    }
-
     /// Whether the isotropy classes raise rate alarms (`DriftDetector::set_rate_alarms`).
     pub(super) fn set_rate_alarms(&mut self, on: bool) {
         self.detector.set_rate_alarms(on);

@@ -112,8 +112,6 @@ pub enum Evidence {
     SlipUnresolved(SlipUnresolved),
     /// `step-unresolved`.
     StepUnresolved(StepUnresolved),
-    /// `sample-tilted`.
-    LightTilt(LightTilt),
     /// `wagon-backlash-suspected`.
     WagonBacklash(WagonBacklash),
     /// `wagon-offset-suspected`.
@@ -475,27 +473,6 @@ pub struct StepUnresolved {
     pub threshold_z: f64,
 }
 
-/// The light sweeps' levels share a first harmonic of the light's azimuth that grows as tan θi
-/// across the completed θi layers `layers_deg` (found at sweep `light` of θi = `layer_deg`):
-/// `light_pct` per unit tan θi ± `se_pct` (standard error along its direction), brightest with
-/// the light from `light_azimuth_deg` (sample frame); a sample tilted by `tilt_deg` towards that
-/// azimuth makes it. The layers' own harmonics agree (Cochran's `q` under `q_threshold`), and the
-/// amplitude stands at least `threshold_z` standard errors from zero.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct LightTilt {
-    pub source: Source,
-    pub light_pct: f64,
-    pub light_azimuth_deg: f64,
-    pub se_pct: f64,
-    pub tilt_deg: f64,
-    pub layers_deg: Vec<f64>,
-    pub q: f64,
-    pub q_threshold: f64,
-    pub threshold_z: f64,
-    pub layer_deg: f64,
-    pub light: usize,
-}
-
 /// Arm joint 3 named by its sentinel: the turn, the first capture after the last reading in
 /// control, the statistic and its threshold, and the sentinel's pose.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -723,7 +700,6 @@ impl Evidence {
             C::SlipUnverifiable => parse(&v, Evidence::SlipUnverifiable),
             C::SlipUnresolved => parse(&v, Evidence::SlipUnresolved),
             C::StepUnresolved => parse(&v, Evidence::StepUnresolved),
-            C::SampleTilted => parse(&v, Evidence::LightTilt),
             C::WagonBacklashSuspected => parse(&v, Evidence::WagonBacklash),
             C::WagonOffsetSuspected | C::CameraPoseMoved => parse(&v, Evidence::WagonOffset),
             C::ProbeMovedWithPose => parse(&v, Evidence::ProbePoseMoved),
@@ -792,7 +768,6 @@ impl Evidence {
             Evidence::SlipUnverifiable(_) => code == C::SlipUnverifiable,
             Evidence::SlipUnresolved(_) => code == C::SlipUnresolved,
             Evidence::StepUnresolved(_) => code == C::StepUnresolved,
-            Evidence::LightTilt(_) => code == C::SampleTilted,
             Evidence::WagonBacklash(_) => code == C::WagonBacklashSuspected,
             Evidence::WagonOffset(_) => {
                 matches!(code, C::WagonOffsetSuspected | C::CameraPoseMoved)

@@ -577,10 +577,6 @@ impl Checker {
             sweeps.reserve_entries(&reserved);
             sweeps.set_recapture(recapture);
             let o = sweeps.light_complete(light, level_test, mount.as_ref(), gain.as_ref());
-            let tilt = sweeps.light_tilt();
-            if let Some(drift) = self.drift.as_mut() {
-                drift.set_light_tilt(tilt);
-            }
             self.apply_sweep_outcome(o, (Some(input.idx), Some(input.t)), out);
         }
     }

@@ -4,9 +4,9 @@
 use super::evidence::{self, Evidence, Source};
 use crate::checks::alarm::{action, Affects, Alarm, AlarmCode, AlarmKind, Handling, Severity};
 use crate::detect::sweeps::{
-    ApproachReading, AxisReading, JointSlip, LayerChange, LevelRun, LightTilt, PatternBelow,
-    Recapture, RecaptureReading, SweepAt, SweepFinding, WagonBacklash, WagonOffset, LAYER_CHANGE_Z,
-    PATTERN_BELOW_Z, TILT_SIGMAS,
+    ApproachReading, AxisReading, JointSlip, LayerChange, LevelRun, PatternBelow, Recapture,
+    RecaptureReading, SweepAt, SweepFinding, WagonBacklash, WagonOffset, LAYER_CHANGE_Z,
+    PATTERN_BELOW_Z,
 };
 
 /// The alarm a finding of the sweep checks raises.
@@ -58,7 +58,6 @@ pub(crate) fn alarm(f: &SweepFinding) -> Alarm {
             run,
             below,
         } => step_unresolved(at, *up, run, below),
-        SweepFinding::LightTilt { at, tilt } => sample_tilted(at, tilt),
         SweepFinding::WagonBacklash { at, backlash } => wagon_backlash(at, backlash),
         SweepFinding::WagonOffset { offset, .. } => wagon_offset(offset),
         SweepFinding::LampUnstable {
@@ -223,42 +222,6 @@ fn slip_unresolved(at: &SweepAt, joint: usize, offset_deg: f64, change: &LayerCh
         before_se_deg: change.before.map(|b| b.1),
         change_z: change.change_z,
         threshold_z: LAYER_CHANGE_Z,
-    }))
-}
-
-fn sample_tilted(at: &SweepAt, tilt: &LightTilt) -> Alarm {
-    let (amplitude, azimuth) = tilt.polar();
-    let layers = tilt
-        .layers_deg
-        .iter()
-        .map(|d| format!("{d:.0}°"))
-        .collect::<Vec<_>>()
-        .join(", ");
-    Alarm::new(
-        AlarmKind::Isotropy,
-        Severity::Warning,
-        AlarmCode::SampleTilted,
-        format!(
-            "the light sweeps' levels follow the light's azimuth by {:.2} ± {:.2} % per unit tan θi (brightest with the light from φ = {azimuth:.0}°) alike in the θi = {layers} layers: as a sample tilted by about {:.2}° towards φ = {azimuth:.0}° in its holder would make them, or a lamp whose light falls off across the sample (a near lamp, a beam not centred on it, a sample off the rotation centre). The light sweeps model this pattern from now on (from light sweep {}, θi = {}°), so it is not read as a level change",
-            100.0 * amplitude,
-            100.0 * tilt.se,
-            amplitude.to_degrees(),
-            at.light,
-            layer_deg(at),
-        ),
-    )
-    .with(Evidence::LightTilt(evidence::LightTilt {
-        source: Source::LightSweeps,
-        light_pct: 100.0 * amplitude,
-        light_azimuth_deg: azimuth,
-        se_pct: 100.0 * tilt.se,
-        tilt_deg: amplitude.to_degrees(),
-        layers_deg: tilt.layers_deg.clone(),
-        q: tilt.q,
-        q_threshold: tilt.q_threshold,
-        threshold_z: TILT_SIGMAS,
-        layer_deg: layer_deg(at),
-        light: at.light,
     }))
 }
 
@@ -1064,49 +1027,6 @@ mod tests {
         );
         assert!(
             matches!(&a.evidence, Evidence::WagonOffset(e) if e.approach.as_ref().is_some_and(|r| r.entries == [640, 650, 660, 650]))
-        );
-    }
-
-    #[test]
-    fn a_tilt_the_layers_share_is_named_with_its_size_and_direction() {
-        // 0.5° towards 115°: ln Y per unit tan θi·(cos φi, sin φi)
-        let t = 0.5f64.to_radians();
-        let a = alarm(&SweepFinding::LightTilt {
-            at: AT,
-            tilt: LightTilt {
-                coef: [t * 115f64.to_radians().cos(), t * 115f64.to_radians().sin()],
-                se: 0.0008,
-                layers_deg: vec![30.0, 45.0],
-                q: 1.25,
-                q_threshold: 13.816,
-            },
-        });
-        assert_eq!(
-            (a.code, a.kind, a.severity),
-            (
-                AlarmCode::SampleTilted,
-                AlarmKind::Isotropy,
-                Severity::Warning
-            )
-        );
-        // nothing is retaken
-        assert_eq!(a.affects, None);
-        assert!(
-            a.message.starts_with("the light sweeps' levels follow the light's azimuth by 0.87 ± 0.08 % per unit tan θi (brightest with the light from φ = 115°) alike in the θi = 30°, 45° layers: as a sample tilted by about 0.50° towards φ = 115° in its holder would make them, or a lamp whose light falls off across the sample")
-                && a.message.contains("The light sweeps model this pattern from now on (from light sweep 47, θi = 60°)"),
-            "{}",
-            a.message
-        );
-        let v = serde_json::to_value(&a).unwrap()["evidence"].clone();
-        assert_eq!(v["layers_deg"].to_string(), "[30.0,45.0]");
-        assert!((v["tilt_deg"].as_f64().unwrap() - 0.5).abs() < 1e-9);
-        assert!((v["light_azimuth_deg"].as_f64().unwrap() - 115.0).abs() < 1e-9);
-        assert_eq!(v["threshold_z"].as_f64(), Some(TILT_SIGMAS));
-        // read back as the typed evidence of its code
-        let back = Evidence::read(AlarmCode::SampleTilted, v);
-        assert!(
-            matches!(back, Evidence::LightTilt(ref e) if e.layers_deg == vec![30.0, 45.0]),
-            "{back:?}"
         );
     }
 

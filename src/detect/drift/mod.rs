@@ -368,9 +368,6 @@ pub(crate) struct DriftDetector {
     pattern_checked: Option<(usize, bool)>,
     /// Whether the `Unresolved` advisory has been given.
     unresolved_said: bool,
-    /// A light-side tilt the light sweeps measured (ln Y per unit of the light's gnomonic
-    /// coordinates, `set_light_tilt`), taken out of every pair.
-    light_tilt: [f64; 2],
 }
 
 impl DriftDetector {
@@ -397,29 +394,6 @@ impl DriftDetector {
             rate_alarms: true,
             pattern_checked: None,
             unresolved_said: false,
-            light_tilt: [0.0; 2],
-        }
-    }
-
-    /// A stationary light-side pattern linear in the light's gnomonic coordinates, measured by
-    /// the light sweeps across θi layers (a tilted sample): ln Y per unit of tan θi·cos φi and
-    /// tan θi·sin φi. In light-outer order it moves with time as a rate does, and the classes
-    /// alone cannot tell the two apart until the light has turned through its layers; it is
-    /// taken out of every pair now and as they come, and the model refits at once. A later
-    /// measurement replaces it.
-    pub(crate) fn set_light_tilt(&mut self, tilt: [f64; 2]) {
-        if !tilt.iter().all(|c| c.is_finite()) || tilt == self.light_tilt {
-            return;
-        }
-        let delta = [tilt[0] - self.light_tilt[0], tilt[1] - self.light_tilt[1]];
-        for o in &mut self.obs {
-            o.d -= delta[0] * o.mount[0] + delta[1] * o.mount[1];
-        }
-        self.light_tilt = tilt;
-        if self.obs.len() >= self.spec.min_pairs {
-            if let Some(est) = self.fit() {
-                self.estimate = Some(est);
-            }
         }
     }
 
@@ -541,7 +515,6 @@ impl DriftDetector {
         if !o.light_az.iter().all(|a| a.is_finite()) {
             o.light_az = [0.0; 2];
         }
-        o.d -= self.light_tilt[0] * o.mount[0] + self.light_tilt[1] * o.mount[1];
         if !(o.d.is_finite()
             && o.t_a_h.is_finite()
             && o.t_b_h.is_finite()

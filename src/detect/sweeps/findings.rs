@@ -4,7 +4,6 @@
 pub(crate) use super::approach::ApproachReading;
 pub(crate) use super::axis::AxisReading;
 use super::JointFit;
-pub(crate) use super::LightTilt;
 
 /// The sweep a finding was made at: its light direction, its last capture with that capture's
 /// controller time, and its θi layer (millidegrees).
@@ -238,10 +237,6 @@ pub(crate) enum SweepFinding {
         run: LevelRun,
         below: PatternBelow,
     },
-    /// The light effects of the completed θi layers share a first harmonic of the light's
-    /// azimuth that grows as tan θi (`tilt`): a sample seated tilted, or a lamp beam that falls
-    /// off across the arm's reach. Modelled from then on (once a run).
-    LightTilt { at: SweepAt, tilt: LightTilt },
     /// The wagon lags behind its commanded angle against its last direction of motion.
     WagonBacklash {
         at: SweepAt,
@@ -281,7 +276,6 @@ impl SweepFinding {
             | SweepFinding::SlipUnverifiable { at, .. }
             | SweepFinding::SlipUnresolved { at, .. }
             | SweepFinding::StepUnresolved { at, .. }
-            | SweepFinding::LightTilt { at, .. }
             | SweepFinding::WagonBacklash { at, .. }
             | SweepFinding::WagonOffset { at, .. }
             | SweepFinding::LampUnstable { at, .. }

@@ -53,7 +53,6 @@ mod recapture;
 mod session_tests;
 #[cfg(test)]
 mod tests;
-mod tilt;
 mod wagon;
 mod wagon_watch;
 
@@ -66,7 +65,6 @@ use level::ScaleHistory;
 pub(crate) use level::PATTERN_BELOW_Z;
 use model::{Model, PatternFit, Reference, Row};
 pub(crate) use recapture::{RecaptureNoise, RECAPTURE_WAIT_CAPTURES};
-pub(crate) use tilt::{LightTilt, TILT_SIGMAS};
 pub(crate) use wagon_watch::{wagon_watch_questions, PoseCheck, WagonWatchSummary};
 
 /// `[checks.sweeps]` in the config.
@@ -253,8 +251,6 @@ impl Sweep {
 struct Known<'a> {
     mount: Option<&'a MountPattern>,
     gain: Option<&'a GainPath>,
-    /// The light-side tilt the sweeps model (`tilt`): ln Y per unit tan θi·(cos φi, sin φi).
-    tilt: Option<[f64; 2]>,
 }
 
 /// What the level test found: whether it alarmed, where the step starts (controller s), and,
@@ -382,8 +378,6 @@ pub(crate) struct SweepMonitor {
     unresolved: HashSet<i64>,
     /// The wagon's offset from re-captures of two poses (a probe-taking rig).
     wagon_watch: wagon_watch::WagonWatch,
-    /// The light-side tilt the sweeps model (`tilt`).
-    tilt: tilt::TiltState,
 }
 
 /// Where a completed sweep lies in the session, and the joint offsets its pattern fit gave
@@ -488,7 +482,6 @@ impl SweepMonitor {
             unverifiable: HashSet::new(),
             unresolved: HashSet::new(),
             wagon_watch: Default::default(),
-            tilt: Default::default(),
         }
     }
 
@@ -621,13 +614,8 @@ impl SweepMonitor {
             level_se: f64::NAN,
             pattern: None,
         });
-        let mut known = Known {
-            mount,
-            gain,
-            tilt: self.tilt.coef(),
-        };
-        let mut reference = self.backfit(&sweep.past, &known);
-        self.update_tilt(&sweep, &mut known, &mut reference);
+        let known = Known { mount, gain };
+        let reference = self.backfit(&sweep.past, &known);
         self.ensure_model(sweep.layer, &reference.class_effects());
         let (all, rows) = self.residuals(&sweep.current, &reference, &known, Model::Interpolant);
         if all.len() < self.spec.min_captures {
@@ -693,7 +681,6 @@ impl SweepMonitor {
             );
         }
         let mut findings = Vec::new();
-        findings.extend(self.tilt.name_at(sweep.at()));
         let level_step = if level_test {
             let floor = pattern_fit.as_ref().map(|p| p.sd);
             self.test_level(
@@ -759,11 +746,6 @@ impl SweepMonitor {
             slip_at_s,
             withdrawn_steps_s,
         }
-    }
-
-    /// The light-side tilt the sweeps model (`tilt`): ln Y per unit tan θi·(cos φi, sin φi).
-    pub(crate) fn light_tilt(&self) -> Option<[f64; 2]> {
-        self.tilt.coef()
     }
 
     /// Whether the probes' `lamp-unstable` stands: the sweeps' joint and lag tests are then

@@ -3,7 +3,6 @@
 //! joints, the layer's azimuthal level pattern and the sweeps' pattern fits.
 
 use super::*;
-use std::f64::consts::SQRT_2;
 
 /// The F + L + C reference: class, light and camera effects (ln units), and which classes have
 /// members.
@@ -402,49 +401,16 @@ impl SweepMonitor {
         // the layer's outline pattern (the 4th harmonic) stands out (`BORROW_SIGMAS`). (A free
         // 2nd harmonic on less than half its period, or a borrowed one in a layer without an
         // outline pattern, takes up a step instead.)
-        let borrowed = (harmonics == [4.0])
-            .then(|| self.second_harmonic_below(sweep, r))
-            .flatten();
-        let fit = |values: &[f64]| {
-            borrowed
-                .and_then(|u| pattern_fit(&azimuths, values, &harmonics, Some(u), here))
-                .filter(|f| amplitude_t(&f.coef, &f.cov, 1) >= BORROW_SIGMAS)
-                .or_else(|| pattern_fit(&azimuths, values, &harmonics, None, here))
-        };
-        let fitted = fit(&values);
-        let Some(t) = self.tilt.model() else {
-            return fitted.map(|f| f.pattern);
-        };
-        // the light-side tilt taken out of the effects (`tilt`) is extrapolated to this θi by
-        // the tan θi law the layers below followed; once the layer has lights enough for its
-        // own 2nd harmonic, it keeps the tilt only if its lights are closer to the pattern with
-        // it than without it (a light-side pattern that stops growing as tan θi at grazing
-        // light would otherwise make level changes of its own). Either way the estimate's
-        // error is a first harmonic the layer's constant takes up only in part: up to √2 of its
-        // standard error grown to this θi.
-        let without = (lights.len() >= PATTERN_MIN_LIGHTS[1])
-            .then(|| {
-                let put_back: Vec<f64> = lights
-                    .iter()
-                    .zip(&values)
-                    .map(|(&l, v)| v + self.tilt_effect(t.coef, l, sweep.layer))
-                    .collect();
-                fit(&put_back)
-            })
-            .flatten();
-        let rss = |f: &LevelPatternFit| f.pattern.residuals.iter().map(|e| e * e).sum::<f64>();
-        let chosen = match (fitted, without) {
-            (Some(a), Some(b)) if rss(&b) < rss(&a) => Some(LayerPattern {
-                level: b.pattern.level - self.tilt_effect(t.coef, sweep.light, sweep.layer),
-                ..b.pattern
-            }),
-            (a, _) => a.map(|f| f.pattern),
-        };
-        let tilt_sd = SQRT_2 * t.se * (sweep.layer as f64 / 1000.0).to_radians().tan();
-        chosen.map(|p| LayerPattern {
-            sd: p.sd.hypot(tilt_sd),
-            ..p
-        })
+        if harmonics == [4.0] {
+            if let Some(u) = self.second_harmonic_below(sweep, r) {
+                if let Some(f) = pattern_fit(&azimuths, &values, &harmonics, Some(u), here) {
+                    if amplitude_t(&f.coef, &f.cov, 1) >= BORROW_SIGMAS {
+                        return Some(f.pattern);
+                    }
+                }
+            }
+        }
+        pattern_fit(&azimuths, &values, &harmonics, None, here).map(|f| f.pattern)
     }
 
     /// The phase of the 2nd harmonic of the θi layer right below the sweep's, as the unit
@@ -511,27 +477,11 @@ impl SweepMonitor {
         (lights, step)
     }
 
-    /// The light-side tilt `t` (`tilt`) at light `light` of θi layer `layer` (millidegrees):
-    /// t · tan θi (cos φi, sin φi); 0 where the light's azimuth is unknown.
-    pub(super) fn tilt_effect(&self, t: [f64; 2], light: usize, layer: i64) -> f64 {
-        let phi = self.light_phi.get(light).copied().unwrap_or(f64::NAN);
-        let tan = (layer as f64 / 1000.0).to_radians().tan();
-        let e = tan * (t[0] * phi.cos() + t[1] * phi.sin());
-        if e.is_finite() {
-            e
-        } else {
-            0.0
-        }
-    }
-
     /// ln Y of capture `k`, less what the drift model already explains.
     pub(super) fn ln_y_of(&self, k: usize, known: &Known) -> f64 {
         let c = &self.captures[k];
         c.y.ln()
             - known.mount.map_or(0.0, |m| m.ln_effect(&c.mount))
-            - known
-                .tilt
-                .map_or(0.0, |t| self.tilt_effect(t, c.light, c.layer))
             - known.gain.map_or(0.0, |g| g.ln_at(c.t))
     }
 

@@ -5,7 +5,7 @@ use super::*;
 use crate::measure::geometry::azimuth_difference_deg;
 use crate::measure::plan::SamplingPlan;
 
-#[derive(Debug, Clone, Copy)]
+#[derive(Clone, Copy)]
 enum Fault {
     None,
     /// (joint index 0-based, degrees)
@@ -28,11 +28,6 @@ enum Fault {
     /// it is taken; with a gain factor from the onset as well (a lamp step under it). The
     /// footprint's noise per light is 0.2 % with it.
     Shadow(f64, Option<f64>),
-    /// A sample seated tilted by this many radians towards this azimuth (radians, sample frame)
-    /// from the first capture on: every light's level moves by size·tan θi·cos(φi − azimuth),
-    /// whenever it is taken (the cosine the daemon divides by is the nominal one); with a gain
-    /// factor from the onset as well. The footprint's noise per light is 0.2 % with it.
-    Tilt(f64, f64, Option<f64>),
 }
 
 /// The joints named as slipped, with the sweep each was named at.
@@ -148,11 +143,8 @@ fn simulate_with(
         let mut gain = 1.0;
         if at >= onset {
             match fault {
-                Fault::None
-                | Fault::LightPattern(..)
-                | Fault::Shadow(_, None)
-                | Fault::Tilt(_, _, None) => {}
-                Fault::Shadow(_, Some(g)) | Fault::Tilt(_, _, Some(g)) => gain = g,
+                Fault::None | Fault::LightPattern(..) | Fault::Shadow(_, None) => {}
+                Fault::Shadow(_, Some(g)) => gain = g,
                 Fault::Joint(j, d) => actual.joints_deg[j] += d,
                 Fault::WagonBacklash(b) => actual.wagon_deg -= b * dir.unwrap_or(wagon_dirs[e]),
                 Fault::WagonOffset(d) => actual.wagon_deg += d,
@@ -179,12 +171,11 @@ fn simulate_with(
             Fault::Shadow(size, _) => {
                 -size * ti.tan() * (pi - std::f64::consts::PI).cos().max(0.0).powi(2)
             }
-            Fault::Tilt(size, az, _) => size * ti.tan() * (pi - az).cos(),
             _ => 0.0,
         };
-        // the footprint's own noise per light: 0.5 %, 0.2 % under a shadow or a tilt (a
-        // pattern is told from per-light noise only where it stands out of it)
-        let per_light = if matches!(fault, Fault::Shadow(..) | Fault::Tilt(..)) {
+        // the footprint's own noise per light: 0.5 %, 0.2 % under a shadow (a pattern is told
+        // from per-light noise only where it stands out of it)
+        let per_light = if matches!(fault, Fault::Shadow(..)) {
             0.002
         } else {
             0.005
@@ -1160,14 +1151,11 @@ fn a_shadow_that_the_layers_harmonics_miss_is_unresolved_where_it_grows_never_a_
             "seed {seed}: {findings:?}"
         );
         let unresolved = steps_unresolved(&findings);
-        // where the shadow grows past the tolerance, the θi = 75° layer at the shadow's side, a
-        // level change is an advisory, unless the shadow's first harmonic, named as a tilt of
-        // the light side (`tilt`), is modelled and leaves none
+        // where the shadow grows past the tolerance: the θi = 75° layer, at the shadow's side
         assert!(
-            !light_tilts(&findings).is_empty()
-                || unresolved
-                    .iter()
-                    .any(|(at, _, _)| at.layer_mdeg == 75_000 && (63..=75).contains(&at.light)),
+            unresolved
+                .iter()
+                .any(|(at, _, _)| at.layer_mdeg == 75_000 && (63..=75).contains(&at.light)),
             "seed {seed}: {findings:?}"
         );
         for (_, run, below) in unresolved {
@@ -1184,28 +1172,22 @@ fn a_shadow_that_the_layers_harmonics_miss_is_unresolved_where_it_grows_never_a_
 
 #[test]
 fn a_lamp_step_under_the_shadow_is_raised_once_the_level_stays_off_past_it() {
-    // −3 % from inside the θi = 75° layer's shaded side: raised before the run ends, once the
-    // level stays off where the layer below shows no shadow (first as much the shadow's as the
-    // lamp's, an advisory, where the shadow is not modelled as a tilt)
+    // −3 % from inside the θi = 75° layer's shaded side: first as much the shadow's as the
+    // lamp's, then raised, before the run ends, once the level stays off where the layer
+    // below shows no shadow
     for onset in [66 * 81 + 40, 68 * 81 + 40] {
         let (_, findings) = run(Fault::Shadow(SHADOW, Some(0.97)), onset, 80, 1, true);
         let (step_at, step_run, up) = gain_steps(&findings)
             .find(|(at, _, _)| at.last_idx as usize >= onset)
             .unwrap_or_else(|| panic!("{onset}: no gain step in {findings:?}"));
         assert!(!up && step_run.level_pct < -1.0, "{step_run:?}");
-        // an advisory, if any (none where the shadow's first harmonic is modelled as a tilt),
-        // comes before the step
         let unresolved: Vec<u64> = steps_unresolved(&findings)
             .iter()
             .map(|(at, _, _)| at.last_idx)
             .filter(|&i| i as usize >= onset)
             .collect();
         assert!(
-            unresolved.first().is_none_or(|&i| i < step_at.last_idx),
-            "{onset}: {findings:?}"
-        );
-        assert!(
-            !unresolved.is_empty() || !light_tilts(&findings).is_empty(),
+            unresolved.first().is_some_and(|&i| i < step_at.last_idx),
             "{onset}: {findings:?}"
         );
     }
@@ -1224,110 +1206,5 @@ fn a_lamp_step_under_the_shadow_is_raised_once_the_level_stays_off_past_it() {
             "{at:?} {findings:?}"
         );
         assert!(steps_unresolved(&findings).is_empty(), "{findings:?}");
-    }
-}
-
-/// A sample seated 0.5° off flat (a burr under its holder's edge).
-const TILT: f64 = 0.5 * std::f64::consts::PI / 180.0;
-
-/// The `LightTilt` findings: the sweep each came at and the tilt.
-fn light_tilts(findings: &[SweepFinding]) -> Vec<(&SweepAt, &LightTilt)> {
-    findings
-        .iter()
-        .filter_map(|f| match f {
-            SweepFinding::LightTilt { at, tilt } => Some((at, tilt)),
-            _ => None,
-        })
-        .collect()
-}
-
-#[test]
-fn a_tilted_sample_is_named_from_the_layers_below_and_is_no_level_change_from_then_on() {
-    // six seeds, the tilt towards three azimuths: the θi = 30° and 45° layers name it at the
-    // 60° layer's first tested sweep (light 38), a few runs a layer later; a gain step from
-    // the 60° layer on is rare (before it, in the 45° layer, the tilt is not identified yet)
-    let (mut early, mut stepped) = (0, 0);
-    for seed in 1..=6 {
-        for az in [60.0f64, 200.0, 300.0] {
-            let (_, findings) = run(
-                Fault::Tilt(TILT, az.to_radians(), None),
-                usize::MAX,
-                80,
-                seed,
-                true,
-            );
-            let tilts = light_tilts(&findings);
-            assert_eq!(tilts.len(), 1, "seed {seed}, {az}°: {findings:?}");
-            let (at, tilt) = tilts[0];
-            assert!(at.light <= 58, "seed {seed}, {az}°: {at:?}");
-            early += usize::from(at.light == 38);
-            let (amplitude, azimuth) = tilt.polar();
-            assert!(
-                (amplitude / TILT - 1.0).abs() <= 0.3,
-                "seed {seed}, {az}°: {tilt:?}"
-            );
-            let off = (azimuth - az + 540.0).rem_euclid(360.0) - 180.0;
-            assert!(off.abs() <= 15.0, "seed {seed}, {az}°: {tilt:?}");
-            assert!(
-                tilt.layers_deg.len() >= 2 && tilt.q <= tilt.q_threshold,
-                "{tilt:?}"
-            );
-            stepped += usize::from(gain_steps(&findings).any(|(at, _, _)| at.light >= 37));
-        }
-    }
-    assert!(early >= 16, "named at light 38 in {early} of 18");
-    assert!(
-        stepped <= 2,
-        "a gain step from the 60° layer on in {stepped} of 18"
-    );
-}
-
-#[test]
-fn a_lamp_step_under_a_tilt_is_raised_where_it_happens() {
-    // −3 % in the 60° layer, after the tilt is named: raised within six sweeps of the onset
-    for seed in 1..=6 {
-        for az in [60.0f64, 200.0] {
-            let onset = 47 * 81 + 40;
-            let (_, findings) = run(
-                Fault::Tilt(TILT, az.to_radians(), Some(0.97)),
-                onset,
-                80,
-                seed,
-                true,
-            );
-            assert!(
-                !light_tilts(&findings).is_empty(),
-                "seed {seed}, {az}°: {findings:?}"
-            );
-            let (at, run, _) = gain_steps(&findings)
-                .find(|(at, _, _)| at.last_idx as usize >= onset)
-                .unwrap_or_else(|| panic!("seed {seed}, {az}°: no step in {findings:?}"));
-            assert!(
-                at.light <= 53 && run.level_pct < -1.0,
-                "seed {seed}, {az}°: {at:?} {run:?}"
-            );
-        }
-    }
-}
-
-#[test]
-fn no_tilt_is_named_without_one_nor_from_a_step_or_a_slip_inside_a_layer() {
-    // the design's noise (0.5 % a light): no tilt from nothing, from a −3 % step inside the
-    // 30° or the 45° layer, or from a slip of joint 1 (a tilt of the sample from then on, not
-    // from the start) or joint 2 in the 45° layer
-    for seed in 1..=6 {
-        for (fault, onset) in [
-            (Fault::None, usize::MAX),
-            (Fault::Step(0.97), 12 * 81 + 40),
-            (Fault::Step(0.97), 27 * 81 + 40),
-            (Fault::Joint(0, 1.0), 27 * 81 + 40),
-            (Fault::Joint(1, 1.0), 27 * 81 + 40),
-        ] {
-            let (_, findings) = run(fault, onset, 80, seed, true);
-            assert!(
-                light_tilts(&findings).is_empty(),
-                "seed {seed}, {fault:?}: {findings:?}"
-            );
-        }
     }
 }
